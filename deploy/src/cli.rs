@@ -1,0 +1,4 @@
+//! The `ocelli` command line.
+pub fn main() -> std::process::ExitCode {
+    std::process::ExitCode::SUCCESS
+}

@@ -1,0 +1,2 @@
+//! Putting Ocelli nodes together: the `ocelli` command line.
+pub mod cli;

@@ -1,0 +1,39 @@
+//! `proto` is the contract every Ocelli node shares.
+//!
+//! What two nodes must agree on lives here and nowhere else: the messages and their wire
+//! encoding ([`msg`], [`wire`]), the transports ([`transport`]), units and frames ([`ids`],
+//! [`time`]), the camera model ([`camera`], [`opencv`]), the state layout, motion and
+//! measurement models ([`models`]) and the scenario file ([`scenario`]).
+//!
+//! Units: metres, seconds (nanoseconds on the wire), radians, dBm, milliwatts. The world frame
+//! is right-handed with z up; camera frames follow OpenCV (x right, y down, z forward).
+
+pub mod camera;
+pub mod ids;
+pub mod models;
+pub mod msg;
+pub mod node;
+pub mod opencv;
+pub mod scenario;
+pub mod time;
+pub mod transport;
+pub mod validate;
+pub mod wire;
+
+pub use ids::{NodeId, Role, TargetId};
+pub use msg::{Envelope, Message, Mode};
+pub use time::ClusterTime;
+pub use wire::{WireError, decode, encode};
+
+/// Version of the wire protocol. Carried in every frame header and in the handshake; a
+/// mismatch is rejected before the body is decoded.
+pub const PROTOCOL_VERSION: u16 = 1;
+
+/// Largest encoded frame any transport accepts, in bytes.
+pub const MAX_FRAME_BYTES: usize = 16 * 1024;
+
+/// Most node ids a single `TrackReport` may name.
+pub const MAX_CONTRIBUTORS: usize = 1024;
+
+/// Most nodes a scenario may declare.
+pub const MAX_NODES: usize = 4096;

@@ -1,0 +1,234 @@
+//! Models shared by cameras and heads, so that the camera that linearizes and the head that
+//! sums agree to the bit: the state layout, constant-velocity motion (paper 000 eq. 11), the
+//! pin-hole measurement model and its Jacobian (paper 000 eq. 12–13, paper 002 eq. 1), the RSSI
+//! models (paper 002 eq. 2–5) and the information form of one measurement.
+
+use crate::camera::CameraModel;
+use crate::msg::{Mat6, Vec6};
+use nalgebra::{Matrix2, Matrix6, SMatrix, SVector, Vector2, Vector3, Vector6};
+use serde::{Deserialize, Serialize};
+
+/// Index of X in the state `[X Y Z Vx Vy Vz]`.
+pub const POS: usize = 0;
+/// Index of Vx in the state.
+pub const VEL: usize = 3;
+/// State dimension.
+pub const STATE_DIM: usize = 6;
+
+pub type State = Vector6<f64>;
+pub type Info = Matrix6<f64>;
+
+pub fn position(x: &State) -> Vector3<f64> {
+    Vector3::new(x[0], x[1], x[2])
+}
+
+pub fn mat6_to_wire(m: &Matrix6<f64>) -> Mat6 {
+    let mut out = [[0.0; 6]; 6];
+    for (i, row) in out.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = m[(i, j)];
+        }
+    }
+    out
+}
+
+pub fn mat6_from_wire(m: &Mat6) -> Matrix6<f64> {
+    Matrix6::from_fn(|i, j| m[i][j])
+}
+
+pub fn vec6_to_wire(v: &Vector6<f64>) -> Vec6 {
+    [v[0], v[1], v[2], v[3], v[4], v[5]]
+}
+
+pub fn vec6_from_wire(v: &Vec6) -> Vector6<f64> {
+    Vector6::from_column_slice(v)
+}
+
+/// Constant-velocity motion with white-noise acceleration (paper 000 eq. 11 plus its Gaussian
+/// model noise). `accel_psd` is the acceleration noise spectral density per axis, m²/s³.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct MotionModel {
+    pub accel_psd: [f64; 3],
+}
+
+impl Default for MotionModel {
+    fn default() -> Self {
+        // A walking robot or person: accelerations of a few tenths of m/s² over a second.
+        MotionModel {
+            accel_psd: [0.25, 0.25, 0.01],
+        }
+    }
+}
+
+impl MotionModel {
+    /// Transition matrix G for a step of `dt` seconds.
+    pub fn transition(&self, dt: f64) -> Matrix6<f64> {
+        let mut g = Matrix6::identity();
+        for a in 0..3 {
+            g[(POS + a, VEL + a)] = dt;
+        }
+        g
+    }
+
+    /// g(μ) = G μ.
+    pub fn predict_mean(&self, x: &State, dt: f64) -> State {
+        self.transition(dt) * x
+    }
+
+    /// Process noise R for a step of `dt` seconds.
+    pub fn process_noise(&self, dt: f64) -> Matrix6<f64> {
+        let mut r = Matrix6::zeros();
+        let (dt2, dt3) = (dt * dt, dt * dt * dt);
+        for a in 0..3 {
+            let q = self.accel_psd[a];
+            r[(POS + a, POS + a)] = q * dt3 / 3.0;
+            r[(POS + a, VEL + a)] = q * dt2 / 2.0;
+            r[(VEL + a, POS + a)] = q * dt2 / 2.0;
+            r[(VEL + a, VEL + a)] = q * dt;
+        }
+        r
+    }
+}
+
+/// Pin-hole measurement of the target position: h(x) (eq. 12) and its 2×6 Jacobian (eq. 13).
+/// `None` when the predicted point is (nearly) on the camera plane, where h is singular.
+pub fn pinhole(camera: &CameraModel, x: &State) -> Option<(Vector2<f64>, SMatrix<f64, 2, 6>)> {
+    let c = camera.pose.world_to_camera(&position(x));
+    if c.z.abs() < 1e-6 {
+        return None;
+    }
+    let iz = 1.0 / c.z;
+    let h = Vector2::new(c.x * iz, c.y * iz);
+    let dh_dc = SMatrix::<f64, 2, 3>::new(iz, 0.0, -c.x * iz * iz, 0.0, iz, -c.y * iz * iz);
+    let dh_dp = dh_dc * camera.pose.rotation.matrix();
+    let mut jac = SMatrix::<f64, 2, 6>::zeros();
+    jac.fixed_view_mut::<2, 3>(0, POS).copy_from(&dh_dp);
+    Some((h, jac))
+}
+
+/// Pin-hole measurement of where the target was `dt` seconds earlier, `P − V dt` (paper 000's
+/// p_{i,t−1} term): its prediction and 2×6 Jacobian, which also observes velocity.
+pub fn pinhole_previous(
+    camera: &CameraModel,
+    x: &State,
+    dt: f64,
+) -> Option<(Vector2<f64>, SMatrix<f64, 2, 6>)> {
+    let mut back = *x;
+    for a in 0..3 {
+        back[POS + a] -= dt * x[VEL + a];
+    }
+    let (h, jac_pos) = pinhole(camera, &back)?;
+    let mut jac = jac_pos;
+    let dp = jac_pos.fixed_view::<2, 3>(0, POS).into_owned();
+    jac.fixed_view_mut::<2, 3>(0, VEL).copy_from(&(dp * -dt));
+    Some((h, jac))
+}
+
+/// An RSSI-range model (paper 002 §IV).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", tag = "kind")]
+pub enum RssiModel {
+    /// `RSSI = a log10(d) + b` (eq. 2), the default model, with its variance σ²_D (dB²).
+    LogDistance { a: f64, b: f64, variance: f64 },
+    /// `RSSI = a d + b`, the locally trained model (eq. 4–5), with σ²_tm (dB²).
+    Linear { a: f64, b: f64, variance: f64 },
+}
+
+/// Distances below this are clamped: log d and the Jacobian blow up at the node itself.
+pub const RSSI_MIN_DISTANCE_M: f64 = 0.1;
+
+impl Default for RssiModel {
+    fn default() -> Self {
+        // Free-space-like indoor default: −45 dBm at 1 m, path-loss exponent 2.2, σ = 4 dB.
+        RssiModel::LogDistance {
+            a: -22.0,
+            b: -45.0,
+            variance: 16.0,
+        }
+    }
+}
+
+impl RssiModel {
+    pub fn variance(&self) -> f64 {
+        match *self {
+            RssiModel::LogDistance { variance, .. } | RssiModel::Linear { variance, .. } => variance,
+        }
+    }
+
+    /// Predicted RSSI at distance `d` metres.
+    pub fn predict(&self, d: f64) -> f64 {
+        let d = d.max(RSSI_MIN_DISTANCE_M);
+        match *self {
+            RssiModel::LogDistance { a, b, .. } => a * d.log10() + b,
+            RssiModel::Linear { a, b, .. } => a * d + b,
+        }
+    }
+
+    /// d RSSI / d distance.
+    pub fn slope(&self, d: f64) -> f64 {
+        let d = d.max(RSSI_MIN_DISTANCE_M);
+        match *self {
+            RssiModel::LogDistance { a, .. } => a / (d * std::f64::consts::LN_10),
+            RssiModel::Linear { a, .. } => a,
+        }
+    }
+
+    /// h(x) and the 1×6 Jacobian Hr = ∂h/∂d · ∂d/∂q (eq. 3) for a node at `node`.
+    pub fn measurement(&self, node: &Vector3<f64>, x: &State) -> (f64, SMatrix<f64, 1, 6>) {
+        let diff = position(x) - node;
+        let d = diff.norm();
+        let mut jac = SMatrix::<f64, 1, 6>::zeros();
+        if d > 1e-9 {
+            let g = diff * (self.slope(d) / d);
+            for a in 0..3 {
+                jac[(0, POS + a)] = g[a];
+            }
+        }
+        (self.predict(d), jac)
+    }
+}
+
+/// Information form of one measurement linearized at `mean` (paper 002 §III):
+/// Ω_i = Hᵀ Q⁻¹ H, ξ_i = Hᵀ Q⁻¹ (z − h(μ̄) + H μ̄). `None` when Q is not positive definite.
+pub fn information_contribution<const M: usize>(
+    z: &SVector<f64, M>,
+    predicted: &SVector<f64, M>,
+    jac: &SMatrix<f64, M, 6>,
+    noise: &SMatrix<f64, M, M>,
+    mean: &State,
+) -> Option<(Info, State)> {
+    let chol = noise.cholesky()?;
+    // Q⁻¹ H by solving, not inverting.
+    let qinv_h = chol.solve(jac);
+    let innovation = z - predicted + jac * mean;
+    let mut omega = jac.transpose() * qinv_h;
+    omega = 0.5 * (omega + omega.transpose());
+    let xi = qinv_h.transpose() * innovation;
+    Some((omega, xi))
+}
+
+/// The camera half of a contribution: a normalized point with its 2×2 covariance.
+pub fn camera_contribution(
+    camera: &CameraModel,
+    point: &Vector2<f64>,
+    cov: &Matrix2<f64>,
+    mean: &State,
+) -> Option<(Info, State)> {
+    let (h, jac) = pinhole(camera, mean)?;
+    information_contribution(point, &h, &jac, cov, mean)
+}
+
+/// The RSSI half of a contribution: one reading with the node's model.
+pub fn rssi_contribution(
+    model: &RssiModel,
+    node: &Vector3<f64>,
+    dbm: f64,
+    mean: &State,
+) -> Option<(Info, State)> {
+    let (h, jac) = model.measurement(node, mean);
+    let z = SVector::<f64, 1>::new(dbm);
+    let hv = SVector::<f64, 1>::new(h);
+    let q = SMatrix::<f64, 1, 1>::new(model.variance());
+    information_contribution(&z, &hv, &jac, &q, mean)
+}

@@ -1,0 +1,303 @@
+//! Every message Ocelli nodes exchange, grouped by direction.
+//!
+//! postcard is positional: the order of fields and variants below *is* the protocol. Append
+//! new variants at the end and bump [`crate::PROTOCOL_VERSION`] on any other change; the golden
+//! byte vectors in `wire`'s tests pin the current layout.
+
+use crate::ids::{NodeId, Role, TargetId};
+use crate::time::ClusterTime;
+use serde::{Deserialize, Serialize};
+
+/// 6×6 matrix, row-major (information matrices, covariances of the state).
+pub type Mat6 = [[f64; 6]; 6];
+/// State-sized vector `[X Y Z Vx Vy Vz]`.
+pub type Vec6 = [f64; 6];
+
+/// Frame header + body. Every frame on every transport is one encoded `Envelope`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Envelope {
+    /// The node that sent the frame.
+    pub source: NodeId,
+    /// Per-sender sequence number, +1 for every frame the sender emits on a link.
+    pub seq: u64,
+    /// Sender's cluster time when the frame was created.
+    pub time: ClusterTime,
+    pub body: Message,
+}
+
+/// Sensing mode of a camera node (paper 002 Fig. 3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Mode {
+    /// Camera and radio on: pixel measurements and RSSI.
+    Active,
+    /// Camera off, radio on: RSSI only, no capture, no segmentation.
+    CameraOff,
+    /// Low-power: nothing measured.
+    Inactive,
+}
+
+impl Mode {
+    pub const ALL: [Mode; 3] = [Mode::Active, Mode::CameraOff, Mode::Inactive];
+
+    pub fn index(self) -> usize {
+        match self {
+            Mode::Active => 0,
+            Mode::CameraOff => 1,
+            Mode::Inactive => 2,
+        }
+    }
+
+    pub fn camera_on(self) -> bool {
+        self == Mode::Active
+    }
+
+    pub fn radio_on(self) -> bool {
+        self != Mode::Inactive
+    }
+}
+
+/// Axis-aligned pixel box `[xmin, ymin, xmax, ymax]`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PixelBox {
+    pub xmin: f32,
+    pub ymin: f32,
+    pub xmax: f32,
+    pub ymax: f32,
+}
+
+/// Camera pose as sent in measurement packets (paper 000 §6.1.2): world → camera rotation as a
+/// Rodrigues vector and translation, so `X_cam = R(rvec) · X_world + tvec`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PoseWire {
+    pub rvec: [f64; 3],
+    pub tvec: [f64; 3],
+}
+
+/// A received-signal-strength reading of the target's tag.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RssiReading {
+    /// Received power, dBm.
+    pub dbm: f64,
+    /// When the packet was received, cluster time.
+    pub time: ClusterTime,
+}
+
+/// A detection's colour signature: mean hue (rad), saturation and intensity in `[0, 1]`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ColourSignature {
+    pub hue: f32,
+    pub saturation: f32,
+    pub intensity: f32,
+}
+
+// ---------------------------------------------------------------- camera → head
+
+/// One undistorted detection (centralized mode, paper 000): the head linearizes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Measurement {
+    /// Target the camera gated this detection to, or `None` when it matched no prior.
+    pub target: Option<TargetId>,
+    /// Filter step of the prior it was gated against (0 when none).
+    pub step: u64,
+    /// Normalized pin-hole point `[x, y]` (undistorted).
+    pub point: [f64; 2],
+    /// Previous-frame normalized point of the same detection, if tracked (paper 000 eq. 13).
+    pub prev_point: Option<[f64; 2]>,
+    /// Covariance of `point`, `[σxx, σxy, σyy]` in normalized units².
+    pub cov: [f64; 3],
+    pub pixel_box: PixelBox,
+    /// Region area in pixels.
+    pub area: u32,
+    pub colour: ColourSignature,
+    pub pose: PoseWire,
+    pub captured: ClusterTime,
+    pub mode: Mode,
+    pub rssi: Option<RssiReading>,
+}
+
+/// A node's information contribution to one distributed EIF step (paper 002 §III).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Contribution {
+    pub target: TargetId,
+    pub step: u64,
+    /// Ω_i = Hᵀ Q⁻¹ H, symmetric positive semi-definite; all zero when the camera had nothing.
+    pub info_matrix: Mat6,
+    /// ξ_i = Hᵀ Q⁻¹ (z − h(μ̄) + H μ̄).
+    pub info_vector: Vec6,
+    /// Whether a camera measurement is folded into Ω_i, ξ_i.
+    pub camera: bool,
+    pub captured: ClusterTime,
+    pub mode: Mode,
+    /// The raw RSSI of the target's tag; the head linearizes it with the node's RSSI model.
+    pub rssi: Option<RssiReading>,
+}
+
+/// Camera node health and energy accounting, sent periodically to its head and the server.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NodeStatus {
+    pub mode: Mode,
+    /// Cumulative nanoseconds spent in Active, CameraOff, Inactive.
+    pub time_in_mode_ns: [u64; 3],
+    pub frames: u64,
+    pub detections: u64,
+    /// Messages this node could not deliver (queue full, link down).
+    pub dropped: u64,
+    /// Frames it received and rejected.
+    pub rejected: u64,
+    /// Estimated offset to the leader's clock, ns, and the residual of the fit, ns.
+    pub sync_offset_ns: i64,
+    pub sync_error_ns: i64,
+}
+
+// ---------------------------------------------------------------- head → camera
+
+/// The predicted state of one track, broadcast at the start of a step.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Prior {
+    pub target: TargetId,
+    pub step: u64,
+    /// μ̄, the predicted mean; cameras linearize at it.
+    pub mean: Vec6,
+    /// Σ̄, the predicted covariance; cameras gate with it.
+    pub cov: Mat6,
+    /// Contributions arriving after this cluster time are late.
+    pub deadline: ClusterTime,
+}
+
+/// Switch a node's sensing mode.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Command {
+    pub node: NodeId,
+    pub mode: Mode,
+}
+
+// ---------------------------------------------------------------- head → server
+
+/// One node's share in a step.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Contributor {
+    pub node: NodeId,
+    pub camera: bool,
+    pub rssi: bool,
+}
+
+/// The posterior of one track after a step.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrackReport {
+    pub target: TargetId,
+    /// Global id, once the server gave one.
+    pub global: Option<TargetId>,
+    pub step: u64,
+    pub time: ClusterTime,
+    pub mean: Vec6,
+    pub cov: Mat6,
+    pub contributors: Vec<Contributor>,
+    /// The cluster's power draw this step with the scenario's power figures, mW.
+    pub power_mw: f64,
+    /// Contributions that arrived after the deadline of their step, cumulative.
+    pub late: u64,
+}
+
+// ---------------------------------------------------------------- server → nodes
+
+/// Which head a camera belongs to.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Assignment {
+    pub node: NodeId,
+    pub head: NodeId,
+}
+
+/// Move a track to a head, starting from its last posterior (handover and failover).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Handover {
+    pub global: TargetId,
+    pub to_head: NodeId,
+    pub from_head: Option<NodeId>,
+    pub time: ClusterTime,
+    pub mean: Vec6,
+    pub cov: Mat6,
+}
+
+/// Time-sync beacon (FTSP): the leader's cluster time when it sent the beacon.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SyncBeacon {
+    pub leader: NodeId,
+    pub round: u64,
+    pub leader_time: ClusterTime,
+}
+
+/// Liveness change of a node, told to its head.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Liveness {
+    pub node: NodeId,
+    pub up: bool,
+}
+
+// ---------------------------------------------------------------- every link
+
+/// First frame on every link.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Hello {
+    pub version: u16,
+    pub role: Role,
+    pub node: NodeId,
+}
+
+/// Answer to a [`Hello`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HelloAck {
+    pub accepted: bool,
+    pub reason: String,
+}
+
+/// Every message kind. Variant order is part of the wire format.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Message {
+    Hello(Hello),
+    HelloAck(HelloAck),
+    Heartbeat,
+    Measurement(Measurement),
+    Contribution(Contribution),
+    NodeStatus(NodeStatus),
+    Prior(Prior),
+    Command(Command),
+    TrackReport(TrackReport),
+    Assignment(Assignment),
+    Handover(Handover),
+    SyncBeacon(SyncBeacon),
+    Liveness(Liveness),
+}
+
+impl Message {
+    /// Short kind name for logs, counters and benchmarks.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Message::Hello(_) => "hello",
+            Message::HelloAck(_) => "hello_ack",
+            Message::Heartbeat => "heartbeat",
+            Message::Measurement(_) => "measurement",
+            Message::Contribution(_) => "contribution",
+            Message::NodeStatus(_) => "node_status",
+            Message::Prior(_) => "prior",
+            Message::Command(_) => "command",
+            Message::TrackReport(_) => "track_report",
+            Message::Assignment(_) => "assignment",
+            Message::Handover(_) => "handover",
+            Message::SyncBeacon(_) => "sync_beacon",
+            Message::Liveness(_) => "liveness",
+        }
+    }
+
+    /// Whether a transport may drop this message when a queue is full. Measurements and
+    /// reports are superseded by the next step; control messages never are.
+    pub fn droppable(&self) -> bool {
+        matches!(
+            self,
+            Message::Measurement(_)
+                | Message::Contribution(_)
+                | Message::NodeStatus(_)
+                | Message::TrackReport(_)
+                | Message::Heartbeat
+        )
+    }
+}

@@ -1,0 +1,662 @@
+//! The scenario file: one TOML document describes a deployment — the world, every node, the
+//! method parameters and, for simulation, the targets. `launch`, `sim`, `experiment` and a Pi
+//! deployment all read it.
+//!
+//! Typed serde structs with `deny_unknown_fields` and kebab-case keys; [`Scenario::from_toml`]
+//! reports the path, the field and what was expected, then [`Scenario::validate`] checks what
+//! types cannot (unique ids, cameras that name an existing head, finite geometry).
+
+use crate::camera::{CameraModel, Distortion, Intrinsics, Pose};
+use crate::ids::{NodeId, TargetId};
+use crate::models::{MotionModel, RssiModel};
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// The embedded default scenario, modelled on paper 002's 21-camera testbed.
+pub const DEFAULT_SCENARIO_TOML: &str = include_str!("../scenarios/default.toml");
+
+/// A whole deployment.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct Scenario {
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    pub world: World,
+    #[serde(default)]
+    pub network: Network,
+    #[serde(default)]
+    pub method: Method,
+    #[serde(default)]
+    pub power: PowerFigures,
+    pub nodes: Vec<NodeSpec>,
+    #[serde(default)]
+    pub targets: Vec<TargetSpec>,
+}
+
+/// The room and what occludes inside it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct World {
+    /// Room bounds `[x, y, z]` min and max, metres; z = 0 is the floor.
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+    #[serde(default)]
+    pub walls: Vec<Wall>,
+    /// RSSI propagation of the simulated world (ignored by real deployments).
+    #[serde(default)]
+    pub radio: RadioWorld,
+}
+
+/// A vertical wall segment from floor to `height` that occludes cameras and attenuates radio.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct Wall {
+    pub from: [f64; 2],
+    pub to: [f64; 2],
+    pub height: f64,
+    #[serde(default = "default_wall_attenuation")]
+    pub attenuation_db: f64,
+}
+
+fn default_wall_attenuation() -> f64 {
+    6.0
+}
+
+/// How the simulated world treats radio: log-distance path loss plus a location-dependent
+/// multipath field, wall attenuation and noise.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct RadioWorld {
+    /// Received power at 1 m, dBm.
+    pub tx_power_dbm: f64,
+    /// Path-loss exponent n in `−10 n log10 d`.
+    pub path_loss_exponent: f64,
+    /// Standard deviation of the smooth multipath field, dB.
+    pub multipath_db: f64,
+    /// Spatial correlation length of the multipath field, metres.
+    pub multipath_length_m: f64,
+    /// Per-reading noise, dB.
+    pub noise_db: f64,
+}
+
+impl Default for RadioWorld {
+    fn default() -> Self {
+        RadioWorld {
+            tx_power_dbm: -48.0,
+            path_loss_exponent: 2.6,
+            multipath_db: 5.0,
+            multipath_length_m: 1.5,
+            noise_db: 2.0,
+        }
+    }
+}
+
+/// Which runtime transport nodes use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TransportKind {
+    /// iceoryx2 shared memory, same host.
+    #[default]
+    Ipc,
+    /// tokio TCP, between hosts.
+    Tcp,
+}
+
+/// Network parameters shared by every node.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct Network {
+    pub transport: TransportKind,
+    /// iceoryx2 service-name prefix, so parallel clusters and tests never collide.
+    pub domain: String,
+    pub heartbeat_ms: u64,
+    /// A peer silent for this long is considered down.
+    pub liveness_timeout_ms: u64,
+    pub sync_beacon_ms: u64,
+    /// Outgoing queue length per link; droppable messages beyond it are dropped and counted.
+    pub queue_len: usize,
+}
+
+impl Default for Network {
+    fn default() -> Self {
+        Network {
+            transport: TransportKind::Ipc,
+            domain: "ocelli".into(),
+            heartbeat_ms: 200,
+            liveness_timeout_ms: 1000,
+            sync_beacon_ms: 1000,
+            queue_len: 256,
+        }
+    }
+}
+
+/// How measurements are fused.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Fusion {
+    /// Nodes send Ω_i, ξ_i; the head sums (paper 002 §III).
+    #[default]
+    DistributedEif,
+    /// Nodes send undistorted measurements; the head linearizes (paper 000).
+    CentralizedEif,
+    /// Maximum likelihood per step (paper 000 §3).
+    Ml,
+}
+
+/// Which sensors the head keeps on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Activation {
+    /// Every camera on (paper 002 Method1).
+    AllOn,
+    /// Camera-only entropy selection (Method2, paper 000 §5).
+    CameraEntropy,
+    /// RSSI training plus full-node Active/Inactive activation (Method3).
+    FullNode,
+    /// Active / CameraOff / Inactive (paper 002's proposed method).
+    #[default]
+    ThreeMode,
+}
+
+/// Which segmentation pipeline cameras run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Segmentation {
+    /// Reference-image difference + HSI colour (paper 000 §6.1.1).
+    Paper000,
+    /// Adaptive per-pixel background with confidence (paper 004 §3.2.1).
+    #[default]
+    Paper004,
+}
+
+/// Method parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct Method {
+    pub fusion: Fusion,
+    pub activation: Activation,
+    pub segmentation: Segmentation,
+    /// Filter step period, ms.
+    pub step_ms: u64,
+    /// How long after the prior a head waits for contributions, ms.
+    pub deadline_ms: u64,
+    /// Segmentation noise, pixels (18 in paper 002).
+    pub pixel_sigma: f64,
+    pub motion: MotionModel,
+    /// The default RSSI model (paper 002 eq. 2).
+    pub rssi_default: RssiModel,
+    /// Training window M of Algorithm 1.
+    pub rssi_window: usize,
+    /// Guard for 1/a → ε in Algorithm 1.
+    pub rssi_epsilon: f64,
+    /// Weight of energy against information in the activation reward (nats per mW).
+    pub energy_weight: f64,
+    /// Include p_{i,t−1} in centralized measurements (paper 000 eq. 13).
+    pub previous_point: bool,
+    /// Drop a track after this long without measurements, ms.
+    pub track_timeout_ms: u64,
+    /// Mahalanobis gate (χ², 2 dof) for associating detections with tracks.
+    pub gate_chi2: f64,
+}
+
+impl Default for Method {
+    fn default() -> Self {
+        Method {
+            fusion: Fusion::DistributedEif,
+            activation: Activation::ThreeMode,
+            segmentation: Segmentation::Paper004,
+            step_ms: 200,
+            deadline_ms: 80,
+            pixel_sigma: 18.0,
+            motion: MotionModel::default(),
+            rssi_default: RssiModel::default(),
+            rssi_window: 20,
+            rssi_epsilon: 1e-3,
+            energy_weight: 1e-3,
+            previous_point: false,
+            track_timeout_ms: 3000,
+            gate_chi2: 13.8,
+        }
+    }
+}
+
+/// Power figures (paper 002: CMUcam3 650 mW; TelosB 69 mW active, 7.2 mW low-power).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct PowerFigures {
+    pub camera_mw: f64,
+    pub node_active_mw: f64,
+    pub node_low_power_mw: f64,
+}
+
+impl Default for PowerFigures {
+    fn default() -> Self {
+        PowerFigures {
+            camera_mw: 650.0,
+            node_active_mw: 69.0,
+            node_low_power_mw: 7.2,
+        }
+    }
+}
+
+impl PowerFigures {
+    /// Power drawn in a mode, mW.
+    pub fn in_mode(&self, mode: crate::Mode) -> f64 {
+        match mode {
+            crate::Mode::Active => self.camera_mw + self.node_active_mw,
+            crate::Mode::CameraOff => self.node_active_mw,
+            crate::Mode::Inactive => self.node_low_power_mw,
+        }
+    }
+}
+
+/// What a node does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum NodeRole {
+    Camera,
+    Head,
+    Server,
+}
+
+/// One node of the deployment.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct NodeSpec {
+    pub id: u32,
+    pub role: NodeRole,
+    /// Host the node runs on (for `ocelli deploy`).
+    #[serde(default = "default_host")]
+    pub host: String,
+    /// TCP address this node listens on (heads and the server) — `host:port`.
+    #[serde(default)]
+    pub listen: Option<String>,
+    /// The head a camera reports to.
+    #[serde(default)]
+    pub head: Option<u32>,
+    /// Camera geometry (cameras only).
+    #[serde(default)]
+    pub camera: Option<CameraSpec>,
+    /// Per-node power figures overriding the scenario's (a low battery, another board).
+    #[serde(default)]
+    pub power: Option<PowerFigures>,
+    /// Extra activation cost multiplier (a low battery makes a node more expensive).
+    #[serde(default = "one")]
+    pub cost_factor: f64,
+    /// Area a head covers, `[xmin, ymin, xmax, ymax]` (heads only).
+    #[serde(default)]
+    pub region: Option<[f64; 4]>,
+    /// Whether this node measures RSSI of the target's tag.
+    #[serde(default = "yes")]
+    pub rssi: bool,
+}
+
+fn default_host() -> String {
+    "localhost".into()
+}
+fn one() -> f64 {
+    1.0
+}
+fn yes() -> bool {
+    true
+}
+
+/// Camera geometry: inline, or OpenCV calibration files.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct CameraSpec {
+    #[serde(default)]
+    pub intrinsics: Option<Intrinsics>,
+    #[serde(default)]
+    pub distortion: Distortion,
+    #[serde(default)]
+    pub pose: Option<PoseSpec>,
+    /// OpenCV `FileStorage` intrinsic file (camera matrix + distortion); relative to the
+    /// scenario file.
+    #[serde(default)]
+    pub opencv_intrinsic: Option<PathBuf>,
+    /// OpenCV `FileStorage` extrinsic file (rvec, tvec).
+    #[serde(default)]
+    pub opencv_extrinsic: Option<PathBuf>,
+    /// Frames per second the camera captures.
+    #[serde(default = "default_fps")]
+    pub fps: f64,
+}
+
+fn default_fps() -> f64 {
+    5.0
+}
+
+/// A camera pose: placed and aimed, or OpenCV `rvec`/`tvec` (world → camera).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", untagged)]
+pub enum PoseSpec {
+    LookAt { position: [f64; 3], look_at: [f64; 3] },
+    Rodrigues { rvec: [f64; 3], tvec: [f64; 3] },
+}
+
+impl PoseSpec {
+    pub fn to_pose(&self) -> Option<Pose> {
+        match *self {
+            PoseSpec::LookAt { position, look_at } => {
+                Pose::look_at(Vector3::from(position), Vector3::from(look_at), Vector3::z())
+            }
+            PoseSpec::Rodrigues { rvec, tvec } => Some(Pose::from_rvec_tvec(rvec, tvec)),
+        }
+    }
+}
+
+/// A simulated target.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct TargetSpec {
+    pub id: u32,
+    pub trajectory: Trajectory,
+    /// Width, depth, height of the coloured solid, metres.
+    pub size: [f64; 3],
+    /// RGB colour of the solid.
+    pub colour: [u8; 3],
+    /// Whether it carries an RSSI tag.
+    #[serde(default = "yes")]
+    pub rssi_tag: bool,
+}
+
+/// Where a target is over time.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", tag = "kind")]
+pub enum Trajectory {
+    /// Closed polygon of floor waypoints `[x, y]` driven at constant speed, starting at the first.
+    Loop { waypoints: Vec<[f64; 2]>, speed: f64 },
+    /// Open polyline, stopping at the end.
+    Path { waypoints: Vec<[f64; 2]>, speed: f64 },
+}
+
+/// A scenario that could not be loaded.
+#[derive(Debug, Error)]
+pub enum ScenarioError {
+    #[error("cannot read scenario {path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("scenario {path}: {message}")]
+    Parse { path: String, message: String },
+    #[error("scenario {path}: {field}: {problem}")]
+    Invalid {
+        path: String,
+        field: String,
+        problem: String,
+    },
+}
+
+impl Scenario {
+    /// The embedded default scenario.
+    pub fn default_scenario() -> Scenario {
+        Scenario::from_toml(DEFAULT_SCENARIO_TOML, "<default>")
+            .expect("the embedded default scenario is valid")
+    }
+
+    /// Parse and validate TOML text; `origin` names it in errors.
+    ///
+    /// # Errors
+    /// A parse error with the TOML path and what was expected, or the first semantic problem.
+    pub fn from_toml(text: &str, origin: &str) -> Result<Scenario, ScenarioError> {
+        let scenario: Scenario = toml::from_str(text).map_err(|e| ScenarioError::Parse {
+            path: origin.into(),
+            message: e.to_string(),
+        })?;
+        scenario.validate(origin, None)?;
+        Ok(scenario)
+    }
+
+    /// Load a scenario file; OpenCV calibration paths are resolved relative to it.
+    ///
+    /// # Errors
+    /// As [`Scenario::from_toml`], plus IO errors naming the path.
+    pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+            path: path.into(),
+            source,
+        })?;
+        let origin = path.display().to_string();
+        let mut scenario: Scenario = toml::from_str(&text).map_err(|e| ScenarioError::Parse {
+            path: origin.clone(),
+            message: e.to_string(),
+        })?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        for node in &mut scenario.nodes {
+            if let Some(cam) = &mut node.camera {
+                for p in [&mut cam.opencv_intrinsic, &mut cam.opencv_extrinsic]
+                    .into_iter()
+                    .flatten()
+                {
+                    if p.is_relative() {
+                        *p = base.join(&*p);
+                    }
+                }
+            }
+        }
+        scenario.validate(&origin, None)?;
+        Ok(scenario)
+    }
+
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).expect("scenarios always serialize")
+    }
+
+    /// Check what the types cannot.
+    ///
+    /// # Errors
+    /// The first problem, naming the field.
+    pub fn validate(&self, origin: &str, _unused: Option<()>) -> Result<(), ScenarioError> {
+        let bad = |field: String, problem: String| ScenarioError::Invalid {
+            path: origin.into(),
+            field,
+            problem,
+        };
+        for (i, (lo, hi)) in self.world.min.iter().zip(&self.world.max).enumerate() {
+            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                return Err(bad(
+                    format!("world.min/max[{i}]"),
+                    format!("expected finite min < max, got {lo} and {hi}"),
+                ));
+            }
+        }
+        if self.nodes.len() > crate::MAX_NODES {
+            return Err(bad(
+                "nodes".into(),
+                format!(
+                    "{} nodes exceed the maximum of {}",
+                    self.nodes.len(),
+                    crate::MAX_NODES
+                ),
+            ));
+        }
+        let mut ids = BTreeSet::new();
+        for n in &self.nodes {
+            if !ids.insert(n.id) {
+                return Err(bad(format!("nodes[id={}]", n.id), "duplicate node id".into()));
+            }
+        }
+        let heads: BTreeSet<u32> = self
+            .nodes
+            .iter()
+            .filter(|n| n.role == NodeRole::Head)
+            .map(|n| n.id)
+            .collect();
+        let servers = self.nodes.iter().filter(|n| n.role == NodeRole::Server).count();
+        if servers > 1 {
+            return Err(bad(
+                "nodes".into(),
+                format!("expected at most one server, found {servers}"),
+            ));
+        }
+        for n in &self.nodes {
+            match n.role {
+                NodeRole::Camera => {
+                    let Some(cam) = &n.camera else {
+                        return Err(bad(
+                            format!("nodes[id={}].camera", n.id),
+                            "a camera node needs camera geometry".into(),
+                        ));
+                    };
+                    if let Some(h) = n.head
+                        && !heads.contains(&h)
+                    {
+                        return Err(bad(
+                            format!("nodes[id={}].head", n.id),
+                            format!("no head with id {h}"),
+                        ));
+                    }
+                    if cam.opencv_intrinsic.is_none() && cam.intrinsics.is_none() {
+                        return Err(bad(
+                            format!("nodes[id={}].camera", n.id),
+                            "expected `intrinsics` or `opencv-intrinsic`".into(),
+                        ));
+                    }
+                    if cam.opencv_extrinsic.is_none() && cam.pose.is_none() {
+                        return Err(bad(
+                            format!("nodes[id={}].camera", n.id),
+                            "expected `pose` or `opencv-extrinsic`".into(),
+                        ));
+                    }
+                    if let Some(p) = &cam.pose
+                        && p.to_pose().is_none()
+                    {
+                        return Err(bad(
+                            format!("nodes[id={}].camera.pose", n.id),
+                            "degenerate pose (look-at equals position or is straight up/down)".into(),
+                        ));
+                    }
+                    if !(cam.fps.is_finite() && cam.fps > 0.0) {
+                        return Err(bad(
+                            format!("nodes[id={}].camera.fps", n.id),
+                            format!("expected a positive rate, got {}", cam.fps),
+                        ));
+                    }
+                }
+                NodeRole::Head | NodeRole::Server => {
+                    if n.camera.is_some() {
+                        return Err(bad(
+                            format!("nodes[id={}].camera", n.id),
+                            "only camera nodes have camera geometry".into(),
+                        ));
+                    }
+                }
+            }
+            if !(n.cost_factor.is_finite() && n.cost_factor > 0.0) {
+                return Err(bad(
+                    format!("nodes[id={}].cost-factor", n.id),
+                    "expected a positive number".into(),
+                ));
+            }
+        }
+        let mut tids = BTreeSet::new();
+        for t in &self.targets {
+            if !tids.insert(t.id) {
+                return Err(bad(format!("targets[id={}]", t.id), "duplicate target id".into()));
+            }
+            let (w, s) = match &t.trajectory {
+                Trajectory::Loop { waypoints, speed } | Trajectory::Path { waypoints, speed } => {
+                    (waypoints, *speed)
+                }
+            };
+            if w.len() < 2 {
+                return Err(bad(
+                    format!("targets[id={}].trajectory.waypoints", t.id),
+                    "expected at least two waypoints".into(),
+                ));
+            }
+            if !(s.is_finite() && s > 0.0) {
+                return Err(bad(
+                    format!("targets[id={}].trajectory.speed", t.id),
+                    "expected a positive speed".into(),
+                ));
+            }
+        }
+        if self.method.step_ms == 0 || self.method.deadline_ms >= self.method.step_ms {
+            return Err(bad(
+                "method.deadline-ms".into(),
+                "expected 0 < deadline-ms < step-ms".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    pub fn node(&self, id: u32) -> Option<&NodeSpec> {
+        self.nodes.iter().find(|n| n.id == id)
+    }
+
+    pub fn cameras(&self) -> impl Iterator<Item = &NodeSpec> {
+        self.nodes.iter().filter(|n| n.role == NodeRole::Camera)
+    }
+
+    pub fn heads(&self) -> impl Iterator<Item = &NodeSpec> {
+        self.nodes.iter().filter(|n| n.role == NodeRole::Head)
+    }
+
+    pub fn server(&self) -> Option<&NodeSpec> {
+        self.nodes.iter().find(|n| n.role == NodeRole::Server)
+    }
+
+    /// Power figures of a node (its override or the scenario's).
+    pub fn power_of(&self, id: u32) -> PowerFigures {
+        self.node(id).and_then(|n| n.power).unwrap_or(self.power)
+    }
+
+    /// Build the camera model of a camera node (reads OpenCV files if it names them).
+    ///
+    /// # Errors
+    /// Missing geometry or an unreadable calibration file, naming the node.
+    pub fn camera_model(&self, id: u32) -> Result<CameraModel, ScenarioError> {
+        let bad = |field: &str, problem: String| ScenarioError::Invalid {
+            path: self.name.clone(),
+            field: format!("nodes[id={id}].{field}"),
+            problem,
+        };
+        let node = self.node(id).ok_or_else(|| bad("id", "no such node".into()))?;
+        let cam = node
+            .camera
+            .as_ref()
+            .ok_or_else(|| bad("camera", "not a camera node".into()))?;
+        let (mut intrinsics, mut distortion) = (cam.intrinsics, cam.distortion);
+        if let Some(path) = &cam.opencv_intrinsic {
+            let (k, d) = crate::opencv::read_intrinsics(path)
+                .map_err(|e| bad("camera.opencv-intrinsic", e.to_string()))?;
+            intrinsics = Some(k);
+            distortion = d;
+        }
+        let pose = match (&cam.opencv_extrinsic, &cam.pose) {
+            (Some(path), _) => crate::opencv::read_extrinsics(path)
+                .map_err(|e| bad("camera.opencv-extrinsic", e.to_string()))?,
+            (None, Some(p)) => p
+                .to_pose()
+                .ok_or_else(|| bad("camera.pose", "degenerate pose".into()))?,
+            (None, None) => return Err(bad("camera", "no pose".into())),
+        };
+        let intrinsics = intrinsics.ok_or_else(|| bad("camera.intrinsics", "missing".into()))?;
+        Ok(CameraModel {
+            intrinsics,
+            distortion,
+            pose,
+        })
+    }
+
+    /// Camera → head map from the scenario (cameras with no head go to the first head).
+    pub fn clusters(&self) -> BTreeMap<NodeId, Vec<NodeId>> {
+        let first = self.heads().next().map(|h| h.id);
+        let mut out: BTreeMap<NodeId, Vec<NodeId>> =
+            self.heads().map(|h| (NodeId(h.id), Vec::new())).collect();
+        for c in self.cameras() {
+            if let Some(h) = c.head.or(first) {
+                out.entry(NodeId(h)).or_default().push(NodeId(c.id));
+            }
+        }
+        out
+    }
+
+    pub fn target_ids(&self) -> Vec<TargetId> {
+        self.targets.iter().map(|t| TargetId(t.id)).collect()
+    }
+}

@@ -1,0 +1,1 @@
+//! Transports: one interface, three implementations (iceoryx2, TCP, in-process).

@@ -1,0 +1,186 @@
+//! Validation at the boundary: every decoded message is checked before any node sees it.
+//!
+//! Checks: finite numbers; symmetric information matrices and covariances that are not
+//! indefinite beyond [`PSD_TOLERANCE`]; sane sizes; plausible ranges.
+
+use crate::msg::*;
+use crate::{MAX_CONTRIBUTORS, PROTOCOL_VERSION};
+use nalgebra::{Matrix6, SymmetricEigen};
+use thiserror::Error;
+
+/// Relative tolerance for symmetry and for negative eigenvalues of PSD matrices.
+pub const PSD_TOLERANCE: f64 = 1e-6;
+
+/// What is wrong with a message; the string names the field.
+#[derive(Debug, Error, PartialEq, Clone)]
+#[error("{field}: {problem}")]
+pub struct ValidationError {
+    pub field: &'static str,
+    pub problem: String,
+}
+
+fn err(field: &'static str, problem: impl Into<String>) -> ValidationError {
+    ValidationError {
+        field,
+        problem: problem.into(),
+    }
+}
+
+/// Something that can be checked at the boundary.
+pub trait Validate {
+    /// # Errors
+    /// The first problem found, naming the field.
+    fn validate(&self) -> Result<(), ValidationError>;
+}
+
+fn finite(field: &'static str, xs: &[f64]) -> Result<(), ValidationError> {
+    match xs.iter().find(|x| !x.is_finite()) {
+        Some(x) => Err(err(field, format!("not a finite number ({x})"))),
+        None => Ok(()),
+    }
+}
+
+fn finite32(field: &'static str, xs: &[f32]) -> Result<(), ValidationError> {
+    match xs.iter().find(|x| !x.is_finite()) {
+        Some(x) => Err(err(field, format!("not a finite number ({x})"))),
+        None => Ok(()),
+    }
+}
+
+/// Check a 6×6 matrix is finite, symmetric and positive semi-definite within tolerance.
+///
+/// # Errors
+/// Names `field` and the first violated property.
+pub fn check_psd6(field: &'static str, m: &Mat6) -> Result<(), ValidationError> {
+    for row in m {
+        finite(field, row)?;
+    }
+    let scale = m
+        .iter()
+        .flatten()
+        .fold(0.0f64, |a, x| a.max(x.abs()))
+        .max(f64::MIN_POSITIVE);
+    for i in 0..6 {
+        for j in (i + 1)..6 {
+            if (m[i][j] - m[j][i]).abs() > PSD_TOLERANCE * scale {
+                return Err(err(
+                    field,
+                    format!("not symmetric at ({i},{j}): {} vs {}", m[i][j], m[j][i]),
+                ));
+            }
+        }
+    }
+    let mat = Matrix6::from_fn(|i, j| 0.5 * (m[i][j] + m[j][i]));
+    let min = SymmetricEigen::new(mat).eigenvalues.min();
+    if min < -PSD_TOLERANCE * scale {
+        return Err(err(field, format!("indefinite (smallest eigenvalue {min:e})")));
+    }
+    Ok(())
+}
+
+fn check_cov2(field: &'static str, c: &[f64; 3]) -> Result<(), ValidationError> {
+    finite(field, c)?;
+    let [xx, xy, yy] = *c;
+    if xx <= 0.0 || yy <= 0.0 || xx * yy - xy * xy <= 0.0 {
+        return Err(err(field, "covariance is not positive definite"));
+    }
+    Ok(())
+}
+
+impl Validate for Envelope {
+    fn validate(&self) -> Result<(), ValidationError> {
+        self.body.validate()
+    }
+}
+
+impl Validate for Message {
+    fn validate(&self) -> Result<(), ValidationError> {
+        match self {
+            Message::Hello(h) => {
+                if h.version != PROTOCOL_VERSION {
+                    return Err(err(
+                        "hello.version",
+                        format!(
+                            "protocol version {} is not supported (this build speaks {PROTOCOL_VERSION})",
+                            h.version
+                        ),
+                    ));
+                }
+                Ok(())
+            }
+            Message::HelloAck(a) => {
+                if a.reason.len() > 512 {
+                    return Err(err("hello_ack.reason", "longer than 512 bytes"));
+                }
+                Ok(())
+            }
+            Message::Heartbeat => Ok(()),
+            Message::Measurement(m) => {
+                finite("measurement.point", &m.point)?;
+                if let Some(p) = m.prev_point {
+                    finite("measurement.prev_point", &p)?;
+                }
+                check_cov2("measurement.cov", &m.cov)?;
+                let b = &m.pixel_box;
+                finite32("measurement.pixel_box", &[b.xmin, b.ymin, b.xmax, b.ymax])?;
+                if b.xmax < b.xmin || b.ymax < b.ymin {
+                    return Err(err("measurement.pixel_box", "max is below min"));
+                }
+                finite32(
+                    "measurement.colour",
+                    &[m.colour.hue, m.colour.saturation, m.colour.intensity],
+                )?;
+                finite("measurement.pose.rvec", &m.pose.rvec)?;
+                finite("measurement.pose.tvec", &m.pose.tvec)?;
+                if let Some(r) = &m.rssi {
+                    check_rssi("measurement.rssi", r)?;
+                }
+                Ok(())
+            }
+            Message::Contribution(c) => {
+                check_psd6("contribution.info_matrix", &c.info_matrix)?;
+                finite("contribution.info_vector", &c.info_vector)?;
+                if let Some(r) = &c.rssi {
+                    check_rssi("contribution.rssi", r)?;
+                }
+                Ok(())
+            }
+            Message::NodeStatus(_) => Ok(()),
+            Message::Prior(p) => {
+                finite("prior.mean", &p.mean)?;
+                check_psd6("prior.cov", &p.cov)
+            }
+            Message::Command(_) => Ok(()),
+            Message::TrackReport(r) => {
+                finite("track_report.mean", &r.mean)?;
+                check_psd6("track_report.cov", &r.cov)?;
+                finite("track_report.power_mw", &[r.power_mw])?;
+                if r.contributors.len() > MAX_CONTRIBUTORS {
+                    return Err(err(
+                        "track_report.contributors",
+                        format!(
+                            "{} entries exceed the maximum of {MAX_CONTRIBUTORS}",
+                            r.contributors.len()
+                        ),
+                    ));
+                }
+                Ok(())
+            }
+            Message::Assignment(_) => Ok(()),
+            Message::Handover(h) => {
+                finite("handover.mean", &h.mean)?;
+                check_psd6("handover.cov", &h.cov)
+            }
+            Message::SyncBeacon(_) => Ok(()),
+            Message::Liveness(_) => Ok(()),
+        }
+    }
+}
+
+fn check_rssi(field: &'static str, r: &RssiReading) -> Result<(), ValidationError> {
+    finite(field, &[r.dbm])?;
+    if !(-200.0..=30.0).contains(&r.dbm) {
+        return Err(err(field, format!("{} dBm is outside -200..30 dBm", r.dbm)));
+    }
+    Ok(())
+}
