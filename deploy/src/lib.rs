@@ -1,2 +1,3 @@
 //! Putting Ocelli nodes together: the `ocelli` command line.
 pub mod cli;
+pub mod cmd;

@@ -660,3 +660,54 @@ impl Scenario {
         self.targets.iter().map(|t| TargetId(t.id)).collect()
     }
 }
+
+impl Trajectory {
+    fn parts(&self) -> (&[[f64; 2]], f64, bool) {
+        match self {
+            Trajectory::Loop { waypoints, speed } => (waypoints, *speed, true),
+            Trajectory::Path { waypoints, speed } => (waypoints, *speed, false),
+        }
+    }
+
+    /// Floor position `[x, y]` and velocity `[vx, vy]` at `t` seconds after the start.
+    pub fn at(&self, t: f64) -> ([f64; 2], [f64; 2]) {
+        let (w, speed, closed) = self.parts();
+        let n = if closed { w.len() } else { w.len() - 1 };
+        let seg_len = |i: usize| {
+            let (a, b) = (w[i], w[(i + 1) % w.len()]);
+            ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt()
+        };
+        let total: f64 = (0..n).map(seg_len).sum();
+        if total <= 0.0 {
+            return (w[0], [0.0, 0.0]);
+        }
+        let mut s = (t.max(0.0) * speed).min(if closed { f64::INFINITY } else { total });
+        if closed {
+            s %= total;
+        }
+        for i in 0..n {
+            let l = seg_len(i);
+            if s <= l || i == n - 1 {
+                let (a, b) = (w[i], w[(i + 1) % w.len()]);
+                let f = if l > 0.0 { (s / l).min(1.0) } else { 0.0 };
+                let moving = closed || t * speed < total;
+                let v = if l > 0.0 && moving {
+                    [(b[0] - a[0]) / l * speed, (b[1] - a[1]) / l * speed]
+                } else {
+                    [0.0, 0.0]
+                };
+                return ([a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])], v);
+            }
+            s -= l;
+        }
+        (w[0], [0.0, 0.0])
+    }
+}
+
+impl TargetSpec {
+    /// Ground truth: the state `[X Y Z Vx Vy Vz]` of the target's centre at `t` seconds.
+    pub fn truth_at(&self, t: f64) -> crate::models::State {
+        let ([x, y], [vx, vy]) = self.trajectory.at(t);
+        crate::models::State::new(x, y, self.size[2] * 0.5, vx, vy, 0.0)
+    }
+}

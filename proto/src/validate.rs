@@ -51,6 +51,7 @@ fn finite32(field: &'static str, xs: &[f32]) -> Result<(), ValidationError> {
 ///
 /// # Errors
 /// Names `field` and the first violated property.
+#[allow(clippy::needless_range_loop)] // (i, j) index pairs read clearer than zipped iterators
 pub fn check_psd6(field: &'static str, m: &Mat6) -> Result<(), ValidationError> {
     for row in m {
         finite(field, row)?;

@@ -1,0 +1,3 @@
+//! One module per `ocelli` subcommand.
+
+pub mod scenario;
