@@ -1,3 +1,4 @@
 //! Putting Ocelli nodes together: the `ocelli` command line.
 pub mod cli;
 pub mod cmd;
+pub mod supervisor;
