@@ -87,7 +87,7 @@ impl SimNetwork {
 
     /// A clock for each node, drawn from the model's bounds (same seed → same clocks).
     pub fn clock_for(&self, node: NodeId, seed: u64) -> SkewedClock {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (u64::from(node.0) << 20) ^ 0x636c_6f63_6b);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (u64::from(node.0) << 20) ^ 0x0063_6c6f_636b);
         let m = &self.model;
         let offset_ns = if m.clock_offset_ms > 0.0 {
             (rng.random_range(-1.0..1.0) * m.clock_offset_ms * 1e6) as i64
