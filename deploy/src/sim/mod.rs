@@ -2,3 +2,4 @@
 //! simulated network, deterministic for a seed.
 
 pub mod net;
+pub mod queue;
