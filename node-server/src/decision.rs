@@ -36,8 +36,12 @@ pub enum Decision {
     Down { node: NodeId, silent_ms: u64 },
     /// A node that was down spoke again and is re-admitted.
     Up { node: NodeId },
-    /// A camera now reports to `head`.
-    Assigned { camera: NodeId, head: NodeId },
+    /// A camera now reports to `head` (instead of `from`).
+    Assigned {
+        camera: NodeId,
+        head: NodeId,
+        from: Option<NodeId>,
+    },
     /// A head's local track got a new global id.
     NewGlobal {
         head: NodeId,
@@ -112,10 +116,7 @@ mod tests {
             let s = serde_json::to_string(&d).unwrap();
             assert_eq!(serde_json::from_str::<Decision>(&s).unwrap(), d);
         }
-        let s = serde_json::to_string(&Decision::Lost {
-            global: TargetId(4),
-        })
-        .unwrap();
+        let s = serde_json::to_string(&Decision::Lost { global: TargetId(4) }).unwrap();
         assert_eq!(s, r#"{"kind":"lost","global":4}"#);
     }
 }

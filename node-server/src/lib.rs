@@ -6,10 +6,18 @@
 //! [`recording`], from which [`export`] and [`report`] are computed and from which a restarted
 //! server resumes.
 
+pub mod core;
+#[cfg(test)]
+mod core_tests;
 pub mod decision;
+pub mod membership;
 pub mod record;
 pub mod recording;
+#[cfg(test)]
+pub(crate) mod testkit;
+pub mod tracks;
 
+pub use core::{Counters, RestoreStats, ServerConfig, ServerNode};
 pub use decision::{Decision, HandoverReason};
 pub use record::{Record, Stamped};
 pub use recording::{Reader, Recorder, RecordingError};

@@ -29,10 +29,7 @@ pub const MAX_RECORD_BYTES: u32 = 16 * 1024 * 1024;
 #[derive(Debug, Error)]
 pub enum RecordingError {
     #[error("recording {path}: {source}")]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    Io { path: PathBuf, source: std::io::Error },
     #[error("recording {path}: not an Ocelli recording (bad magic)")]
     BadMagic { path: PathBuf },
     #[error("recording {path}: format version {got} is not supported (this build reads {FORMAT_VERSION})")]
