@@ -9,9 +9,16 @@
 
 pub mod activation;
 pub mod association;
+pub mod config;
 pub mod eif;
 pub mod ekf;
+pub mod head;
 pub mod init;
 pub mod ml;
 pub mod rssi_training;
+pub mod stats;
 pub mod step;
+pub mod track;
+
+pub use config::{ConfigError, HeadConfig};
+pub use head::HeadNode;
