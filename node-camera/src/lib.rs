@@ -11,3 +11,4 @@ pub mod frame;
 pub mod region;
 pub mod seg000;
 pub mod seg004;
+pub mod source;

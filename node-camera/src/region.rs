@@ -68,7 +68,7 @@ pub fn erode4(grid: &Grid, mask: &[u8], out: &mut [u8], min_neighbours: u8) {
 }
 
 /// Paper 004's region growing: find the first set pixel, grow a box around it while set
-/// pixels lie within `merge` pixels beyond any border (so nearby areas merge instead of
+/// pixels lie on its border or across a gap of at most `merge` pixels beyond it (so nearby areas merge instead of
 /// breaking up), then take the box's pixels as one region and clear them. Consumes `mask`.
 /// Regions with fewer than `min_pixels` set pixels are dropped; at most `max_regions` kept.
 #[allow(clippy::too_many_arguments)]
@@ -82,16 +82,17 @@ pub fn grow_boxes(
     out: &mut Vec<Detection>,
 ) {
     let (w, h) = (grid.width, grid.height);
+    let reach = merge + 1;
     let mut start = 0;
     while let Some(off) = mask[start..].iter().position(|&v| v != 0) {
         let seed = start + off;
         let (sx, sy) = (seed % w, seed / w);
         let (mut x0, mut y0, mut x1, mut y1) = (sx, sy, sx, sy);
         loop {
-            let ex0 = x0.saturating_sub(merge);
-            let ey0 = y0.saturating_sub(merge);
-            let ex1 = (x1 + merge).min(w - 1);
-            let ey1 = (y1 + merge).min(h - 1);
+            let ex0 = x0.saturating_sub(reach);
+            let ey0 = y0.saturating_sub(reach);
+            let ex1 = (x1 + reach).min(w - 1);
+            let ey1 = (y1 + reach).min(h - 1);
             let (mut nx0, mut ny0, mut nx1, mut ny1) = (x0, y0, x1, y1);
             for y in ey0..=ey1 {
                 let row = &mask[y * w..(y + 1) * w];
@@ -221,17 +222,17 @@ mod tests {
         let f = Frame::new(60, 30, ClusterTime::ZERO);
         let mut m = vec![0u8; g.len()];
         set(&mut m, 60, 2, 2, 6, 10);
-        set(&mut m, 60, 9, 3, 12, 12); // 2 px gap: merges with margin 3
+        set(&mut m, 60, 9, 3, 12, 12); // 2 px gap: merges with merge = 2
         set(&mut m, 60, 40, 5, 45, 20); // far away
         let mut out = Vec::new();
-        grow_boxes(&g, &mut m.clone(), &f, 3, 4, 16, &mut out);
+        grow_boxes(&g, &mut m.clone(), &f, 2, 4, 16, &mut out);
         assert_eq!(out.len(), 2, "{out:?}");
         assert_eq!((out[0].bbox.xmin, out[0].bbox.xmax), (2.0, 12.0));
         assert_eq!((out[0].bbox.ymin, out[0].bbox.ymax), (2.0, 12.0));
         assert_eq!(out[0].area, 45 + 40);
         out.clear();
         grow_boxes(&g, &mut m, &f, 1, 4, 16, &mut out);
-        assert_eq!(out.len(), 3, "a margin of 1 does not bridge a 2 px gap");
+        assert_eq!(out.len(), 3, "merge = 1 does not bridge a 2 px gap");
         assert!(m.iter().all(|&v| v == 0), "growing consumes the mask");
     }
 

@@ -33,7 +33,7 @@ pub struct Paper004Params {
     pub noise_max: u8,
     /// Neighbours (of 4) a moving pixel needs to survive erosion.
     pub erosion_min: u8,
-    /// Areas closer than this many grid pixels merge.
+    /// Areas separated by a gap of at most this many grid pixels merge (0: only touching).
     pub merge: usize,
     /// Process every `step`-th pixel and row (1 = full resolution).
     pub step: u32,
@@ -55,7 +55,7 @@ impl Default for Paper004Params {
             noise_min: 3,
             noise_max: 48,
             erosion_min: 2,
-            merge: 3,
+            merge: 2,
             step: 1,
             min_pixels: 12,
             max_regions: 32,
