@@ -12,3 +12,5 @@ pub mod region;
 pub mod seg000;
 pub mod seg004;
 pub mod source;
+pub mod measure;
+pub mod segment;
