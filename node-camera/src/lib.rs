@@ -13,4 +13,7 @@ pub mod seg000;
 pub mod seg004;
 pub mod source;
 pub mod measure;
+pub mod render;
 pub mod segment;
+pub mod config;
+pub mod core;
