@@ -333,7 +333,13 @@ fn default_fps() -> f64 {
 
 /// A camera pose: placed and aimed, or OpenCV `rvec`/`tvec` (world → camera).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case", untagged)]
+// `rename_all_fields`, not `rename_all`: an untagged enum's keys are its variants' fields.
+#[serde(
+    deny_unknown_fields,
+    rename_all_fields = "kebab-case",
+    untagged,
+    expecting = "a pose: `{ position = [x, y, z], look-at = [x, y, z] }` or `{ rvec = [..], tvec = [..] }`"
+)]
 pub enum PoseSpec {
     LookAt { position: [f64; 3], look_at: [f64; 3] },
     Rodrigues { rvec: [f64; 3], tvec: [f64; 3] },
