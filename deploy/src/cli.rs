@@ -23,6 +23,8 @@ pub struct Cli {
 pub enum Command {
     /// Print or check scenarios.
     Scenario(cmd::scenario::Args),
+    /// Undistort CSV rows (OpenCV test-vector format) from stdin: one `x,y` line per row.
+    Undistort(cmd::undistort::Args),
 }
 
 /// Install the tracing subscriber (`RUST_LOG`, default `info`) on standard error.
@@ -44,6 +46,7 @@ pub fn main() -> ExitCode {
     init_tracing(cli.log_json);
     let result = match cli.command {
         Command::Scenario(args) => cmd::scenario::run(args),
+        Command::Undistort(args) => cmd::undistort::run(args),
     };
     match result {
         Ok(code) => code,
