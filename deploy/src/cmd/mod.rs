@@ -1,3 +1,5 @@
 //! One module per `ocelli` subcommand.
 
+pub mod export;
+pub mod report;
 pub mod scenario;
