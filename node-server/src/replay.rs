@@ -79,19 +79,7 @@ pub fn replay(loaded: &Loaded, mut visit: impl FnMut(&ServerNode, &Stamped)) {
     cfg.journal = false;
     let mut node = ServerNode::new(cfg);
     for s in &loaded.records {
-        match &s.record {
-            Record::Received(env) => {
-                node.on_message(s.at, env.clone());
-            }
-            Record::Tick => {
-                node.tick(s.at);
-            }
-            Record::Decision(crate::Decision::Resumed {
-                records,
-                skipped_bytes,
-            }) => node.resume(s.at, *records, *skipped_bytes),
-            _ => {}
-        }
+        node.feed(s);
         visit(&node, s);
     }
 }
