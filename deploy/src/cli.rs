@@ -25,6 +25,10 @@ pub enum Command {
     Scenario(cmd::scenario::Args),
     /// Undistort CSV rows (OpenCV test-vector format) from stdin: one `x,y` line per row.
     Undistort(cmd::undistort::Args),
+    /// Print the report of a server recording (table or JSON).
+    Report(cmd::report::Args),
+    /// Export the tracks of a server recording as CSV or JSON Lines.
+    Export(cmd::export::Args),
 }
 
 /// Install the tracing subscriber (`RUST_LOG`, default `info`) on standard error.
@@ -47,6 +51,8 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Scenario(args) => cmd::scenario::run(args),
         Command::Undistort(args) => cmd::undistort::run(args),
+        Command::Report(args) => cmd::report::run(args),
+        Command::Export(args) => cmd::export::run(args),
     };
     match result {
         Ok(code) => code,

@@ -1,4 +1,6 @@
 //! One module per `ocelli` subcommand.
 
+pub mod export;
+pub mod report;
 pub mod scenario;
 pub mod undistort;
