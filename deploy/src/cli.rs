@@ -23,6 +23,16 @@ pub struct Cli {
 pub enum Command {
     /// Print or check scenarios.
     Scenario(cmd::scenario::Args),
+    /// Measure speed; print JSON.
+    #[command(subcommand)]
+    Bench(Bench),
+}
+
+/// What `ocelli bench` measures.
+#[derive(Subcommand, Debug)]
+pub enum Bench {
+    /// The head's EIF update and activation decision.
+    Head(cmd::bench_head::Args),
 }
 
 /// Install the tracing subscriber (`RUST_LOG`, default `info`) on standard error.
@@ -44,6 +54,7 @@ pub fn main() -> ExitCode {
     init_tracing(cli.log_json);
     let result = match cli.command {
         Command::Scenario(args) => cmd::scenario::run(args),
+        Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
     };
     match result {
         Ok(code) => code,
