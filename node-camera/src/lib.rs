@@ -1,1 +1,19 @@
-//! placeholder
+//! The camera node: what runs on each Pi-class smart camera. It turns frames into small
+//! results — detections, undistorted measurements, information contributions — and sends
+//! nothing else (papers 000 §2.2 and §6.1, 002 §II, 004 §2.6 and §3.2).
+//!
+//! A sans-IO core plus its process: [`frame`] and [`source`] produce frames, [`seg000`] and
+//! [`seg004`] segment them ([`segment`] selects), [`measure`] undistorts, gates and linearizes,
+//! [`core`] is the node's state machine, [`render`] and [`radio`] are the synthetic world.
+
+pub mod detect;
+pub mod frame;
+pub mod region;
+pub mod seg000;
+pub mod seg004;
+pub mod source;
+pub mod measure;
+pub mod render;
+pub mod segment;
+pub mod config;
+pub mod core;

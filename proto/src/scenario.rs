@@ -335,6 +335,7 @@ fn default_fps() -> f64 {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename_all_fields = "kebab-case", untagged)]
 pub enum PoseSpec {
+    // `rename_all_fields` above: `rename_all` on an enum renames variants, not their fields.
     LookAt { position: [f64; 3], look_at: [f64; 3] },
     Rodrigues { rvec: [f64; 3], tvec: [f64; 3] },
 }

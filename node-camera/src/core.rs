@@ -1,0 +1,345 @@
+//! The camera node's sans-IO state machine.
+//!
+//! Inputs: messages from its head and the server ([`CameraNode::on_message`]), frames
+//! ([`CameraNode::on_frame`]), RSSI readings of target tags ([`CameraNode::on_rssi`]) and
+//! ticks ([`CameraNode::tick`]), each with the current cluster time. Outputs: messages to
+//! send. In distributed mode it answers every `Prior` with one `Contribution` built from the
+//! newest frame's detection gated to that target (all-zero Ω when it has none); detections
+//! gated to no prior go out as `Measurement { target: None }` so heads can start tracks. In
+//! centralized mode every detection goes out as a `Measurement`. Modes (Active, CameraOff,
+//! Inactive) follow the head's `Command`s; time in each is reported in `NodeStatus`.
+
+use crate::config::CameraConfig;
+use crate::detect::Detection;
+use crate::frame::Frame;
+use crate::measure::{self, Measured};
+use crate::segment::Segmenter;
+use proto::msg::{Message, Mode, NodeStatus, Prior, RssiReading};
+use proto::node::Outgoing;
+use proto::scenario::Fusion;
+use proto::validate::Validate;
+use proto::{ClusterTime, Envelope, TargetId};
+use std::collections::BTreeMap;
+use tracing::{debug, warn};
+
+/// Counters of what the node did and refused.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counters {
+    pub frames: u64,
+    /// Frames not processed because the camera was off.
+    pub frames_skipped: u64,
+    pub detections: u64,
+    /// Frames, messages and readings rejected as malformed or not for this node.
+    pub rejected: u64,
+    pub priors: u64,
+    /// Priors received while inactive (radio asleep), not answered.
+    pub priors_ignored: u64,
+    pub contributions: u64,
+    pub camera_contributions: u64,
+    pub measurements: u64,
+    /// Detections that could not be undistorted.
+    pub undistort_failures: u64,
+    /// Messages with nowhere to go (no head or server known).
+    pub unsent: u64,
+    /// Messages the runtime could not deliver, as it reports them.
+    pub dropped: u64,
+}
+
+/// The camera node core.
+#[derive(Debug)]
+pub struct CameraNode {
+    cfg: CameraConfig,
+    segmenter: Segmenter,
+    scratch: Vec<Detection>,
+    measured: Vec<Measured>,
+    previous: Vec<Measured>,
+    captured: Option<ClusterTime>,
+    priors: BTreeMap<TargetId, (ClusterTime, Prior)>,
+    rssi: BTreeMap<TargetId, RssiReading>,
+    mode: Mode,
+    mode_since: ClusterTime,
+    time_in_mode_ns: [u64; 3],
+    last_status: Option<ClusterTime>,
+    counters: Counters,
+}
+
+impl CameraNode {
+    pub fn new(cfg: CameraConfig, now: ClusterTime) -> CameraNode {
+        let segmenter = Segmenter::new(&cfg.segment);
+        CameraNode {
+            mode: cfg.initial_mode,
+            cfg,
+            segmenter,
+            scratch: Vec::with_capacity(64),
+            measured: Vec::with_capacity(64),
+            previous: Vec::with_capacity(64),
+            captured: None,
+            priors: BTreeMap::new(),
+            rssi: BTreeMap::new(),
+            mode_since: now,
+            time_in_mode_ns: [0; 3],
+            last_status: None,
+            counters: Counters::default(),
+        }
+    }
+
+    pub fn config(&self) -> &CameraConfig {
+        &self.cfg
+    }
+
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    pub fn counters(&self) -> Counters {
+        self.counters
+    }
+
+    /// Detections of the newest processed frame, undistorted.
+    pub fn latest(&self) -> &[Measured] {
+        &self.measured
+    }
+
+    /// Cumulative time in Active, CameraOff, Inactive up to `now`, ns.
+    pub fn time_in_mode_ns(&self, now: ClusterTime) -> [u64; 3] {
+        let mut t = self.time_in_mode_ns;
+        t[self.mode.index()] += (now - self.mode_since).max(0) as u64;
+        t
+    }
+
+    /// The runtime reports messages it could not deliver.
+    pub fn record_dropped(&mut self, n: u64) {
+        self.counters.dropped += n;
+    }
+
+    fn switch_mode(&mut self, now: ClusterTime, mode: Mode) {
+        if mode == self.mode {
+            return;
+        }
+        self.time_in_mode_ns = self.time_in_mode_ns(now);
+        self.mode_since = now;
+        debug!(node = %self.cfg.id, from = ?self.mode, to = ?mode, "mode switch");
+        self.mode = mode;
+        if !mode.camera_on() {
+            self.measured.clear();
+            self.previous.clear();
+            self.captured = None;
+        }
+        if !mode.radio_on() {
+            self.rssi.clear();
+        }
+    }
+
+    fn fresh(&self, t: ClusterTime, now: ClusterTime) -> bool {
+        (now - t) <= self.cfg.max_age_ms as i64 * 1_000_000
+    }
+
+    fn reject(&mut self, what: &'static str, problem: String) {
+        self.counters.rejected += 1;
+        warn!(node = %self.cfg.id, what, %problem, "rejected input");
+    }
+
+    fn to_head(&mut self, body: Message, out: &mut Vec<Outgoing>) {
+        match self.cfg.head {
+            Some(h) => out.push(Outgoing::new(h, body)),
+            None => self.counters.unsent += 1,
+        }
+    }
+
+    /// A message from the head or the server.
+    pub fn on_message(&mut self, now: ClusterTime, env: Envelope) -> Vec<Outgoing> {
+        let mut out = Vec::new();
+        if let Err(e) = env.validate() {
+            self.reject("message", e.to_string());
+            return out;
+        }
+        match env.body {
+            Message::Prior(p) => {
+                if !self.mode.radio_on() {
+                    self.counters.priors_ignored += 1;
+                    return out;
+                }
+                self.counters.priors += 1;
+                if self.cfg.fusion == Fusion::DistributedEif {
+                    let c = self.answer(now, &p);
+                    self.counters.contributions += 1;
+                    self.counters.camera_contributions += u64::from(c.camera);
+                    out.push(Outgoing::new(env.source, Message::Contribution(c)));
+                }
+                self.priors.insert(p.target, (now, p));
+            }
+            Message::Command(c) => {
+                if c.node != self.cfg.id {
+                    self.reject("command", format!("addressed to {}", c.node));
+                } else {
+                    self.switch_mode(now, c.mode);
+                }
+            }
+            Message::Assignment(a) => {
+                if a.node != self.cfg.id {
+                    self.reject("assignment", format!("addressed to {}", a.node));
+                } else {
+                    self.cfg.head = Some(a.head);
+                }
+            }
+            Message::Heartbeat
+            | Message::Hello(_)
+            | Message::HelloAck(_)
+            | Message::SyncBeacon(_)
+            | Message::Liveness(_) => {}
+            other => self.reject("message", format!("a camera does not take {}", other.kind())),
+        }
+        out
+    }
+
+    /// The contribution for one prior from the newest frame.
+    fn answer(&self, now: ClusterTime, prior: &Prior) -> proto::msg::Contribution {
+        let rssi = self.rssi.get(&prior.target).copied().filter(|r| self.fresh(r.time, now));
+        let captured = self.captured.filter(|&t| self.fresh(t, now));
+        let cam = &self.cfg.camera;
+        let chosen = captured.and_then(|_| {
+            self.measured
+                .iter()
+                .filter_map(|m| measure::mahalanobis2(cam, prior, m).map(|d2| (d2, m)))
+                .filter(|(d2, _)| *d2 <= self.cfg.gate_chi2)
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .map(|(_, m)| m)
+        });
+        measure::contribution(cam, prior, chosen, captured.unwrap_or(now), self.mode, rssi)
+    }
+
+    /// A captured frame. Segmented only in Active mode.
+    pub fn on_frame(&mut self, now: ClusterTime, frame: &Frame) -> Vec<Outgoing> {
+        let mut out = Vec::new();
+        if !self.mode.camera_on() {
+            self.counters.frames_skipped += 1;
+            return out;
+        }
+        let k = &self.cfg.camera.intrinsics;
+        if (frame.width, frame.height) != (k.width, k.height) {
+            self.reject(
+                "frame",
+                format!("{}x{} frame, camera is {}x{}", frame.width, frame.height, k.width, k.height),
+            );
+            return out;
+        }
+        if let Err(e) = self.segmenter.process(frame, &mut self.scratch) {
+            self.reject("frame", e.to_string());
+            return out;
+        }
+        self.counters.frames += 1;
+        self.counters.detections += self.scratch.len() as u64;
+        std::mem::swap(&mut self.previous, &mut self.measured);
+        self.measured.clear();
+        for d in &self.scratch {
+            match measure::measure(&self.cfg.camera, d, self.cfg.reference, self.cfg.pixel_sigma) {
+                Ok(m) => self.measured.push(m),
+                Err(_) => self.counters.undistort_failures += 1,
+            }
+        }
+        self.captured = Some(frame.captured);
+        self.forget_stale(now);
+        self.send_measurements(now, frame.captured, &mut out);
+        out
+    }
+
+    /// Gate the newest detections against the known priors and send what the mode asks for.
+    fn send_measurements(&mut self, now: ClusterTime, captured: ClusterTime, out: &mut Vec<Outgoing>) {
+        let priors: Vec<&Prior> = self.priors.values().map(|(_, p)| p).collect();
+        let assoc = measure::associate(&self.cfg.camera, &priors, &self.measured, self.cfg.gate_chi2);
+        let targets: Vec<Option<(TargetId, u64)>> = assoc
+            .iter()
+            .map(|a| a.map(|i| (priors[i].target, priors[i].step)))
+            .collect();
+        let centralized = self.cfg.fusion != Fusion::DistributedEif;
+        let mut msgs = Vec::new();
+        for (m, target) in self.measured.iter().zip(targets) {
+            if target.is_some() && !centralized {
+                continue;
+            }
+            let rssi = target
+                .and_then(|(t, _)| self.rssi.get(&t).copied())
+                .filter(|r| self.fresh(r.time, now));
+            let prev = self
+                .cfg
+                .previous_point
+                .then(|| nearest(&self.previous, m))
+                .flatten();
+            msgs.push(Message::Measurement(measure::measurement(
+                &self.cfg.camera,
+                m,
+                target,
+                prev,
+                captured,
+                self.mode,
+                rssi,
+            )));
+        }
+        for body in msgs {
+            self.counters.measurements += 1;
+            self.to_head(body, out);
+        }
+    }
+
+    fn forget_stale(&mut self, now: ClusterTime) {
+        let timeout = self.cfg.prior_timeout_ms as i64 * 1_000_000;
+        self.priors.retain(|_, (t, _)| now - *t <= timeout);
+    }
+
+    /// An RSSI reading of `target`'s tag, dBm.
+    pub fn on_rssi(&mut self, now: ClusterTime, target: TargetId, dbm: f64) {
+        if !(dbm.is_finite() && (-200.0..=30.0).contains(&dbm)) {
+            self.reject("rssi", format!("{dbm} dBm is not a finite reading in -200..30"));
+            return;
+        }
+        if !self.cfg.rssi || !self.mode.radio_on() {
+            return;
+        }
+        self.rssi.insert(target, RssiReading { dbm, time: now });
+    }
+
+    /// Periodic work: forget stale priors, send `NodeStatus` every status period.
+    pub fn tick(&mut self, now: ClusterTime) -> Vec<Outgoing> {
+        let mut out = Vec::new();
+        self.forget_stale(now);
+        let period = self.cfg.status_period_ms as i64 * 1_000_000;
+        if self.last_status.is_some_and(|t| now - t < period) {
+            return out;
+        }
+        self.last_status = Some(now);
+        let c = self.counters;
+        let status = NodeStatus {
+            mode: self.mode,
+            time_in_mode_ns: self.time_in_mode_ns(now),
+            frames: c.frames,
+            detections: c.detections,
+            dropped: c.dropped + c.unsent,
+            rejected: c.rejected,
+            sync_offset_ns: 0,
+            sync_error_ns: 0,
+        };
+        self.to_head(Message::NodeStatus(status.clone()), &mut out);
+        match self.cfg.server {
+            Some(s) if Some(s) != self.cfg.head => out.push(Outgoing::new(s, Message::NodeStatus(status))),
+            Some(_) => {}
+            None => self.counters.unsent += 1,
+        }
+        out
+    }
+}
+
+/// The previous frame's point nearest to `m` in the image, if within a box width.
+fn nearest(previous: &[Measured], m: &Measured) -> Option<nalgebra::Vector2<f64>> {
+    let b = m.detection.bbox;
+    let reach = ((b.xmax - b.xmin).max(b.ymax - b.ymin)) as f64;
+    let c = m.detection.centre;
+    previous
+        .iter()
+        .map(|p| {
+            let pc = p.detection.centre;
+            (((pc[0] - c[0]).powi(2) + (pc[1] - c[1]).powi(2)).sqrt() as f64, p)
+        })
+        .filter(|(d, _)| *d <= reach)
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, p)| p.point)
+}

@@ -1,0 +1,246 @@
+//! From detection to measurement: undistort a region's reference point to normalized pin-hole
+//! coordinates with its covariance, gate it against a head's prior, and build the messages —
+//! a [`Measurement`] (centralized, paper 000) or a [`Contribution`] Ω_i, ξ_i linearized at the
+//! broadcast μ̄ (distributed, paper 002 §III). All models come from `proto`.
+
+use crate::detect::{Detection, ReferencePoint};
+use nalgebra::{Matrix2, Vector2};
+use proto::camera::{CameraModel, UndistortError};
+use proto::models::{self, State};
+use proto::msg::{Contribution, Measurement, Mode, Prior, RssiReading};
+use proto::{ClusterTime, TargetId};
+
+/// A detection with its undistorted normalized point and covariance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Measured {
+    pub detection: Detection,
+    /// Undistorted normalized pin-hole point of the reference point.
+    pub point: Vector2<f64>,
+    /// Its covariance from the pixel σ, normalized units².
+    pub cov: Matrix2<f64>,
+}
+
+/// Undistort a detection's reference point.
+///
+/// # Errors
+/// The point is not finite or outside the lens model's invertible range.
+pub fn measure(
+    camera: &CameraModel,
+    detection: &Detection,
+    reference: ReferencePoint,
+    sigma_px: f64,
+) -> Result<Measured, UndistortError> {
+    let [u, v] = detection.reference(reference);
+    let point = camera.undistort(&Vector2::new(u as f64, v as f64))?;
+    Ok(Measured {
+        detection: *detection,
+        point,
+        cov: camera.normalized_covariance(&point, sigma_px),
+    })
+}
+
+/// Squared Mahalanobis distance of a measured point from the prior's predicted projection,
+/// with the prior covariance pushed through the pin-hole Jacobian plus the point's own
+/// covariance: `ν^T (J Σ̄ J^T + R)^-1 ν`. `None` when the prior is behind the camera or the
+/// innovation covariance is singular.
+pub fn mahalanobis2(camera: &CameraModel, prior: &Prior, m: &Measured) -> Option<f64> {
+    let mean = models::vec6_from_wire(&prior.mean);
+    if camera.pose.world_to_camera(&models::position(&mean)).z <= 0.0 {
+        return None;
+    }
+    let (h, jac) = models::pinhole(camera, &mean)?;
+    let sigma = models::mat6_from_wire(&prior.cov);
+    let s = jac * sigma * jac.transpose() + m.cov;
+    let nu = m.point - h;
+    let chol = s.cholesky()?;
+    let d2 = nu.dot(&chol.solve(&nu));
+    d2.is_finite().then_some(d2)
+}
+
+/// Assign measured detections to priors: each prior takes at most one detection and each
+/// detection at most one prior, nearest pairs first, only within `gate_chi2`. Returns, per
+/// detection, the index of its prior.
+pub fn associate(
+    camera: &CameraModel,
+    priors: &[&Prior],
+    measured: &[Measured],
+    gate_chi2: f64,
+) -> Vec<Option<usize>> {
+    let mut pairs = Vec::new();
+    for (pi, p) in priors.iter().enumerate() {
+        for (mi, m) in measured.iter().enumerate() {
+            if let Some(d2) = mahalanobis2(camera, p, m)
+                && d2 <= gate_chi2
+            {
+                pairs.push((d2, pi, mi));
+            }
+        }
+    }
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut of_detection = vec![None; measured.len()];
+    let mut prior_taken = vec![false; priors.len()];
+    for (_, pi, mi) in pairs {
+        if of_detection[mi].is_none() && !prior_taken[pi] {
+            of_detection[mi] = Some(pi);
+            prior_taken[pi] = true;
+        }
+    }
+    of_detection
+}
+
+/// The contribution Ω_i, ξ_i of one measured point at the prior's mean, or the all-zero
+/// contribution (`camera: false`) when there is none or it cannot be linearized.
+pub fn contribution(
+    camera: &CameraModel,
+    prior: &Prior,
+    measured: Option<&Measured>,
+    captured: ClusterTime,
+    mode: Mode,
+    rssi: Option<RssiReading>,
+) -> Contribution {
+    let mean: State = models::vec6_from_wire(&prior.mean);
+    let info = measured.and_then(|m| models::camera_contribution(camera, &m.point, &m.cov, &mean));
+    let (info_matrix, info_vector, used) = match info {
+        Some((omega, xi)) => (models::mat6_to_wire(&omega), models::vec6_to_wire(&xi), true),
+        None => ([[0.0; 6]; 6], [0.0; 6], false),
+    };
+    Contribution {
+        target: prior.target,
+        step: prior.step,
+        info_matrix,
+        info_vector,
+        camera: used,
+        captured,
+        mode,
+        rssi,
+    }
+}
+
+/// The centralized-mode measurement of one detection.
+#[allow(clippy::too_many_arguments)]
+pub fn measurement(
+    camera: &CameraModel,
+    m: &Measured,
+    target: Option<(TargetId, u64)>,
+    prev_point: Option<Vector2<f64>>,
+    captured: ClusterTime,
+    mode: Mode,
+    rssi: Option<RssiReading>,
+) -> Measurement {
+    let d = &m.detection;
+    Measurement {
+        target: target.map(|t| t.0),
+        step: target.map_or(0, |t| t.1),
+        point: [m.point.x, m.point.y],
+        prev_point: prev_point.map(|p| [p.x, p.y]),
+        cov: [m.cov[(0, 0)], m.cov[(0, 1)], m.cov[(1, 1)]],
+        pixel_box: d.bbox,
+        area: d.area,
+        colour: d.colour,
+        pose: camera.pose.to_wire(),
+        captured,
+        mode,
+        rssi,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix6, Vector3};
+    use proto::msg::{ColourSignature, PixelBox};
+    use proto::scenario::Scenario;
+
+    fn cam() -> CameraModel {
+        Scenario::default_scenario().camera_model(10).unwrap()
+    }
+
+    fn detection_at(px: Vector2<f64>) -> Detection {
+        Detection {
+            centre: [px.x as f32, px.y as f32],
+            foot: [px.x as f32, px.y as f32 + 20.0],
+            bbox: PixelBox {
+                xmin: px.x as f32 - 10.0,
+                ymin: px.y as f32 - 20.0,
+                xmax: px.x as f32 + 10.0,
+                ymax: px.y as f32 + 20.0,
+            },
+            area: 800,
+            colour: ColourSignature {
+                hue: 0.0,
+                saturation: 0.8,
+                intensity: 0.4,
+            },
+        }
+    }
+
+    fn prior(target: u32, pos: Vector3<f64>, sd: f64) -> Prior {
+        let mean = State::new(pos.x, pos.y, pos.z, 0.0, 0.0, 0.0);
+        Prior {
+            target: TargetId(target),
+            step: 7,
+            mean: models::vec6_to_wire(&mean),
+            cov: models::mat6_to_wire(&(Matrix6::identity() * sd * sd)),
+            deadline: ClusterTime::ZERO,
+        }
+    }
+
+    #[test]
+    fn undistorted_point_is_the_pinhole_projection() {
+        let c = cam();
+        let world = Vector3::new(3.5, 2.2, 0.25);
+        let px = c.project(&world).unwrap();
+        let m = measure(&c, &detection_at(px), ReferencePoint::Centre, 18.0).unwrap();
+        let (p, _) = c.normalized(&world);
+        // Detections hold f32 pixels: ~1e-5 px of rounding.
+        assert!((m.point - p).norm() < 1e-6, "{} vs {p}", m.point);
+        // 18 px through fx ≈ 320: σ ≈ 0.056 in normalized units, more where distortion compresses.
+        let sd = m.cov[(0, 0)].sqrt();
+        assert!(sd > 18.0 / 320.0 * 0.9 && sd < 18.0 / 320.0 * 1.6, "{sd}");
+        let foot = measure(&c, &detection_at(px), ReferencePoint::Foot, 18.0).unwrap();
+        assert!(foot.point.y > m.point.y);
+    }
+
+    #[test]
+    fn gating_picks_the_right_target_and_rejects_far_ones() {
+        let c = cam();
+        let a = Vector3::new(3.5, 2.2, 0.25);
+        let b = Vector3::new(2.6, 3.4, 0.25);
+        let pb_px = c.project(&b).unwrap();
+        let pa_px = c.project(&a).unwrap();
+        assert!((pb_px - pa_px).norm() > 100.0, "{pa_px} {pb_px}");
+        assert!(pb_px.x > 0.0 && pb_px.x < 352.0 && pb_px.y > 0.0 && pb_px.y < 288.0, "{pb_px}");
+        let ma = measure(&c, &detection_at(c.project(&a).unwrap()), ReferencePoint::Centre, 18.0).unwrap();
+        let mb = measure(&c, &detection_at(c.project(&b).unwrap()), ReferencePoint::Centre, 18.0).unwrap();
+        let pa = prior(1, a + Vector3::new(0.1, -0.05, 0.0), 0.1);
+        let pb = prior(2, b, 0.1);
+        let far = prior(3, Vector3::new(9.0, 7.0, 0.25), 0.2);
+        assert!(mahalanobis2(&c, &pa, &ma).unwrap() < 13.8);
+        assert!(mahalanobis2(&c, &pa, &mb).unwrap() > 13.8);
+        let got = associate(&c, &[&pb, &far, &pa], &[ma, mb], 13.8);
+        assert_eq!(got, vec![Some(2), Some(0)]);
+        let behind = prior(4, Vector3::new(0.5, -3.0, 0.25), 0.2);
+        assert_eq!(mahalanobis2(&c, &behind, &ma), None);
+    }
+
+    #[test]
+    fn contribution_matches_proto_and_zero_when_empty() {
+        let c = cam();
+        let a = Vector3::new(3.5, 2.2, 0.25);
+        let m = measure(&c, &detection_at(c.project(&a).unwrap()), ReferencePoint::Centre, 18.0).unwrap();
+        let p = prior(1, a, 0.3);
+        let got = contribution(&c, &p, Some(&m), ClusterTime(5), Mode::Active, None);
+        assert!(got.camera);
+        let (omega, xi) =
+            models::camera_contribution(&c, &m.point, &m.cov, &models::vec6_from_wire(&p.mean)).unwrap();
+        assert_eq!(got.info_matrix, models::mat6_to_wire(&omega));
+        assert_eq!(got.info_vector, models::vec6_to_wire(&xi));
+        assert_eq!((got.target, got.step), (TargetId(1), 7));
+        let empty = contribution(&c, &p, None, ClusterTime(5), Mode::CameraOff, None);
+        assert!(!empty.camera);
+        assert!(empty.info_matrix.iter().flatten().all(|&v| v == 0.0));
+        let meas = measurement(&c, &m, Some((TargetId(1), 7)), None, ClusterTime(5), Mode::Active, None);
+        assert_eq!(meas.target, Some(TargetId(1)));
+        assert_eq!(meas.pose, c.pose.to_wire());
+    }
+}

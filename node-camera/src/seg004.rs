@@ -1,0 +1,378 @@
+//! Paper 004 §3.2.1: the adaptive per-pixel background model of Fleck et al.
+//!
+//! Per pixel it keeps a background colour `b`, a noise estimate `η`, a confidence counter `j`
+//! and a ring buffer of the last `n` frames. A pixel is *moving* when `|i_t − b| > c1·η + c2`;
+//! the counter grows while `|i_t − i_{t−n}| < c1·η + c3` and resets otherwise; when it reaches
+//! `τ` the background takes the current colour. `η` rises by `noise_step` when
+//! `|i_t − i_{t−n}| > η` and (our choice; the paper leaves it open) falls by one otherwise.
+//! Differences are L1 over RGB in integers. Then 4-neighbour erosion and box region growing
+//! with merging ([`crate::region`]). All buffers are allocated on the first frame; later frames
+//! allocate nothing.
+
+use crate::detect::Detection;
+use crate::frame::{Frame, FrameError};
+use crate::region::{Grid, erode4, grow_boxes};
+
+/// Parameters of the paper 004 pipeline.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Paper004Params {
+    /// Ring buffer length n (paper: 20).
+    pub history: usize,
+    /// c1: weight of the noise estimate in both thresholds.
+    pub c1: f32,
+    /// c2: offset of the moving threshold, L1 RGB levels.
+    pub c2: u16,
+    /// c3: offset of the consistency threshold, L1 RGB levels.
+    pub c3: u16,
+    /// τ: consistent frames before the background takes the current colour.
+    pub tau: u8,
+    /// Noise counter increment (paper default 5).
+    pub noise_step: u8,
+    pub noise_init: u8,
+    pub noise_min: u8,
+    pub noise_max: u8,
+    /// Neighbours (of 4) a moving pixel needs to survive erosion.
+    pub erosion_min: u8,
+    /// Areas separated by a gap of at most this many grid pixels merge (0: only touching).
+    pub merge: usize,
+    /// Process every `step`-th pixel and row (1 = full resolution).
+    pub step: u32,
+    /// Smallest region kept, grid pixels.
+    pub min_pixels: u32,
+    pub max_regions: usize,
+}
+
+impl Default for Paper004Params {
+    fn default() -> Self {
+        Paper004Params {
+            history: 20,
+            c1: 2.0,
+            c2: 24,
+            c3: 12,
+            tau: 30,
+            noise_step: 5,
+            noise_init: 8,
+            noise_min: 3,
+            noise_max: 48,
+            erosion_min: 2,
+            merge: 2,
+            step: 1,
+            min_pixels: 12,
+            max_regions: 32,
+        }
+    }
+}
+
+/// The paper 004 segmenter's state.
+#[derive(Debug)]
+pub struct Paper004 {
+    params: Paper004Params,
+    c1_q8: u32,
+    grid: Option<Grid>,
+    background: Vec<u8>,
+    ring: Vec<u8>,
+    ring_head: usize,
+    noise: Vec<u8>,
+    confidence: Vec<u8>,
+    mask: Vec<u8>,
+    eroded: Vec<u8>,
+    frames: u64,
+}
+
+impl Paper004 {
+    pub fn new(params: Paper004Params) -> Paper004 {
+        let c1_q8 = (params.c1.max(0.0) * 256.0).round() as u32;
+        Paper004 {
+            params,
+            c1_q8,
+            grid: None,
+            background: Vec::new(),
+            ring: Vec::new(),
+            ring_head: 0,
+            noise: Vec::new(),
+            confidence: Vec::new(),
+            mask: Vec::new(),
+            eroded: Vec::new(),
+            frames: 0,
+        }
+    }
+
+    pub fn params(&self) -> &Paper004Params {
+        &self.params
+    }
+
+    /// The processing grid, once a frame has fixed it.
+    pub fn grid(&self) -> Option<Grid> {
+        self.grid
+    }
+
+    /// The background model, RGB per grid pixel.
+    pub fn background(&self) -> &[u8] {
+        &self.background
+    }
+
+    /// Moving mask of the last frame, before erosion.
+    pub fn mask(&self) -> &[u8] {
+        &self.mask
+    }
+
+    fn ensure(&mut self, frame: &Frame) -> Result<Grid, FrameError> {
+        frame.check()?;
+        if let Some(g) = self.grid {
+            if frame.width as usize / g.step != g.width
+                || frame.height as usize / g.step != g.height
+                || frame.width as usize != g.frame_width
+            {
+                return Err(FrameError::Mismatch {
+                    got_w: frame.width,
+                    got_h: frame.height,
+                    want_w: g.frame_width as u32,
+                    want_h: (g.height * g.step) as u32,
+                });
+            }
+            return Ok(g);
+        }
+        let g = Grid::new(frame.width, frame.height, self.params.step);
+        let n = g.len();
+        let hist = self.params.history.max(1);
+        self.background = vec![0; n * 3];
+        self.ring = vec![0; n * 3 * hist];
+        self.noise = vec![self.params.noise_init; n];
+        self.confidence = vec![0; n];
+        self.mask = vec![0; n];
+        self.eroded = vec![0; n];
+        self.grid = Some(g);
+        self.fill_from(frame, &g);
+        Ok(g)
+    }
+
+    /// Background and every ring slot take this frame's colours.
+    fn fill_from(&mut self, frame: &Frame, g: &Grid) {
+        for gy in 0..g.height {
+            for gx in 0..g.width {
+                let i = (gy * g.width + gx) * 3;
+                let rgb = g.rgb(frame, gx, gy);
+                self.background[i..i + 3].copy_from_slice(&rgb);
+            }
+        }
+        let n3 = g.len() * 3;
+        for slot in self.ring.chunks_exact_mut(n3) {
+            slot.copy_from_slice(&self.background);
+        }
+    }
+
+    /// Initialise the background from the per-channel temporal median of `frames` (for short
+    /// sequences, where the model has no time to learn). The ring buffer takes the median too.
+    ///
+    /// # Errors
+    /// A frame of the wrong shape; nothing changes then.
+    pub fn init_median(&mut self, frames: &[&Frame]) -> Result<(), FrameError> {
+        let Some(first) = frames.first() else {
+            return Ok(());
+        };
+        for f in frames {
+            f.check()?;
+            if (f.width, f.height) != (first.width, first.height) {
+                return Err(FrameError::Mismatch {
+                    got_w: f.width,
+                    got_h: f.height,
+                    want_w: first.width,
+                    want_h: first.height,
+                });
+            }
+        }
+        let g = self.ensure(first)?;
+        let mut vals = Vec::with_capacity(frames.len());
+        for gy in 0..g.height {
+            for gx in 0..g.width {
+                let o = g.frame_offset(gx, gy);
+                for c in 0..3 {
+                    vals.clear();
+                    vals.extend(frames.iter().map(|f| f.data[o + c]));
+                    vals.sort_unstable();
+                    self.background[(gy * g.width + gx) * 3 + c] = vals[vals.len() / 2];
+                }
+            }
+        }
+        let n3 = g.len() * 3;
+        for slot in self.ring.chunks_exact_mut(n3) {
+            slot.copy_from_slice(&self.background);
+        }
+        Ok(())
+    }
+
+    /// Segment one frame: update the model, erode, grow regions into `out` (cleared first).
+    ///
+    /// # Errors
+    /// A malformed frame or one whose size differs from the first frame's; the model is
+    /// unchanged then.
+    pub fn process(&mut self, frame: &Frame, out: &mut Vec<Detection>) -> Result<(), FrameError> {
+        out.clear();
+        let g = self.ensure(frame)?;
+        self.frames += 1;
+        self.update(frame, &g);
+        erode4(&g, &self.mask, &mut self.eroded, self.params.erosion_min);
+        let p = &self.params;
+        grow_boxes(
+            &g,
+            &mut self.eroded,
+            frame,
+            p.merge,
+            p.min_pixels,
+            p.max_regions,
+            out,
+        );
+        Ok(())
+    }
+
+    /// The per-pixel model update and moving test, one pass.
+    fn update(&mut self, frame: &Frame, g: &Grid) {
+        let p = &self.params;
+        let (c1, c2, c3) = (self.c1_q8, p.c2 as u32, p.c3 as u32);
+        let (tau, nstep) = (p.tau, p.noise_step);
+        let (nmin, nmax) = (p.noise_min, p.noise_max);
+        let n3 = g.len() * 3;
+        let slot = &mut self.ring[self.ring_head * n3..(self.ring_head + 1) * n3];
+        let step3 = g.step * 3;
+        for gy in 0..g.height {
+            let row_off = gy * g.step * g.frame_width * 3;
+            let src = &frame.data[row_off..row_off + g.frame_width * 3];
+            let a = gy * g.width;
+            let bg = &mut self.background[a * 3..(a + g.width) * 3];
+            let old = &mut slot[a * 3..(a + g.width) * 3];
+            let noise = &mut self.noise[a..a + g.width];
+            let conf = &mut self.confidence[a..a + g.width];
+            let mask = &mut self.mask[a..a + g.width];
+            for x in 0..g.width {
+                let s = x * step3;
+                let (r, gg, b) = (src[s] as i32, src[s + 1] as i32, src[s + 2] as i32);
+                let k = x * 3;
+                let d_bg = ((r - bg[k] as i32).abs()
+                    + (gg - bg[k + 1] as i32).abs()
+                    + (b - bg[k + 2] as i32).abs()) as u32;
+                let d_old = ((r - old[k] as i32).abs()
+                    + (gg - old[k + 1] as i32).abs()
+                    + (b - old[k + 2] as i32).abs()) as u32;
+                let eta = noise[x];
+                let base = (c1 * eta as u32) >> 8;
+                mask[x] = u8::from(d_bg > base + c2);
+                let c = if d_old < base + c3 { conf[x] + 1 } else { 0 };
+                if c >= tau {
+                    bg[k] = r as u8;
+                    bg[k + 1] = gg as u8;
+                    bg[k + 2] = b as u8;
+                    conf[x] = 0;
+                } else {
+                    conf[x] = c;
+                }
+                noise[x] = if d_old > eta as u32 {
+                    eta.saturating_add(nstep).min(nmax)
+                } else {
+                    eta.saturating_sub(1).max(nmin)
+                };
+                old[k] = r as u8;
+                old[k + 1] = gg as u8;
+                old[k + 2] = b as u8;
+            }
+        }
+        self.ring_head = (self.ring_head + 1) % p.history.max(1);
+    }
+
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proto::ClusterTime;
+
+    fn scene(t: usize, square_x: Option<usize>) -> Frame {
+        let mut f = Frame::new(120, 90, ClusterTime::from_millis(t as i64 * 100));
+        for y in 0..90 {
+            for x in 0..120 {
+                let i = (y * 120 + x) * 3;
+                let n = ((x * 7 + y * 13 + t * 29) % 5) as u8; // small noise
+                f.data[i] = 90 + n;
+                f.data[i + 1] = 100 + n;
+                f.data[i + 2] = 80 + n;
+                if let Some(sx) = square_x
+                    && (sx..sx + 12).contains(&x)
+                    && (30..54).contains(&y)
+                {
+                    f.data[i] = 200;
+                    f.data[i + 1] = 30;
+                    f.data[i + 2] = 40;
+                }
+            }
+        }
+        f
+    }
+
+    #[test]
+    fn finds_a_moving_square_and_not_the_noise() {
+        let mut seg = Paper004::new(Paper004Params::default());
+        let mut out = Vec::new();
+        for t in 0..10 {
+            seg.process(&scene(t, None), &mut out).unwrap();
+            assert!(out.is_empty(), "frame {t}: static noise detected: {out:?}");
+        }
+        for t in 10..20 {
+            let x = 10 + (t - 10) * 5;
+            seg.process(&scene(t, Some(x)), &mut out).unwrap();
+            assert_eq!(out.len(), 1, "frame {t}: {out:?}");
+            let d = out[0];
+            assert!((d.centre[0] - (x as f32 + 5.5)).abs() < 1.5, "{d:?}");
+            assert!((d.centre[1] - 41.5).abs() < 1.5, "{d:?}");
+            assert!(d.area > 200 && d.area <= 288, "{d:?}");
+            assert!(d.colour.hue < 0.3 || d.colour.hue > 6.0, "{d:?}");
+        }
+    }
+
+    #[test]
+    fn a_parked_object_joins_the_background_after_tau() {
+        let params = Paper004Params {
+            tau: 8,
+            history: 4,
+            ..Paper004Params::default()
+        };
+        let mut seg = Paper004::new(params);
+        let mut out = Vec::new();
+        seg.process(&scene(0, None), &mut out).unwrap();
+        let mut seen = Vec::new();
+        for t in 1..40 {
+            seg.process(&scene(t, Some(50)), &mut out).unwrap();
+            seen.push(out.len());
+        }
+        assert_eq!(seen[0], 1, "the new object is moving at first");
+        assert_eq!(*seen.last().unwrap(), 0, "and parked later: {seen:?}");
+    }
+
+    #[test]
+    fn wrong_size_frame_is_rejected_without_change() {
+        let mut seg = Paper004::new(Paper004Params::default());
+        let mut out = Vec::new();
+        seg.process(&scene(0, None), &mut out).unwrap();
+        let bg = seg.background().to_vec();
+        let other = Frame::new(60, 40, ClusterTime::ZERO);
+        assert!(matches!(seg.process(&other, &mut out), Err(FrameError::Mismatch { .. })));
+        assert_eq!(seg.background(), &bg[..]);
+        assert_eq!(seg.frames(), 1);
+    }
+
+    #[test]
+    fn subsampled_processing_reports_full_resolution_coordinates() {
+        let mut seg = Paper004::new(Paper004Params {
+            step: 2,
+            min_pixels: 4,
+            ..Paper004Params::default()
+        });
+        let mut out = Vec::new();
+        seg.process(&scene(0, None), &mut out).unwrap();
+        seg.process(&scene(1, Some(60)), &mut out).unwrap();
+        assert_eq!(out.len(), 1, "{out:?}");
+        assert!((out[0].centre[0] - 65.5).abs() < 2.0, "{:?}", out[0]);
+        assert!(out[0].bbox.xmin >= 58.0 && out[0].bbox.xmax <= 73.0, "{:?}", out[0]);
+    }
+}

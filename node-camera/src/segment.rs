@@ -1,0 +1,99 @@
+//! One interface over both segmentation pipelines, selected by the scenario's
+//! `method.segmentation`, with the settings each pipeline is recommended to run at.
+
+use crate::detect::Detection;
+use crate::frame::{Frame, FrameError};
+use crate::seg000::{HsiClass, Paper000, Paper000Params};
+use crate::seg004::{Paper004, Paper004Params};
+use proto::scenario::{Scenario, Segmentation};
+
+/// Both pipelines' parameters; only the selected one is used.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct SegmentParams {
+    pub kind: Segmentation,
+    pub paper000: Paper000Params,
+    pub paper004: Paper004Params,
+}
+
+/// Recommended processing step for a frame width: about 320 grid pixels across, at most 3.
+/// 352×288 runs at full resolution, 640×480 on every second pixel, 1920×1080 on every third.
+pub fn recommended_step(width: u32) -> u32 {
+    (width / 320).clamp(1, 3)
+}
+
+impl SegmentParams {
+    /// The scenario's pipeline at the recommended step for `width`; paper 000's colour classes
+    /// come from the scenario's target colours (its §6.1.1 assumes the colour is known).
+    pub fn for_scenario(scenario: &Scenario, width: u32) -> SegmentParams {
+        let step = recommended_step(width);
+        SegmentParams {
+            kind: scenario.method.segmentation,
+            paper000: Paper000Params {
+                classes: scenario
+                    .targets
+                    .iter()
+                    .map(|t| HsiClass::around_rgb(t.colour))
+                    .collect(),
+                step,
+                min_pixels: (48 / (step * step)).max(4),
+                ..Paper000Params::default()
+            },
+            paper004: Paper004Params {
+                step,
+                min_pixels: (48 / (step * step)).max(4),
+                ..Paper004Params::default()
+            },
+        }
+    }
+}
+
+/// The selected pipeline.
+#[derive(Debug)]
+pub enum Segmenter {
+    Paper000(Paper000),
+    Paper004(Paper004),
+}
+
+impl Segmenter {
+    pub fn new(params: &SegmentParams) -> Segmenter {
+        match params.kind {
+            Segmentation::Paper000 => Segmenter::Paper000(Paper000::new(params.paper000.clone())),
+            Segmentation::Paper004 => Segmenter::Paper004(Paper004::new(params.paper004.clone())),
+        }
+    }
+
+    pub fn kind(&self) -> Segmentation {
+        match self {
+            Segmenter::Paper000(_) => Segmentation::Paper000,
+            Segmenter::Paper004(_) => Segmentation::Paper004,
+        }
+    }
+
+    /// Segment a frame into `out` (cleared first).
+    ///
+    /// # Errors
+    /// A malformed frame or one of another size than the first; no state changes then.
+    pub fn process(&mut self, frame: &Frame, out: &mut Vec<Detection>) -> Result<(), FrameError> {
+        match self {
+            Segmenter::Paper000(s) => s.process(frame, out),
+            Segmenter::Paper004(s) => s.process(frame, out),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recommended_steps() {
+        assert_eq!(recommended_step(352), 1);
+        assert_eq!(recommended_step(640), 2);
+        assert_eq!(recommended_step(1920), 3);
+        let s = Scenario::default_scenario();
+        let p = SegmentParams::for_scenario(&s, 352);
+        assert_eq!(p.kind, Segmentation::Paper004);
+        assert_eq!(p.paper000.classes.len(), s.targets.len());
+        assert_eq!(Segmenter::new(&p).kind(), Segmentation::Paper004);
+    }
+}

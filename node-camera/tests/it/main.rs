@@ -1,0 +1,3 @@
+//! Integration tests of the camera node: real datasets and whole-pipeline runs.
+
+mod multiviewx;
