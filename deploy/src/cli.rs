@@ -29,6 +29,16 @@ pub enum Command {
     Report(cmd::report::Args),
     /// Export the tracks of a server recording as CSV or JSON Lines.
     Export(cmd::export::Args),
+    /// Measure speed; print JSON.
+    #[command(subcommand)]
+    Bench(Bench),
+}
+
+/// What `ocelli bench` measures.
+#[derive(Subcommand, Debug)]
+pub enum Bench {
+    /// The head's EIF update and activation decision.
+    Head(cmd::bench_head::Args),
 }
 
 /// Install the tracing subscriber (`RUST_LOG`, default `info`) on standard error.
@@ -53,6 +63,7 @@ pub fn main() -> ExitCode {
         Command::Undistort(args) => cmd::undistort::run(args),
         Command::Report(args) => cmd::report::run(args),
         Command::Export(args) => cmd::export::run(args),
+        Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
     };
     match result {
         Ok(code) => code,

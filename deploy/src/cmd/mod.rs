@@ -2,5 +2,6 @@
 
 pub mod export;
 pub mod report;
+pub mod bench_head;
 pub mod scenario;
 pub mod undistort;
