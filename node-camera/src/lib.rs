@@ -13,6 +13,7 @@ pub mod seg000;
 pub mod seg004;
 pub mod source;
 pub mod measure;
+pub mod radio;
 pub mod render;
 pub mod segment;
 pub mod config;
