@@ -1,3 +1,6 @@
 //! Putting Ocelli nodes together: the `ocelli` command line.
 pub mod cli;
 pub mod cmd;
+pub mod replay;
+pub mod sim;
+pub mod supervisor;

@@ -333,15 +333,10 @@ fn default_fps() -> f64 {
 
 /// A camera pose: placed and aimed, or OpenCV `rvec`/`tvec` (world → camera).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case", untagged)]
+#[serde(deny_unknown_fields, rename_all_fields = "kebab-case", untagged)]
 pub enum PoseSpec {
-    LookAt {
-        position: [f64; 3],
-        // `rename_all` on an enum renames variants, not fields: without this the default
-        // scenario's `look-at` keys match no variant.
-        #[serde(rename = "look-at")]
-        look_at: [f64; 3],
-    },
+    // `rename_all_fields` above: `rename_all` on an enum renames variants, not their fields.
+    LookAt { position: [f64; 3], look_at: [f64; 3] },
     Rodrigues { rvec: [f64; 3], tvec: [f64; 3] },
 }
 

@@ -3,9 +3,13 @@
 //! Frame layout: postcard varint `PROTOCOL_VERSION`, then the postcard-encoded [`Envelope`].
 //! The version is read first, so a peer on another version gets a clear error instead of a
 //! garbled decode. `decode` rejects trailing bytes, oversized frames and any envelope that
-//! fails [`Validate`](crate::validate::Validate).
+//! fails [`Validate`](crate::validate::Validate). Decoding errors name the message kind and the
+//! problem (truncation, unknown tag, bad option/bool byte); the tests in `tests/it/wire/` pin
+//! every kind's bytes with golden vectors and exercise each rejection.
 
+use crate::ids::NodeId;
 use crate::msg::Envelope;
+use crate::time::ClusterTime;
 use crate::validate::{Validate, ValidationError};
 use crate::{MAX_FRAME_BYTES, PROTOCOL_VERSION};
 use thiserror::Error;
@@ -67,11 +71,65 @@ pub fn decode(frame: &[u8]) -> Result<Envelope, WireError> {
             expected: PROTOCOL_VERSION,
         });
     }
-    let (env, rest) =
-        postcard::take_from_bytes::<Envelope>(rest).map_err(|e| WireError::Malformed(e.to_string()))?;
+    let (env, rest) = postcard::take_from_bytes::<Envelope>(rest).map_err(|e| body_error(rest, &e))?;
     if !rest.is_empty() {
         return Err(WireError::TrailingBytes(rest.len()));
     }
     env.validate()?;
     Ok(env)
+}
+
+/// Kind names of [`crate::Message`] by wire tag (variant index). A test pins it to
+/// [`crate::Message::kind`].
+pub const MESSAGE_KINDS: [&str; 13] = [
+    "hello",
+    "hello_ack",
+    "heartbeat",
+    "measurement",
+    "contribution",
+    "node_status",
+    "prior",
+    "command",
+    "track_report",
+    "assignment",
+    "handover",
+    "sync_beacon",
+    "liveness",
+];
+
+/// Turn a postcard failure into an error that names the message kind and the problem
+/// (postcard's own messages drop serde's detail, e.g. which enum tag was unknown).
+fn body_error(body: &[u8], e: &postcard::Error) -> WireError {
+    use postcard::Error as P;
+    // The envelope header is three varints, then the message tag: read them on their own.
+    let head = postcard::take_from_bytes::<(NodeId, u64, ClusterTime)>(body);
+    let Ok((_, after_header)) = head else {
+        return WireError::Malformed(match e {
+            P::DeserializeUnexpectedEnd => "truncated frame: it ends inside the envelope header".into(),
+            other => format!("envelope header: {other}"),
+        });
+    };
+    let kind = match postcard::take_from_bytes::<u32>(after_header) {
+        Err(_) => return WireError::Malformed("truncated frame: it ends before the message tag".into()),
+        Ok((tag, _)) => match MESSAGE_KINDS.get(tag as usize) {
+            Some(kind) => *kind,
+            None => {
+                return WireError::Malformed(format!(
+                    "unknown message kind tag {tag} (this build knows 0..={})",
+                    MESSAGE_KINDS.len() - 1
+                ));
+            }
+        },
+    };
+    WireError::Malformed(match e {
+        P::DeserializeUnexpectedEnd => format!("truncated frame: it ends inside a {kind} message"),
+        P::SerdeDeCustom | P::DeserializeBadEnum => {
+            format!("{kind}: unknown enum variant tag (or out-of-range value) in the message")
+        }
+        P::DeserializeBadOption => format!("{kind}: an option tag is neither 0 nor 1"),
+        P::DeserializeBadBool => format!("{kind}: a bool byte is neither 0 nor 1"),
+        P::DeserializeBadUtf8 | P::DeserializeBadChar => format!("{kind}: a string is not valid UTF-8"),
+        P::DeserializeBadVarint => format!("{kind}: a varint does not terminate or overflows"),
+        other => format!("{kind}: {other}"),
+    })
 }

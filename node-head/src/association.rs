@@ -1,0 +1,278 @@
+//! Several targets: gated nearest-neighbour association of detections to tracks, and track
+//! birth when unassociated detections from two or more cameras agree.
+//!
+//! Association: for every (detection, track) pair the innovation ν = p − h(μ̄) and its
+//! covariance S = H Σ̄ Hᵀ + C give d² = νᵀ S⁻¹ ν; pairs inside the χ² gate are taken greedily
+//! from the smallest d², each detection to one track and each track to one detection per
+//! camera. Birth: the largest group of leftover detections from distinct cameras whose
+//! triangulated point reprojects inside the gate for every member.
+
+use crate::init::{RayObservation, single_camera_prior, state_from_position, triangulate};
+use nalgebra::{Matrix2, Matrix6, Vector2};
+use proto::camera::CameraModel;
+use proto::models::{State, pinhole};
+use proto::msg::RssiReading;
+use proto::{NodeId, TargetId};
+
+/// One detection as the head sees it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Detection {
+    pub node: NodeId,
+    /// The node's index in the head's node table.
+    pub slot: usize,
+    /// Undistorted normalized point and covariance.
+    pub point: Vector2<f64>,
+    pub cov: Matrix2<f64>,
+    pub prev_point: Option<Vector2<f64>>,
+    pub rssi: Option<RssiReading>,
+    /// The track the camera gated it to, if any.
+    pub hint: Option<TargetId>,
+}
+
+/// Squared Mahalanobis distance of a detection to a predicted track; `None` when the track
+/// projects onto the camera plane or behind it.
+pub fn distance2(camera: &CameraModel, det: &Detection, mean: &State, cov: &Matrix6<f64>) -> Option<f64> {
+    let (h, jac) = pinhole(camera, mean)?;
+    let depth = camera
+        .pose
+        .world_to_camera(&mean.fixed_rows::<3>(0).into_owned())
+        .z;
+    if depth <= 0.0 {
+        return None;
+    }
+    let s = jac * cov * jac.transpose() + det.cov;
+    let nu = det.point - h;
+    let d2 = nu.dot(&s.cholesky()?.solve(&nu));
+    d2.is_finite().then_some(d2)
+}
+
+/// Assign detections to tracks (`tracks[t] = (μ̄, Σ̄)`); entry `i` is the track of detection
+/// `i`, or `None`.
+pub fn associate(
+    tracks: &[(State, Matrix6<f64>)],
+    dets: &[Detection],
+    cameras: &[CameraModel],
+    gate: f64,
+) -> Vec<Option<usize>> {
+    let mut pairs = Vec::new();
+    for (i, d) in dets.iter().enumerate() {
+        let Some(cam) = cameras.get(d.slot) else { continue };
+        for (t, (mean, cov)) in tracks.iter().enumerate() {
+            if let Some(d2) = distance2(cam, d, mean, cov)
+                && d2 <= gate
+            {
+                pairs.push((d2, t, i));
+            }
+        }
+    }
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut out = vec![None; dets.len()];
+    let mut taken: Vec<(usize, usize)> = Vec::new(); // (track, slot)
+    for (_, t, i) in pairs {
+        if out[i].is_some() || taken.contains(&(t, dets[i].slot)) {
+            continue;
+        }
+        out[i] = Some(t);
+        taken.push((t, dets[i].slot));
+    }
+    out
+}
+
+/// A new track to start.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Birth {
+    pub mean: State,
+    pub cov: Matrix6<f64>,
+    /// Indices of the detections that made it.
+    pub members: Vec<usize>,
+}
+
+fn reprojection_chi2(camera: &CameraModel, det: &Detection, p: &nalgebra::Vector3<f64>) -> Option<f64> {
+    let x = State::new(p.x, p.y, p.z, 0.0, 0.0, 0.0);
+    let (h, _) = pinhole(camera, &x)?;
+    if camera.pose.world_to_camera(p).z <= 0.0 {
+        return None;
+    }
+    let nu = det.point - h;
+    Some(nu.dot(&det.cov.cholesky()?.solve(&nu)))
+}
+
+/// Slack around the world box a born track may lie in, metres.
+pub const BIRTH_BOUNDS_MARGIN: f64 = 0.5;
+
+/// Start tracks from unassociated detections: groups of at least `min_cameras` distinct
+/// cameras whose triangulated point lies in the world box `bounds` (never fewer than two,
+/// unless `min_cameras` is 1, when a lone detection gets a wide single-camera prior on the
+/// plane `plane_z`). The box rejects the ghost intersections two skew rays always have.
+pub fn births(
+    dets: &[Detection],
+    cameras: &[CameraModel],
+    gate: f64,
+    min_cameras: usize,
+    plane_z: f64,
+    bounds: ([f64; 3], [f64; 3]),
+) -> Vec<Birth> {
+    let inside = |p: &nalgebra::Vector3<f64>| {
+        (0..3).all(|a| p[a] >= bounds.0[a] - BIRTH_BOUNDS_MARGIN && p[a] <= bounds.1[a] + BIRTH_BOUNDS_MARGIN)
+    };
+    let mut left: Vec<usize> = (0..dets.len())
+        .filter(|&i| cameras.get(dets[i].slot).is_some())
+        .collect();
+    let mut out = Vec::new();
+    let obs = |i: usize| RayObservation {
+        camera: &cameras[dets[i].slot],
+        point: dets[i].point,
+        cov: dets[i].cov,
+    };
+    loop {
+        let mut best: Option<(Vec<usize>, f64, nalgebra::Vector3<f64>, nalgebra::Matrix3<f64>)> = None;
+        for (a, &i) in left.iter().enumerate() {
+            for &j in &left[a + 1..] {
+                if dets[i].slot == dets[j].slot {
+                    continue;
+                }
+                let Some((p, _)) = triangulate(&[obs(i), obs(j)]) else {
+                    continue;
+                };
+                if !inside(&p) {
+                    continue;
+                }
+                let mut group = vec![i, j];
+                for &k in &left {
+                    if group.iter().any(|&g| dets[g].slot == dets[k].slot) {
+                        continue;
+                    }
+                    if reprojection_chi2(&cameras[dets[k].slot], &dets[k], &p).is_some_and(|c| c <= gate) {
+                        group.push(k);
+                    }
+                }
+                let Some((p, cov)) = triangulate(&group.iter().map(|&g| obs(g)).collect::<Vec<_>>()) else {
+                    continue;
+                };
+                let chis: Option<Vec<f64>> = group
+                    .iter()
+                    .map(|&g| reprojection_chi2(&cameras[dets[g].slot], &dets[g], &p))
+                    .collect();
+                let Some(chis) = chis else { continue };
+                if !inside(&p) || chis.iter().any(|&c| c > gate) {
+                    continue;
+                }
+                let score: f64 = chis.iter().sum();
+                let better = match &best {
+                    None => true,
+                    Some((g, s, _, _)) => group.len() > g.len() || (group.len() == g.len() && score < *s),
+                };
+                if better {
+                    best = Some((group, score, p, cov));
+                }
+            }
+        }
+        match best {
+            Some((group, _, p, cov)) if group.len() >= min_cameras.max(2) || min_cameras <= 1 => {
+                let (mean, cov6) = state_from_position(&p, &cov);
+                left.retain(|i| !group.contains(i));
+                out.push(Birth {
+                    mean,
+                    cov: cov6,
+                    members: group,
+                });
+            }
+            _ => break,
+        }
+    }
+    if min_cameras <= 1 {
+        for i in left {
+            let (mean, cov) = single_camera_prior(&obs(i), plane_z);
+            out.push(Birth {
+                mean,
+                cov,
+                members: vec![i],
+            });
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+    use proto::camera::{Distortion, Intrinsics, Pose};
+
+    fn cam(pos: [f64; 3], at: [f64; 3]) -> CameraModel {
+        CameraModel {
+            intrinsics: Intrinsics {
+                fx: 320.0,
+                fy: 320.0,
+                cx: 176.0,
+                cy: 144.0,
+                width: 352,
+                height: 288,
+            },
+            distortion: Distortion::default(),
+            pose: Pose::look_at(Vector3::from(pos), Vector3::from(at), Vector3::z()).unwrap(),
+        }
+    }
+
+    fn det(cams: &[CameraModel], slot: usize, p: Vector3<f64>) -> Detection {
+        Detection {
+            node: NodeId(slot as u32),
+            slot,
+            point: cams[slot].normalized(&p).0,
+            cov: Matrix2::identity() * (18.0f64 / 320.0).powi(2),
+            prev_point: None,
+            rssi: None,
+            hint: None,
+        }
+    }
+
+    const ROOM: ([f64; 3], [f64; 3]) = ([0.0, 0.0, 0.0], [12.0, 8.0, 3.0]);
+
+    fn cams() -> Vec<CameraModel> {
+        vec![
+            cam([0.0, 0.0, 2.5], [3.0, 3.0, 0.0]),
+            cam([6.0, 0.0, 2.5], [3.0, 3.0, 0.0]),
+            cam([3.0, 7.0, 2.5], [3.0, 3.0, 0.0]),
+        ]
+    }
+
+    #[test]
+    fn nearest_track_wins_and_far_detections_stay_free() {
+        let cams = cams();
+        let a = Vector3::new(2.0, 2.0, 0.2);
+        let b = Vector3::new(4.5, 4.0, 0.2);
+        let cov = Matrix6::identity() * 0.05;
+        let tracks = [
+            (State::new(a.x, a.y, a.z, 0.0, 0.0, 0.0), cov),
+            (State::new(b.x, b.y, b.z, 0.0, 0.0, 0.0), cov),
+        ];
+        let dets = vec![
+            det(&cams, 0, b),
+            det(&cams, 0, a),
+            det(&cams, 1, Vector3::new(5.5, 0.8, 0.2)),
+        ];
+        let got = associate(&tracks, &dets, &cams, 13.8);
+        assert_eq!(got, vec![Some(1), Some(0), None]);
+    }
+
+    #[test]
+    fn birth_needs_two_agreeing_cameras() {
+        let cams = cams();
+        let a = Vector3::new(2.0, 2.0, 0.2);
+        let b = Vector3::new(4.5, 4.0, 0.2);
+        // Two cameras agree on `a`; a third sees `b` alone.
+        let dets = vec![det(&cams, 0, a), det(&cams, 1, a), det(&cams, 2, b)];
+        let got = births(&dets, &cams, 13.8, 2, 0.2, ROOM);
+        assert_eq!(got.len(), 1);
+        assert_eq!(got[0].members.len(), 2);
+        assert!((got[0].mean.fixed_rows::<3>(0) - a).norm() < 1e-6);
+        // Disagreeing rays (different points) give no birth.
+        let dets = vec![det(&cams, 0, a), det(&cams, 1, b)];
+        let ghost = births(&dets, &cams, 13.8, 2, 0.2, ROOM);
+        assert!(ghost.is_empty(), "{:?}", ghost.first().map(|b| b.mean));
+        // One camera alone with min_cameras = 1 gets a wide prior.
+        let one = births(&dets[..1], &cams, 13.8, 1, 0.2, ROOM);
+        assert_eq!(one.len(), 1);
+        assert!(one[0].cov[(0, 0)] > 1.0);
+    }
+}

@@ -1,0 +1,73 @@
+//! What a head counts: per step (active cameras, RSSI nodes, contributions applied / late /
+//! duplicate, cluster power) and cumulative, so that reports and experiments can show every
+//! dropped, late or rejected input.
+
+use crate::activation::Decision;
+use proto::ClusterTime;
+
+/// One closed step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepStats {
+    pub step: u64,
+    /// When the step opened (the time of its prior).
+    pub time: ClusterTime,
+    pub tracks: usize,
+    /// Member nodes up and in `Active`.
+    pub active_cameras: usize,
+    /// Member nodes up and in `CameraOff`.
+    pub camera_off: usize,
+    /// Nodes whose RSSI reading was fused this step.
+    pub rssi_nodes: usize,
+    /// Contributions (or, centralized, measurements) applied this step.
+    pub applied: u64,
+    /// Contributions for an earlier step or past the deadline, counted while this step was open.
+    pub late: u64,
+    pub duplicate: u64,
+    /// Tracks that had no measurement and were prediction only.
+    pub prediction_only: usize,
+    /// The cluster's power draw with the power figures and current modes, mW.
+    pub power_mw: f64,
+    /// The activation decision taken at the end of the step.
+    pub decision: Option<Decision>,
+    /// Whether the step closed early because every expected node answered.
+    pub complete: bool,
+}
+
+/// Cumulative counters.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Counters {
+    pub steps: u64,
+    pub applied: u64,
+    pub late: u64,
+    pub duplicate: u64,
+    /// Contributions for a step that has not started.
+    pub future: u64,
+    /// Contributions for a track the head does not have (dropped or never existed).
+    pub unknown_target: u64,
+    /// Messages from a node not allowed to send them (not a member, not the server).
+    pub rejected: u64,
+    /// Measurements beyond the per-step limit.
+    pub overflow: u64,
+    pub births: u64,
+    pub deaths: u64,
+    pub handovers: u64,
+    pub commands: u64,
+    /// Filter updates that failed numerically and fell back to prediction only.
+    pub numeric_failures: u64,
+    /// Sums over steps, for averages.
+    pub sum_active_cameras: u64,
+    pub sum_rssi_nodes: u64,
+    pub sum_power_mw: f64,
+}
+
+impl Counters {
+    pub fn mean_active_cameras(&self) -> f64 {
+        self.sum_active_cameras as f64 / self.steps.max(1) as f64
+    }
+    pub fn mean_rssi_nodes(&self) -> f64 {
+        self.sum_rssi_nodes as f64 / self.steps.max(1) as f64
+    }
+    pub fn mean_power_mw(&self) -> f64 {
+        self.sum_power_mw / self.steps.max(1) as f64
+    }
+}

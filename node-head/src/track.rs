@@ -1,0 +1,108 @@
+//! One track at the head: its filter, the auxiliary camera-only filter that feeds RSSI
+//! training, this step's sums and readings, and one RSSI trainer per node.
+
+use crate::association::Detection;
+use crate::eif::{Accumulator, Eif, FilterError};
+use crate::rssi_training::RssiTrainer;
+use nalgebra::{Matrix6, Vector3};
+use proto::models::{MotionModel, RssiModel, State};
+use proto::msg::Contributor;
+use proto::{ClusterTime, TargetId};
+
+/// A track.
+#[derive(Clone, Debug)]
+pub struct Track {
+    pub local: TargetId,
+    pub global: Option<TargetId>,
+    pub filter: Eif,
+    /// Camera-only EIF (paper 002 §IV): the distances RSSI training uses.
+    pub aux: Eif,
+    pub acc: Accumulator,
+    pub aux_acc: Accumulator,
+    /// RSSI readings of this step: (node slot, dBm).
+    pub rssi: Vec<(usize, f64)>,
+    /// Detections associated this step (centralized and ML fusion).
+    pub detections: Vec<Detection>,
+    pub contributors: Vec<Contributor>,
+    /// One trainer per node slot.
+    pub trainers: Vec<RssiTrainer>,
+    /// Time of the filter's state.
+    pub time: ClusterTime,
+    /// Last time a measurement carried information about it.
+    pub last_seen: ClusterTime,
+    /// ML's previous fix, for its velocity.
+    pub ml_prev: Option<(Vector3<f64>, ClusterTime)>,
+}
+
+impl Track {
+    /// A track from a Gaussian at `now`, with `nodes` RSSI trainers.
+    ///
+    /// # Errors
+    /// The covariance is not positive definite.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        local: TargetId,
+        global: Option<TargetId>,
+        mean: State,
+        cov: Matrix6<f64>,
+        now: ClusterTime,
+        nodes: usize,
+        rssi_default: RssiModel,
+        window: usize,
+        epsilon: f64,
+    ) -> Result<Self, FilterError> {
+        let filter = Eif::from_gaussian(mean, cov)?;
+        Ok(Track {
+            local,
+            global,
+            aux: filter.clone(),
+            filter,
+            acc: Accumulator::default(),
+            aux_acc: Accumulator::default(),
+            rssi: Vec::new(),
+            detections: Vec::new(),
+            contributors: Vec::new(),
+            trainers: (0..nodes)
+                .map(|_| RssiTrainer::new(rssi_default, window, epsilon))
+                .collect(),
+            time: now,
+            last_seen: now,
+            ml_prev: None,
+        })
+    }
+
+    /// Predict both filters to `now` and clear the step's sums.
+    ///
+    /// # Errors
+    /// A prediction failed numerically; the filters are unchanged.
+    pub fn begin_step(&mut self, motion: &MotionModel, now: ClusterTime) -> Result<(), FilterError> {
+        let dt = now.secs_since(self.time);
+        if dt > 0.0 {
+            let f = self.filter.predicted(motion, dt)?;
+            let a = self.aux.predicted(motion, dt)?;
+            self.filter = f;
+            self.aux = a;
+            self.time = now;
+        }
+        self.acc.clear();
+        self.aux_acc.clear();
+        self.rssi.clear();
+        self.detections.clear();
+        self.contributors.clear();
+        Ok(())
+    }
+
+    pub fn position(&self) -> Vector3<f64> {
+        self.filter.mean().fixed_rows::<3>(0).into_owned()
+    }
+
+    /// Record one node's share in the report.
+    pub fn note(&mut self, node: proto::NodeId, camera: bool, rssi: bool) {
+        if let Some(c) = self.contributors.iter_mut().find(|c| c.node == node) {
+            c.camera |= camera;
+            c.rssi |= rssi;
+        } else {
+            self.contributors.push(Contributor { node, camera, rssi });
+        }
+    }
+}

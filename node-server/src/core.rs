@@ -1,0 +1,485 @@
+//! The server's sans-IO core, [`ServerNode`]: messages and ticks in, messages out, and a journal
+//! of records for the recording.
+//!
+//! The runtime calls [`ServerNode::on_message`] with every decoded envelope,
+//! [`ServerNode::on_rejected`] with every frame that did not decode, and [`ServerNode::tick`]
+//! periodically; it sends the returned [`Outgoing`]s and appends [`ServerNode::take_records`]
+//! (plus the envelopes it sent) to the recording.
+//!
+//! Replayability: the core is deterministic, and a tick is journaled exactly when it changed
+//! state (it made a decision or sent beacons). Feeding a recording's `Received` and `Tick`
+//! records back in ([`ServerNode::restore`]) therefore rebuilds the same membership, global ids
+//! and last posteriors, and reproduces the recorded decisions.
+//!
+//! Handover messages: a [`Handover`] with `to_head` = the new head is sent to the new head (start
+//! from this posterior) *and* to the old head if it is up (stop tracking it; its later reports of
+//! that target are treated as a second opinion and merged or split like any other). Assignments
+//! are likewise sent to the camera, its new head and its previous head.
+
+use crate::decision::Decision;
+use crate::membership::Membership;
+use crate::record::{Record, Stamped};
+use crate::tracks::{GlobalTrack, TrackParams, Tracks};
+use proto::msg::{Assignment, Handover, HelloAck, Liveness, Message, NodeStatus, SyncBeacon};
+use proto::node::Outgoing;
+use proto::scenario::Scenario;
+use proto::{ClusterTime, Envelope, NodeId, PROTOCOL_VERSION, Role, TargetId};
+use std::collections::BTreeMap;
+
+/// Server configuration: the scenario plus the server's own tuning.
+#[derive(Clone, Debug)]
+pub struct ServerConfig {
+    pub id: NodeId,
+    pub scenario: Scenario,
+    pub tracks: TrackParams,
+    /// Keep a journal for the recording (turn off when nobody drains it).
+    pub journal: bool,
+}
+
+impl ServerConfig {
+    /// Defaults from the scenario: merge gate 1 m, hysteresis 3 reports, handover margin
+    /// 0.25 m, track timeout from `method.track-timeout-ms`, owner staleness three steps.
+    pub fn from_scenario(scenario: Scenario, id: NodeId) -> Self {
+        let ms = |v: u64| i64::try_from(v).unwrap_or(i64::MAX / 1_000_000) * 1_000_000;
+        let tracks = TrackParams {
+            merge_gate_m: 1.0,
+            hysteresis: 3,
+            handover_margin_m: 0.25,
+            track_timeout_ns: ms(scenario.method.track_timeout_ms),
+            owner_stale_ns: ms(3 * scenario.method.step_ms),
+        };
+        ServerConfig {
+            id,
+            scenario,
+            tracks,
+            journal: true,
+        }
+    }
+}
+
+/// Counters the server keeps.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Counters {
+    pub received: u64,
+    pub rejected: u64,
+    pub handovers: u64,
+    pub beacons: u64,
+}
+
+/// The server core.
+#[derive(Debug)]
+pub struct ServerNode {
+    cfg: ServerConfig,
+    members: Membership,
+    tracks: Tracks,
+    round: u64,
+    next_beacon: Option<ClusterTime>,
+    beacon_ns: i64,
+    status: BTreeMap<NodeId, NodeStatus>,
+    journal: Vec<Stamped>,
+    counters: Counters,
+}
+
+/// What restoring from a recording found.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct RestoreStats {
+    /// Records fed back in (received envelopes and ticks).
+    pub replayed: u64,
+    /// Recorded decisions the replay reproduced, and those it did not.
+    pub decisions_matched: u64,
+    pub decisions_mismatched: u64,
+}
+
+impl ServerNode {
+    pub fn new(cfg: ServerConfig) -> Self {
+        let members = Membership::new(&cfg.scenario);
+        let tracks = Tracks::new(cfg.tracks.clone());
+        let beacon_ns = i64::try_from(cfg.scenario.network.sync_beacon_ms.max(1))
+            .unwrap_or(1000)
+            .saturating_mul(1_000_000);
+        ServerNode {
+            cfg,
+            members,
+            tracks,
+            round: 0,
+            next_beacon: None,
+            beacon_ns,
+            status: BTreeMap::new(),
+            journal: Vec::new(),
+            counters: Counters::default(),
+        }
+    }
+
+    pub fn id(&self) -> NodeId {
+        self.cfg.id
+    }
+
+    pub fn config(&self) -> &ServerConfig {
+        &self.cfg
+    }
+
+    pub fn membership(&self) -> &Membership {
+        &self.members
+    }
+
+    pub fn counters(&self) -> &Counters {
+        &self.counters
+    }
+
+    /// Global tracks with their owner and last posterior.
+    pub fn globals(&self) -> impl Iterator<Item = (TargetId, &GlobalTrack)> {
+        self.tracks.globals()
+    }
+
+    /// The global id of a head's local track, once bound.
+    pub fn global_of(&self, head: NodeId, local: TargetId) -> Option<TargetId> {
+        self.tracks.global_of(head, local)
+    }
+
+    /// Latest status each node sent (sync error, energy, drops).
+    pub fn statuses(&self) -> &BTreeMap<NodeId, NodeStatus> {
+        &self.status
+    }
+
+    /// Records made since the last call, in order.
+    pub fn take_records(&mut self) -> Vec<Stamped> {
+        std::mem::take(&mut self.journal)
+    }
+
+    fn journal(&mut self, now: ClusterTime, r: Record) {
+        if self.cfg.journal {
+            self.journal.push(Stamped::new(now, r));
+        }
+    }
+
+    fn reject(&mut self, now: ClusterTime, source: Option<NodeId>, what: &str, reason: String) {
+        self.counters.rejected += 1;
+        tracing::warn!(source = ?source, what, %reason, "message rejected");
+        self.decide(
+            now,
+            Decision::Rejected {
+                source,
+                what: what.into(),
+                reason,
+            },
+            &mut Vec::new(),
+        );
+    }
+
+    /// A frame that did not decode (the runtime knows the link it came on, if anything).
+    pub fn on_rejected(&mut self, now: ClusterTime, source: Option<NodeId>, error: &str) {
+        self.reject(now, source, "frame", error.into());
+    }
+
+    /// Handle one decoded envelope.
+    pub fn on_message(&mut self, now: ClusterTime, env: Envelope) -> Vec<Outgoing> {
+        self.journal(now, Record::Received(env.clone()));
+        self.counters.received += 1;
+        let mut out = Vec::new();
+        let src = env.source;
+        let kind = env.body.kind();
+        if let Message::Hello(h) = &env.body {
+            self.hello(now, src, h, &mut out);
+            return out;
+        }
+        // Anything else needs an admitted sender, or one the scenario declares (a node that
+        // kept running while the server restarted need not say hello again).
+        let role = match self.members.member(src).map(|m| m.role) {
+            Some(r) => r,
+            None => match self.members.declared_role(src) {
+                Some(r) if r != Role::Server => {
+                    if let Some(d) = self.members.admit(now, src, r) {
+                        self.decide(now, d, &mut out);
+                    }
+                    r
+                }
+                _ => {
+                    self.reject(now, Some(src), kind, "sender is not a member".into());
+                    return out;
+                }
+            },
+        };
+        match env.body {
+            Message::Heartbeat => {}
+            Message::NodeStatus(s) => {
+                self.status.insert(src, s);
+            }
+            Message::TrackReport(r) if role == Role::Head => {
+                if let Some(d) = self.members.seen(now, src) {
+                    self.decide(now, d, &mut out);
+                }
+                for d in self.tracks.observe(now, src, &r, &self.members) {
+                    self.decide(now, d, &mut out);
+                }
+                return out;
+            }
+            _ => {
+                self.reject(
+                    now,
+                    Some(src),
+                    kind,
+                    format!("a server does not take {kind} from a {role}"),
+                );
+                return out;
+            }
+        }
+        if let Some(d) = self.members.seen(now, src) {
+            self.decide(now, d, &mut out);
+        }
+        out
+    }
+
+    fn hello(&mut self, now: ClusterTime, src: NodeId, h: &proto::msg::Hello, out: &mut Vec<Outgoing>) {
+        let refuse = if h.node != src {
+            Some(format!("hello names node {} but came from {src}", h.node))
+        } else if h.version != PROTOCOL_VERSION {
+            Some(format!(
+                "protocol version {} (server speaks {PROTOCOL_VERSION})",
+                h.version
+            ))
+        } else {
+            match (self.members.declared_role(src), h.role) {
+                (_, Role::Server) => Some("a second server".to_string()),
+                (None, Role::Tool) => None,
+                (Some(d), r) if d == r => None,
+                (Some(d), r) => Some(format!("scenario declares {src} as {d}, not {r}")),
+                (None, r) => Some(format!("{src} is not in the scenario (as {r})")),
+            }
+        };
+        if let Some(reason) = refuse {
+            self.counters.rejected += 1;
+            tracing::warn!(node = %src, %reason, "hello refused");
+            out.push(Outgoing::new(
+                src,
+                Message::HelloAck(HelloAck {
+                    accepted: false,
+                    reason: reason.clone(),
+                }),
+            ));
+            self.decide(now, Decision::Refused { node: src, reason }, out);
+            return;
+        }
+        out.push(Outgoing::new(
+            src,
+            Message::HelloAck(HelloAck {
+                accepted: true,
+                reason: String::new(),
+            }),
+        ));
+        match self.members.admit(now, src, h.role) {
+            Some(d) => self.decide(now, d, out),
+            // Already up: a reconnect. Repeat what it needs to know.
+            None => self.welcome(src, out),
+        }
+    }
+
+    /// Tell a node its place: a camera its head, a head its cameras.
+    fn welcome(&self, node: NodeId, out: &mut Vec<Outgoing>) {
+        match self.members.member(node).map(|m| m.role) {
+            Some(Role::Camera) => {
+                if let Some(head) = self.members.head_of(node) {
+                    let a = Message::Assignment(Assignment { node, head });
+                    out.push(Outgoing::new(node, a.clone()));
+                    if self.members.is_up(head) {
+                        out.push(Outgoing::new(head, a));
+                    }
+                }
+            }
+            Some(Role::Head) => {
+                for c in self.members.cameras_of(node) {
+                    out.push(Outgoing::new(
+                        node,
+                        Message::Assignment(Assignment { node: c, head: node }),
+                    ));
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// Journal a decision, apply its follow-ups and emit the messages it implies.
+    fn decide(&mut self, now: ClusterTime, d: Decision, out: &mut Vec<Outgoing>) {
+        tracing::debug!(decision = ?d, "decision");
+        self.journal(now, Record::Decision(d.clone()));
+        match d {
+            Decision::Admitted { node, .. } | Decision::Up { node } => {
+                if matches!(d, Decision::Up { .. })
+                    && let Some(head) = self.members.head_of(node)
+                    && self.members.is_up(head)
+                {
+                    out.push(Outgoing::new(
+                        head,
+                        Message::Liveness(Liveness { node, up: true }),
+                    ));
+                }
+                if self.members.member(node).map(|m| m.role) == Some(Role::Head) {
+                    for a in self.members.rebalance() {
+                        self.decide(now, a, out);
+                    }
+                }
+                self.welcome(node, out);
+            }
+            Decision::Down { node, .. } => match self.members.member(node).map(|m| m.role) {
+                Some(Role::Camera) => {
+                    if let Some(head) = self.members.head_of(node)
+                        && self.members.is_up(head)
+                    {
+                        out.push(Outgoing::new(
+                            head,
+                            Message::Liveness(Liveness { node, up: false }),
+                        ));
+                    }
+                }
+                Some(Role::Head) => {
+                    for h in self.members.live_heads() {
+                        out.push(Outgoing::new(h, Message::Liveness(Liveness { node, up: false })));
+                    }
+                    for a in self.members.rebalance() {
+                        self.decide(now, a, out);
+                    }
+                }
+                _ => {}
+            },
+            Decision::Assigned { camera, head, from } => {
+                let a = Message::Assignment(Assignment { node: camera, head });
+                for to in [Some(camera), Some(head), from].into_iter().flatten() {
+                    if self.members.is_up(to) && !out.iter().any(|o| o.to == to && o.body == a) {
+                        out.push(Outgoing::new(to, a.clone()));
+                    }
+                }
+            }
+            Decision::Handover { global, from, to, .. } => {
+                self.counters.handovers += 1;
+                if let Some(gt) = self.tracks.global(global) {
+                    let msg = Message::Handover(Handover {
+                        global,
+                        to_head: to,
+                        from_head: from,
+                        time: gt.time,
+                        mean: gt.mean,
+                        cov: gt.cov,
+                    });
+                    out.push(Outgoing::new(to, msg.clone()));
+                    if let Some(f) = from
+                        && f != to
+                        && self.members.is_up(f)
+                    {
+                        out.push(Outgoing::new(f, msg));
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// Periodic work: liveness, failover, lost tracks, sync beacons.
+    pub fn tick(&mut self, now: ClusterTime) -> Vec<Outgoing> {
+        let mark = self.journal.len();
+        self.journal(now, Record::Tick);
+        let mut out = Vec::new();
+        let mut changed = false;
+        for d in self.members.expire(now) {
+            changed = true;
+            self.decide(now, d, &mut out);
+        }
+        for d in self.tracks.tick(now, &self.members) {
+            changed = true;
+            self.decide(now, d, &mut out);
+        }
+        if self.next_beacon.is_none_or(|t| now >= t) {
+            changed = true;
+            self.round += 1;
+            self.next_beacon = Some(now + self.beacon_ns);
+            let beacon = Message::SyncBeacon(SyncBeacon {
+                leader: self.cfg.id,
+                round: self.round,
+                leader_time: now,
+            });
+            let up: Vec<NodeId> = self
+                .members
+                .members()
+                .filter(|(_, m)| m.up)
+                .map(|(id, _)| id)
+                .collect();
+            for node in up {
+                self.counters.beacons += 1;
+                out.push(Outgoing::new(node, beacon.clone()));
+            }
+        }
+        if !changed && self.cfg.journal {
+            self.journal.truncate(mark);
+        }
+        out
+    }
+
+    /// After a restart: give every known node and track a fresh grace period from `now` so
+    /// nodes can reconnect before anything is declared down or lost.
+    pub fn resume(&mut self, now: ClusterTime, records: u64, skipped_bytes: u64) {
+        self.members.refresh_all(now);
+        self.tracks.refresh_all(now);
+        self.next_beacon = None;
+        self.journal(
+            now,
+            Record::Decision(Decision::Resumed {
+                records,
+                skipped_bytes,
+            }),
+        );
+    }
+
+    /// Rebuild a server from the records of a previous run by feeding its inputs back in.
+    pub fn restore(cfg: ServerConfig, records: &[Stamped]) -> (ServerNode, RestoreStats) {
+        let mut cfg = cfg;
+        cfg.journal = true;
+        let mut node = ServerNode::new(cfg);
+        let mut stats = RestoreStats::default();
+        let mut recorded = Vec::new();
+        for s in records {
+            match &s.record {
+                Record::Received(env) => {
+                    stats.replayed += 1;
+                    node.on_message(s.at, env.clone());
+                }
+                Record::Tick => {
+                    stats.replayed += 1;
+                    node.tick(s.at);
+                }
+                Record::Decision(d) => {
+                    if let Decision::Resumed {
+                        records,
+                        skipped_bytes,
+                    } = d
+                    {
+                        node.resume(s.at, *records, *skipped_bytes);
+                    }
+                    // Undecodable frames leave only their decision behind; count them again.
+                    if let Decision::Rejected { what, .. } = d
+                        && what == "frame"
+                    {
+                        node.counters.rejected += 1;
+                        node.journal(s.at, Record::Decision(d.clone()));
+                    }
+                    recorded.push(d.clone());
+                }
+                Record::Scenario(_) | Record::Sent { .. } => {}
+            }
+        }
+        let replayed: Vec<Decision> = node
+            .take_records()
+            .into_iter()
+            .filter_map(|s| match s.record {
+                Record::Decision(d) => Some(d),
+                _ => None,
+            })
+            .collect();
+        for (i, d) in recorded.iter().enumerate() {
+            if replayed.get(i) == Some(d) {
+                stats.decisions_matched += 1;
+            } else {
+                stats.decisions_mismatched += 1;
+            }
+        }
+        stats.decisions_mismatched += replayed.len().saturating_sub(recorded.len()) as u64;
+        (node, stats)
+    }
+}

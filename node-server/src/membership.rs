@@ -1,0 +1,304 @@
+//! Membership: who is in the network, who is alive, and which head each camera reports to.
+//!
+//! Nodes are admitted by the handshake (`Hello`) if the scenario declares them with that role;
+//! tools are admitted by handshake without being declared. Any accepted message counts as a
+//! sign of life. A node silent for `liveness_timeout_ms` is marked down on the next tick; a down
+//! node that speaks again is re-admitted. Cameras start on their scenario head; while that head
+//! is down they are moved to the live head whose region is nearest (paper 002's clusters keep
+//! tracking while a head is away), and they move back when it returns.
+
+use crate::decision::Decision;
+use proto::scenario::{NodeRole, Scenario};
+use proto::{ClusterTime, NodeId, Role};
+use std::collections::BTreeMap;
+
+/// One admitted node.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Member {
+    pub role: Role,
+    pub up: bool,
+    pub last_seen: ClusterTime,
+}
+
+/// The membership table.
+#[derive(Clone, Debug)]
+pub struct Membership {
+    /// Roles the scenario declares.
+    declared: BTreeMap<NodeId, Role>,
+    /// Scenario head of each camera.
+    home: BTreeMap<NodeId, NodeId>,
+    /// Head regions `[xmin, ymin, xmax, ymax]`.
+    regions: BTreeMap<NodeId, [f64; 4]>,
+    /// Current head of each camera.
+    assigned: BTreeMap<NodeId, NodeId>,
+    members: BTreeMap<NodeId, Member>,
+    timeout_ns: i64,
+}
+
+fn role_of(r: NodeRole) -> Role {
+    match r {
+        NodeRole::Camera => Role::Camera,
+        NodeRole::Head => Role::Head,
+        NodeRole::Server => Role::Server,
+    }
+}
+
+/// Distance from a point to an axis-aligned rectangle (0 inside).
+pub fn distance_to_region(r: &[f64; 4], x: f64, y: f64) -> f64 {
+    let dx = (r[0] - x).max(0.0).max(x - r[2]);
+    let dy = (r[1] - y).max(0.0).max(y - r[3]);
+    dx.hypot(dy)
+}
+
+/// Whether a point lies in a rectangle shrunk by `margin` on every side.
+pub fn inside_region(r: &[f64; 4], x: f64, y: f64, margin: f64) -> bool {
+    x >= r[0] + margin && x <= r[2] - margin && y >= r[1] + margin && y <= r[3] - margin
+}
+
+fn centre(r: &[f64; 4]) -> (f64, f64) {
+    (0.5 * (r[0] + r[2]), 0.5 * (r[1] + r[3]))
+}
+
+impl Membership {
+    pub fn new(scenario: &Scenario) -> Self {
+        let declared = scenario
+            .nodes
+            .iter()
+            .map(|n| (NodeId(n.id), role_of(n.role)))
+            .collect();
+        let mut home = BTreeMap::new();
+        for (head, cams) in scenario.clusters() {
+            for c in cams {
+                home.insert(c, head);
+            }
+        }
+        let regions = scenario
+            .heads()
+            .filter_map(|h| h.region.map(|r| (NodeId(h.id), r)))
+            .collect();
+        Membership {
+            declared,
+            assigned: home.clone(),
+            home,
+            regions,
+            members: BTreeMap::new(),
+            timeout_ns: i64::try_from(scenario.network.liveness_timeout_ms)
+                .unwrap_or(i64::MAX / 1_000_000)
+                .saturating_mul(1_000_000),
+        }
+    }
+
+    pub fn declared_role(&self, node: NodeId) -> Option<Role> {
+        self.declared.get(&node).copied()
+    }
+
+    pub fn member(&self, node: NodeId) -> Option<&Member> {
+        self.members.get(&node)
+    }
+
+    pub fn members(&self) -> impl Iterator<Item = (NodeId, &Member)> {
+        self.members.iter().map(|(k, v)| (*k, v))
+    }
+
+    pub fn is_up(&self, node: NodeId) -> bool {
+        self.members.get(&node).is_some_and(|m| m.up)
+    }
+
+    pub fn region(&self, head: NodeId) -> Option<&[f64; 4]> {
+        self.regions.get(&head)
+    }
+
+    /// The head a camera currently reports to.
+    pub fn head_of(&self, camera: NodeId) -> Option<NodeId> {
+        self.assigned.get(&camera).copied()
+    }
+
+    /// Cameras currently assigned to `head`.
+    pub fn cameras_of(&self, head: NodeId) -> Vec<NodeId> {
+        self.assigned
+            .iter()
+            .filter(|(_, h)| **h == head)
+            .map(|(c, _)| *c)
+            .collect()
+    }
+
+    /// Heads that are up, in id order.
+    pub fn live_heads(&self) -> Vec<NodeId> {
+        self.members
+            .iter()
+            .filter(|(_, m)| m.up && m.role == Role::Head)
+            .map(|(id, _)| *id)
+            .collect()
+    }
+
+    /// The live head whose region contains `(x, y)` (shrunk by `margin`), lowest id first.
+    pub fn live_head_covering(&self, x: f64, y: f64, margin: f64, except: NodeId) -> Option<NodeId> {
+        self.live_heads().into_iter().find(|h| {
+            *h != except
+                && self
+                    .regions
+                    .get(h)
+                    .is_some_and(|r| inside_region(r, x, y, margin))
+        })
+    }
+
+    /// The live head nearest to `(x, y)` by region (heads without a region come last), except
+    /// `except`; ties go to the lowest id.
+    pub fn nearest_live_head(&self, x: f64, y: f64, except: NodeId) -> Option<NodeId> {
+        self.live_heads()
+            .into_iter()
+            .filter(|h| *h != except)
+            .min_by(|a, b| {
+                let d = |h: &NodeId| {
+                    self.regions
+                        .get(h)
+                        .map_or(f64::INFINITY, |r| distance_to_region(r, x, y))
+                };
+                d(a).total_cmp(&d(b)).then(a.cmp(b))
+            })
+    }
+
+    /// Record a sign of life from `node` at `now`. Returns `Up` if it was down. The node must
+    /// already be a member.
+    pub fn seen(&mut self, now: ClusterTime, node: NodeId) -> Option<Decision> {
+        let m = self.members.get_mut(&node)?;
+        if now > m.last_seen {
+            m.last_seen = now;
+        }
+        if m.up {
+            None
+        } else {
+            m.up = true;
+            Some(Decision::Up { node })
+        }
+    }
+
+    /// Admit `node` as `role` (handshake or implicit). Returns the decision if it was not an
+    /// up member already.
+    pub fn admit(&mut self, now: ClusterTime, node: NodeId, role: Role) -> Option<Decision> {
+        match self.members.get(&node) {
+            Some(m) if m.role == role => self.seen(now, node),
+            _ => {
+                self.members.insert(
+                    node,
+                    Member {
+                        role,
+                        up: true,
+                        last_seen: now,
+                    },
+                );
+                Some(Decision::Admitted { node, role })
+            }
+        }
+    }
+
+    /// Nodes silent past the timeout at `now`, marked down.
+    pub fn expire(&mut self, now: ClusterTime) -> Vec<Decision> {
+        let mut out = Vec::new();
+        for (id, m) in &mut self.members {
+            if m.up && m.role != Role::Tool && now - m.last_seen > self.timeout_ns {
+                m.up = false;
+                out.push(Decision::Down {
+                    node: *id,
+                    silent_ms: u64::try_from((now - m.last_seen) / 1_000_000).unwrap_or(0),
+                });
+            }
+        }
+        out
+    }
+
+    /// Give every up member a fresh grace period from `now` (after a server restart).
+    pub fn refresh_all(&mut self, now: ClusterTime) {
+        for m in self.members.values_mut() {
+            if m.up {
+                m.last_seen = now;
+            }
+        }
+    }
+
+    /// Where each camera should report given which heads are up: its scenario head if up, else
+    /// the live head whose region is nearest to that head's region centre. Returns the changes.
+    pub fn rebalance(&mut self) -> Vec<Decision> {
+        let mut out = Vec::new();
+        let homes: Vec<(NodeId, NodeId)> = self.home.iter().map(|(c, h)| (*c, *h)).collect();
+        for (cam, home) in homes {
+            let want = if self.is_up(home) || self.live_heads().is_empty() {
+                home
+            } else {
+                let (x, y) = self.regions.get(&home).map_or((0.0, 0.0), centre);
+                self.nearest_live_head(x, y, home).unwrap_or(home)
+            };
+            if self.assigned.get(&cam) != Some(&want) {
+                let from = self.assigned.insert(cam, want);
+                out.push(Decision::Assigned {
+                    camera: cam,
+                    head: want,
+                    from,
+                });
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ms(v: i64) -> ClusterTime {
+        ClusterTime::from_millis(v)
+    }
+
+    #[test]
+    fn silent_nodes_go_down_and_come_back() {
+        let s = crate::testkit::scenario();
+        let mut m = Membership::new(&s);
+        assert!(m.admit(ms(0), NodeId(10), Role::Camera).is_some());
+        assert!(m.admit(ms(0), NodeId(2), Role::Head).is_some());
+        assert!(m.expire(ms(900)).is_empty());
+        m.seen(ms(900), NodeId(2));
+        let down = m.expire(ms(1500));
+        assert_eq!(
+            down,
+            vec![Decision::Down {
+                node: NodeId(10),
+                silent_ms: 1500
+            }]
+        );
+        assert!(!m.is_up(NodeId(10)));
+        assert!(m.is_up(NodeId(2)));
+        assert_eq!(
+            m.seen(ms(1600), NodeId(10)),
+            Some(Decision::Up { node: NodeId(10) })
+        );
+        assert_eq!(m.seen(ms(1700), NodeId(10)), None);
+    }
+
+    #[test]
+    fn cameras_move_to_the_nearest_live_head_and_back() {
+        let s = crate::testkit::scenario();
+        let mut m = Membership::new(&s);
+        m.admit(ms(0), NodeId(2), Role::Head);
+        m.admit(ms(0), NodeId(3), Role::Head);
+        assert!(m.rebalance().is_empty());
+        let mine = m.cameras_of(NodeId(2));
+        assert!(!mine.is_empty());
+        m.seen(ms(1500), NodeId(3));
+        assert_eq!(m.expire(ms(1500)).len(), 1); // head 2 silent
+        let moves = m.rebalance();
+        assert_eq!(moves.len(), mine.len());
+        assert!(mine.iter().all(|c| m.head_of(*c) == Some(NodeId(3))));
+        m.seen(ms(1600), NodeId(2));
+        assert_eq!(m.rebalance().len(), mine.len());
+        assert_eq!(m.cameras_of(NodeId(2)), mine);
+    }
+
+    #[test]
+    fn region_geometry() {
+        let r = [0.0, 0.0, 6.0, 8.0];
+        assert_eq!(distance_to_region(&r, 3.0, 3.0), 0.0);
+        assert!((distance_to_region(&r, 9.0, 12.0) - 5.0).abs() < 1e-12);
+        assert!(inside_region(&r, 5.5, 1.0, 0.25));
+        assert!(!inside_region(&r, 5.9, 1.0, 0.25));
+    }
+}

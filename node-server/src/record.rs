@@ -1,0 +1,175 @@
+//! One entry of the server's recording: a message it received or sent, a tick that changed its
+//! state, a decision, or the scenario it ran. Each entry is stamped with the server's cluster
+//! time.
+//!
+//! Payload layout (inside the recording's length + CRC framing, see [`crate::recording`]):
+//! `u8 kind | i64 LE at | body`, where the body is the scenario's TOML text, an encoded
+//! envelope (`proto::wire::encode`), `u32 LE destination` + encoded envelope, nothing, or a
+//! decision as JSON.
+
+use crate::decision::Decision;
+use proto::{ClusterTime, Envelope, NodeId, WireError};
+use thiserror::Error;
+
+/// What a recorded entry holds.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Record {
+    /// The scenario the server ran, as TOML; the first entry of a new recording.
+    Scenario(String),
+    /// A frame the server received and decoded.
+    Received(Envelope),
+    /// A frame the server sent to `to`.
+    Sent { to: NodeId, env: Envelope },
+    /// A tick that changed the server's state (replaying it reproduces the change).
+    Tick,
+    /// A decision.
+    Decision(Decision),
+}
+
+/// A record with the server's cluster time when it was made.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stamped {
+    pub at: ClusterTime,
+    pub record: Record,
+}
+
+impl Stamped {
+    pub fn new(at: ClusterTime, record: Record) -> Self {
+        Stamped { at, record }
+    }
+}
+
+const KIND_SCENARIO: u8 = 0;
+const KIND_RECEIVED: u8 = 1;
+const KIND_SENT: u8 = 2;
+const KIND_TICK: u8 = 3;
+const KIND_DECISION: u8 = 4;
+
+/// A record payload that could not be encoded or decoded.
+#[derive(Debug, Error)]
+pub enum RecordError {
+    #[error("record payload of {0} bytes is shorter than its 9-byte header")]
+    Short(usize),
+    #[error("unknown record kind {0}")]
+    UnknownKind(u8),
+    #[error("recorded envelope: {0}")]
+    Wire(#[from] WireError),
+    #[error("recorded decision: {0}")]
+    Json(#[from] serde_json::Error),
+    #[error("recorded scenario is not UTF-8")]
+    Utf8,
+}
+
+impl Stamped {
+    /// Encode into a payload.
+    ///
+    /// # Errors
+    /// An envelope the wire encoding refuses (invalid or oversized).
+    pub fn encode(&self) -> Result<Vec<u8>, RecordError> {
+        let mut out = Vec::with_capacity(64);
+        let kind = match &self.record {
+            Record::Scenario(_) => KIND_SCENARIO,
+            Record::Received(_) => KIND_RECEIVED,
+            Record::Sent { .. } => KIND_SENT,
+            Record::Tick => KIND_TICK,
+            Record::Decision(_) => KIND_DECISION,
+        };
+        out.push(kind);
+        out.extend_from_slice(&self.at.0.to_le_bytes());
+        match &self.record {
+            Record::Scenario(toml) => out.extend_from_slice(toml.as_bytes()),
+            Record::Received(env) => out.extend_from_slice(&proto::encode(env)?),
+            Record::Sent { to, env } => {
+                out.extend_from_slice(&to.0.to_le_bytes());
+                out.extend_from_slice(&proto::encode(env)?);
+            }
+            Record::Tick => {}
+            Record::Decision(d) => out.extend_from_slice(&serde_json::to_vec(d)?),
+        }
+        Ok(out)
+    }
+
+    /// Decode a payload.
+    ///
+    /// # Errors
+    /// A short payload, an unknown kind, or a body that does not decode.
+    pub fn decode(payload: &[u8]) -> Result<Stamped, RecordError> {
+        if payload.len() < 9 {
+            return Err(RecordError::Short(payload.len()));
+        }
+        let kind = payload[0];
+        let mut at = [0u8; 8];
+        at.copy_from_slice(&payload[1..9]);
+        let at = ClusterTime(i64::from_le_bytes(at));
+        let body = &payload[9..];
+        let record = match kind {
+            KIND_SCENARIO => {
+                Record::Scenario(String::from_utf8(body.to_vec()).map_err(|_| RecordError::Utf8)?)
+            }
+            KIND_RECEIVED => Record::Received(proto::decode(body)?),
+            KIND_SENT => {
+                if body.len() < 4 {
+                    return Err(RecordError::Short(payload.len()));
+                }
+                let to = NodeId(u32::from_le_bytes([body[0], body[1], body[2], body[3]]));
+                Record::Sent {
+                    to,
+                    env: proto::decode(&body[4..])?,
+                }
+            }
+            KIND_TICK => Record::Tick,
+            KIND_DECISION => Record::Decision(serde_json::from_slice(body)?),
+            k => return Err(RecordError::UnknownKind(k)),
+        };
+        Ok(Stamped { at, record })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proto::msg::{Message, SyncBeacon};
+
+    fn env() -> Envelope {
+        Envelope {
+            source: NodeId(1),
+            seq: 9,
+            time: ClusterTime(5),
+            body: Message::SyncBeacon(SyncBeacon {
+                leader: NodeId(1),
+                round: 2,
+                leader_time: ClusterTime(5),
+            }),
+        }
+    }
+
+    #[test]
+    fn every_kind_round_trips() {
+        let all = [
+            Record::Scenario("name = \"x\"".into()),
+            Record::Received(env()),
+            Record::Sent {
+                to: NodeId(4),
+                env: env(),
+            },
+            Record::Tick,
+            Record::Decision(Decision::Up { node: NodeId(3) }),
+        ];
+        for r in all {
+            let s = Stamped::new(ClusterTime(-17), r);
+            assert_eq!(Stamped::decode(&s.encode().unwrap()).unwrap(), s);
+        }
+    }
+
+    #[test]
+    fn bad_payloads_are_errors() {
+        assert!(matches!(Stamped::decode(&[1, 2]), Err(RecordError::Short(2))));
+        let mut p = vec![99];
+        p.extend_from_slice(&[0; 8]);
+        assert!(matches!(Stamped::decode(&p), Err(RecordError::UnknownKind(99))));
+        let mut p = vec![KIND_RECEIVED];
+        p.extend_from_slice(&[0; 8]);
+        p.extend_from_slice(&[1, 2, 3]);
+        assert!(matches!(Stamped::decode(&p), Err(RecordError::Wire(_))));
+    }
+}

@@ -1,0 +1,6 @@
+//! The wire contract: golden bytes, round trips, rejections.
+
+mod golden;
+mod reject;
+mod roundtrip;
+pub mod samples;

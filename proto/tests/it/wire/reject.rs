@@ -1,0 +1,385 @@
+//! Every way a frame can be wrong gets its own error variant, and the message names the problem.
+
+use super::samples::{FLOAT_SLOTS, samples};
+use proto::ids::{NodeId, TargetId};
+use proto::msg::*;
+use proto::validate::PSD_TOLERANCE;
+use proto::{
+    Envelope, MAX_CONTRIBUTORS, MAX_FRAME_BYTES, Message, PROTOCOL_VERSION, WireError, decode, encode,
+};
+
+/// Encode without validating, as a faulty or hostile peer would.
+fn raw(env: &Envelope) -> Vec<u8> {
+    postcard::to_stdvec(&(PROTOCOL_VERSION, env)).unwrap()
+}
+
+fn invalid(frame: &[u8]) -> (String, String) {
+    match decode(frame) {
+        Err(e @ WireError::Invalid(_)) => {
+            let WireError::Invalid(v) = &e else { unreachable!() };
+            (v.field.to_owned(), e.to_string())
+        }
+        other => panic!("expected WireError::Invalid, got {other:?}"),
+    }
+}
+
+fn malformed(frame: &[u8]) -> String {
+    match decode(frame) {
+        Err(e @ WireError::Malformed(_)) => e.to_string(),
+        other => panic!("expected WireError::Malformed, got {other:?}"),
+    }
+}
+
+#[test]
+fn empty_frame() {
+    let e = decode(&[]).unwrap_err();
+    assert_eq!(e, WireError::Empty);
+    assert!(e.to_string().contains("empty"), "{e}");
+}
+
+#[test]
+fn trailing_bytes() {
+    for env in samples() {
+        let mut frame = encode(&env).unwrap();
+        frame.extend_from_slice(&[0, 0, 7]);
+        let e = decode(&frame).unwrap_err();
+        assert_eq!(e, WireError::TrailingBytes(3), "{}", env.body.kind());
+        assert!(e.to_string().contains("3 trailing bytes"), "{e}");
+    }
+}
+
+#[test]
+fn truncated_frame_names_the_kind() {
+    for env in samples() {
+        let frame = encode(&env).unwrap();
+        let e = malformed(&frame[..frame.len() - 1]);
+        assert!(e.contains("truncated"), "{e}");
+        if !matches!(env.body, Message::Heartbeat) {
+            assert!(e.contains(env.body.kind()), "{}: {e}", env.body.kind());
+        }
+    }
+    let e = malformed(&encode(&samples()[0]).unwrap()[..3]);
+    assert!(e.contains("truncated") && e.contains("header"), "{e}");
+}
+
+#[test]
+fn wrong_version() {
+    let mut frame = encode(&samples()[2]).unwrap();
+    frame[0] = 2;
+    let e = decode(&frame).unwrap_err();
+    assert_eq!(
+        e,
+        WireError::Version {
+            got: 2,
+            expected: PROTOCOL_VERSION
+        }
+    );
+    assert!(
+        e.to_string().contains("protocol version 2 is not supported"),
+        "{e}"
+    );
+    // A version that does not even fit the header type.
+    let e = malformed(&[0xff, 0xff, 0xff, 0x7f, 0x07]);
+    assert!(e.contains("header"), "{e}");
+    // The handshake carries the version too.
+    let mut env = samples()[0].clone();
+    let Message::Hello(h) = &mut env.body else {
+        panic!()
+    };
+    h.version = PROTOCOL_VERSION + 1;
+    let (field, e) = invalid(&raw(&env));
+    assert_eq!(field, "hello.version");
+    assert!(e.contains("not supported"), "{e}");
+}
+
+#[test]
+fn oversized_frame() {
+    let frame = vec![1u8; MAX_FRAME_BYTES + 1];
+    let e = decode(&frame).unwrap_err();
+    assert_eq!(
+        e,
+        WireError::Oversized {
+            len: MAX_FRAME_BYTES + 1,
+            max: MAX_FRAME_BYTES
+        }
+    );
+    assert!(e.to_string().contains("exceeds the maximum"), "{e}");
+}
+
+fn find_all(hay: &[u8], needle: &[u8]) -> Vec<usize> {
+    (0..=hay.len().saturating_sub(needle.len()))
+        .filter(|&i| &hay[i..i + needle.len()] == needle)
+        .collect()
+}
+
+/// Every f64 and f32 slot of every kind, replaced in turn by NaN, +∞ and −∞ in the encoded
+/// bytes, is rejected by `decode` naming the field of that kind.
+#[test]
+fn non_finite_numbers_anywhere_are_rejected() {
+    for (tag, env) in samples().into_iter().enumerate() {
+        let frame = raw(&env);
+        let kind = env.body.kind();
+        // Find every slot by its bit pattern (sample values are distinct by construction).
+        let (want64, want32) = FLOAT_SLOTS[tag];
+        let mut slots64 = std::collections::BTreeSet::new();
+        let mut slots32 = std::collections::BTreeSet::new();
+        for v in sample_f64s(&env.body) {
+            slots64.extend(find_all(&frame, &v.to_le_bytes()));
+        }
+        for v in sample_f32s(&env.body) {
+            slots32.extend(find_all(&frame, &v.to_le_bytes()));
+        }
+        assert_eq!(
+            (slots64.len(), slots32.len()),
+            (want64, want32),
+            "{kind}: float slots found"
+        );
+        let poisons64 = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY];
+        let poisons32 = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
+        for &at in &slots64 {
+            for p in poisons64 {
+                let mut bad = frame.clone();
+                bad[at..at + 8].copy_from_slice(&p.to_le_bytes());
+                let (field, e) = invalid(&bad);
+                assert!(field.starts_with(kind), "{kind}: field {field}");
+                assert!(e.contains("not a finite number"), "{kind}: {e}");
+            }
+        }
+        for &at in &slots32 {
+            for p in poisons32 {
+                let mut bad = frame.clone();
+                bad[at..at + 4].copy_from_slice(&p.to_le_bytes());
+                let (field, e) = invalid(&bad);
+                assert!(field.starts_with(kind), "{kind}: field {field}");
+                assert!(e.contains("not a finite number"), "{kind}: {e}");
+            }
+        }
+    }
+}
+
+/// The f64 values a sample holds (by construction: see `samples`).
+fn sample_f64s(m: &Message) -> Vec<f64> {
+    let mat = |m: &Mat6| m.iter().flatten().copied().collect::<Vec<_>>();
+    match m {
+        Message::Measurement(x) => {
+            let mut v = x.point.to_vec();
+            v.extend(x.prev_point.unwrap());
+            v.extend(x.cov);
+            v.extend(x.pose.rvec);
+            v.extend(x.pose.tvec);
+            v.push(x.rssi.unwrap().dbm);
+            v
+        }
+        Message::Contribution(c) => [
+            mat(&c.info_matrix),
+            c.info_vector.to_vec(),
+            vec![c.rssi.unwrap().dbm],
+        ]
+        .concat(),
+        Message::Prior(p) => [mat(&p.cov), p.mean.to_vec()].concat(),
+        Message::TrackReport(r) => [mat(&r.cov), r.mean.to_vec(), vec![r.power_mw]].concat(),
+        Message::Handover(h) => [mat(&h.cov), h.mean.to_vec()].concat(),
+        _ => Vec::new(),
+    }
+}
+
+fn sample_f32s(m: &Message) -> Vec<f32> {
+    match m {
+        Message::Measurement(x) => {
+            let b = x.pixel_box;
+            vec![
+                b.xmin,
+                b.ymin,
+                b.xmax,
+                b.ymax,
+                x.colour.hue,
+                x.colour.saturation,
+                x.colour.intensity,
+            ]
+        }
+        _ => Vec::new(),
+    }
+}
+
+/// Each 6×6 matrix field, made asymmetric or indefinite beyond `PSD_TOLERANCE`, is rejected
+/// naming it; perturbations within the tolerance are accepted.
+#[test]
+fn asymmetric_or_indefinite_matrices() {
+    type Get = fn(&mut Message) -> &mut Mat6;
+    let fields: [(usize, &str, Get); 4] = [
+        (4, "contribution.info_matrix", |m| match m {
+            Message::Contribution(c) => &mut c.info_matrix,
+            _ => unreachable!(),
+        }),
+        (6, "prior.cov", |m| match m {
+            Message::Prior(p) => &mut p.cov,
+            _ => unreachable!(),
+        }),
+        (8, "track_report.cov", |m| match m {
+            Message::TrackReport(r) => &mut r.cov,
+            _ => unreachable!(),
+        }),
+        (10, "handover.cov", |m| match m {
+            Message::Handover(h) => &mut h.cov,
+            _ => unreachable!(),
+        }),
+    ];
+    for (tag, name, get) in fields {
+        let base = samples()[tag].clone();
+        let scale = get(&mut base.clone().body)
+            .iter()
+            .flatten()
+            .fold(0.0f64, |a, x| a.max(x.abs()));
+        let with = |f: &dyn Fn(&mut Mat6)| {
+            let mut env = base.clone();
+            f(get(&mut env.body));
+            env
+        };
+        // Asymmetric beyond tolerance.
+        let env = with(&|m| m[1][4] += 10.0 * PSD_TOLERANCE * scale);
+        let (field, e) = invalid(&raw(&env));
+        assert_eq!(field, name);
+        assert!(e.contains("not symmetric at (1,4)"), "{e}");
+        assert!(
+            matches!(encode(&env), Err(WireError::Invalid(_))),
+            "encode must refuse it too"
+        );
+        // Asymmetric within tolerance: accepted.
+        let env = with(&|m| m[1][4] += 0.1 * PSD_TOLERANCE * scale);
+        assert!(decode(&raw(&env)).is_ok(), "{name}: within tolerance");
+        // Indefinite: a negative eigenvalue of −1 on a matrix whose entries are ~25.
+        let env = with(&|m| *m = negated_diag(5, 1.0, m));
+        let (field, e) = invalid(&raw(&env));
+        assert_eq!(field, name);
+        assert!(e.contains("indefinite"), "{e}");
+        // Slightly negative, within tolerance: accepted (rounding of a PSD matrix).
+        let env = with(&|m| *m = negated_diag(5, 0.1 * PSD_TOLERANCE * scale, m));
+        assert!(decode(&raw(&env)).is_ok(), "{name}: indefinite within tolerance");
+    }
+}
+
+/// `m` with row/column `k` zeroed and the diagonal entry set to `−eps`: eigenvalue −eps.
+fn negated_diag(k: usize, eps: f64, m: &Mat6) -> Mat6 {
+    let mut out = *m;
+    for i in 0..6 {
+        out[i][k] = 0.0;
+        out[k][i] = 0.0;
+    }
+    out[k][k] = -eps;
+    out
+}
+
+#[test]
+fn unknown_enum_tags() {
+    // Top-level message tag: `MESSAGE_KINDS.len()` is one past the last kind.
+    let mut frame = encode(&samples()[2]).unwrap();
+    *frame.last_mut().unwrap() = 13;
+    let e = malformed(&frame);
+    assert!(e.contains("unknown message kind tag 13"), "{e}");
+    // A nested enum: the mode of a command (last byte), tag 3 of 3 modes.
+    let mut frame = encode(&samples()[7]).unwrap();
+    *frame.last_mut().unwrap() = 3;
+    let e = malformed(&frame);
+    assert!(
+        e.contains("command") && e.contains("unknown enum variant tag"),
+        "{e}"
+    );
+    // The role in a hello: bytes are … tag, version, role, node.
+    let mut frame = encode(&samples()[0]).unwrap();
+    let n = frame.len();
+    frame[n - 2] = 9;
+    let e = malformed(&frame);
+    assert!(
+        e.contains("hello") && e.contains("unknown enum variant tag"),
+        "{e}"
+    );
+    // An option tag that is neither None nor Some: the handover's `from_head`.
+    let mut env = samples()[10].clone();
+    let Message::Handover(h) = &mut env.body else {
+        panic!()
+    };
+    h.from_head = None;
+    let with_none = encode(&env).unwrap();
+    let with_some = encode(&samples()[10]).unwrap();
+    let at = (0..with_none.len())
+        .find(|&i| with_none[i] != with_some[i])
+        .unwrap();
+    let mut bad = with_some.clone();
+    bad[at] = 2;
+    let e = malformed(&bad);
+    assert!(e.contains("handover") && e.contains("option tag"), "{e}");
+}
+
+#[test]
+fn too_many_contributors() {
+    let mut env = samples()[8].clone();
+    let Message::TrackReport(r) = &mut env.body else {
+        panic!()
+    };
+    r.contributors = (0..=MAX_CONTRIBUTORS as u32)
+        .map(|i| Contributor {
+            node: NodeId(i),
+            camera: true,
+            rssi: false,
+        })
+        .collect();
+    let frame = raw(&env);
+    assert!(
+        frame.len() <= MAX_FRAME_BYTES,
+        "the size limit must not be what rejects it"
+    );
+    let (field, e) = invalid(&frame);
+    assert_eq!(field, "track_report.contributors");
+    assert!(
+        e.contains(&format!(
+            "{} entries exceed the maximum of {MAX_CONTRIBUTORS}",
+            MAX_CONTRIBUTORS + 1
+        )),
+        "{e}"
+    );
+    assert!(matches!(encode(&env), Err(WireError::Invalid(_))));
+    // Exactly the maximum is fine.
+    let Message::TrackReport(r) = &mut env.body else {
+        panic!()
+    };
+    r.contributors.pop();
+    assert!(decode(&encode(&env).unwrap()).is_ok());
+}
+
+#[test]
+fn other_range_checks_name_the_field() {
+    let mut env = samples()[3].clone();
+    let Message::Measurement(m) = &mut env.body else {
+        panic!()
+    };
+    m.cov = [1.0, 2.0, 1.0];
+    assert_eq!(invalid(&raw(&env)).0, "measurement.cov");
+    let Message::Measurement(m) = &mut env.body else {
+        panic!()
+    };
+    m.cov = [1.0, 0.0, 1.0];
+    m.pixel_box.xmax = m.pixel_box.xmin - 1.0;
+    assert_eq!(invalid(&raw(&env)).0, "measurement.pixel_box");
+    let mut env = samples()[4].clone();
+    let Message::Contribution(c) = &mut env.body else {
+        panic!()
+    };
+    c.rssi.as_mut().unwrap().dbm = 45.0;
+    let (field, e) = invalid(&raw(&env));
+    assert_eq!(field, "contribution.rssi");
+    assert!(e.contains("outside"), "{e}");
+    let mut env = samples()[1].clone();
+    let Message::HelloAck(a) = &mut env.body else {
+        panic!()
+    };
+    a.reason = "x".repeat(513);
+    assert_eq!(invalid(&raw(&env)).0, "hello_ack.reason");
+    // Valid zero information (a camera with nothing) is accepted.
+    let mut env = samples()[4].clone();
+    let Message::Contribution(c) = &mut env.body else {
+        panic!()
+    };
+    c.info_matrix = [[0.0; 6]; 6];
+    c.target = TargetId(0);
+    assert!(decode(&encode(&env).unwrap()).is_ok());
+}

@@ -1,0 +1,285 @@
+//! proptest round trips: random valid envelopes of every kind encode, decode and compare equal.
+
+use proptest::prelude::*;
+use proto::ids::{NodeId, Role, TargetId};
+use proto::msg::*;
+use proto::{ClusterTime, Envelope, MAX_CONTRIBUTORS, Message, Mode, decode, encode};
+
+fn finite() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        -1e6..1e6f64,
+        -1.0..1.0f64,
+        Just(0.0),
+        Just(-0.0),
+        Just(f64::MAX),
+        Just(f64::MIN_POSITIVE)
+    ]
+}
+
+fn finite32() -> impl Strategy<Value = f32> {
+    -1e4..1e4f32
+}
+
+fn time() -> impl Strategy<Value = ClusterTime> {
+    any::<i64>().prop_map(ClusterTime)
+}
+
+fn mode() -> impl Strategy<Value = Mode> {
+    prop::sample::select(Mode::ALL.to_vec())
+}
+
+fn vec6() -> impl Strategy<Value = Vec6> {
+    prop::array::uniform6(finite())
+}
+
+/// A random positive semi-definite matrix `A·Aᵀ` (entries of `A` in ±10), rank 0..=6.
+fn psd() -> impl Strategy<Value = Mat6> {
+    (prop::collection::vec(prop::array::uniform6(-10.0..10.0f64), 0..=6)).prop_map(|cols| {
+        let mut m = [[0.0; 6]; 6];
+        for c in &cols {
+            for i in 0..6 {
+                for j in 0..6 {
+                    m[i][j] += c[i] * c[j];
+                }
+            }
+        }
+        m
+    })
+}
+
+fn rssi() -> impl Strategy<Value = RssiReading> {
+    (-200.0..=30.0f64, time()).prop_map(|(dbm, time)| RssiReading { dbm, time })
+}
+
+fn measurement() -> impl Strategy<Value = Message> {
+    (
+        (
+            prop::option::of(any::<u32>()),
+            any::<u64>(),
+            prop::array::uniform2(finite()),
+        ),
+        prop::option::of(prop::array::uniform2(finite())),
+        (0.001..10.0f64, -0.99..0.99f64, 0.001..10.0f64),
+        (
+            prop::array::uniform4(finite32()),
+            any::<u32>(),
+            prop::array::uniform3(finite32()),
+        ),
+        (prop::array::uniform3(finite()), prop::array::uniform3(finite())),
+        (time(), mode(), prop::option::of(rssi())),
+    )
+        .prop_map(
+            |(
+                (target, step, point),
+                prev_point,
+                (xx, rho, yy),
+                (b, area, c),
+                (rvec, tvec),
+                (captured, mode, rssi),
+            )| {
+                Message::Measurement(Measurement {
+                    target: target.map(TargetId),
+                    step,
+                    point,
+                    prev_point,
+                    cov: [xx, rho * (xx * yy).sqrt(), yy],
+                    pixel_box: PixelBox {
+                        xmin: b[0].min(b[1]),
+                        ymin: b[2].min(b[3]),
+                        xmax: b[0].max(b[1]),
+                        ymax: b[2].max(b[3]),
+                    },
+                    area,
+                    colour: ColourSignature {
+                        hue: c[0],
+                        saturation: c[1],
+                        intensity: c[2],
+                    },
+                    pose: PoseWire { rvec, tvec },
+                    captured,
+                    mode,
+                    rssi,
+                })
+            },
+        )
+}
+
+fn contributors() -> impl Strategy<Value = Vec<Contributor>> {
+    prop::collection::vec(
+        (any::<u32>(), any::<bool>(), any::<bool>()).prop_map(|(n, camera, rssi)| Contributor {
+            node: NodeId(n),
+            camera,
+            rssi,
+        }),
+        0..=MAX_CONTRIBUTORS / 4,
+    )
+}
+
+fn message() -> impl Strategy<Value = Message> {
+    prop_oneof![
+        (
+            prop::sample::select(vec![Role::Camera, Role::Head, Role::Server, Role::Tool]),
+            any::<u32>()
+        )
+            .prop_map(|(role, n)| Message::Hello(Hello {
+                version: proto::PROTOCOL_VERSION,
+                role,
+                node: NodeId(n)
+            })),
+        (any::<bool>(), "\\PC{0,100}")
+            .prop_map(|(accepted, reason)| Message::HelloAck(HelloAck { accepted, reason })),
+        Just(Message::Heartbeat),
+        measurement(),
+        (
+            any::<u32>(),
+            any::<u64>(),
+            psd(),
+            vec6(),
+            any::<bool>(),
+            time(),
+            mode(),
+            prop::option::of(rssi())
+        )
+            .prop_map(
+                |(t, step, info_matrix, info_vector, camera, captured, mode, rssi)| {
+                    Message::Contribution(Contribution {
+                        target: TargetId(t),
+                        step,
+                        info_matrix,
+                        info_vector,
+                        camera,
+                        captured,
+                        mode,
+                        rssi,
+                    })
+                }
+            ),
+        (
+            mode(),
+            any::<[u64; 3]>(),
+            any::<[u64; 4]>(),
+            any::<i64>(),
+            any::<i64>()
+        )
+            .prop_map(|(mode, time_in_mode_ns, c, sync_offset_ns, sync_error_ns)| {
+                Message::NodeStatus(NodeStatus {
+                    mode,
+                    time_in_mode_ns,
+                    frames: c[0],
+                    detections: c[1],
+                    dropped: c[2],
+                    rejected: c[3],
+                    sync_offset_ns,
+                    sync_error_ns,
+                })
+            }),
+        (any::<u32>(), any::<u64>(), vec6(), psd(), time()).prop_map(|(t, step, mean, cov, deadline)| {
+            Message::Prior(Prior {
+                target: TargetId(t),
+                step,
+                mean,
+                cov,
+                deadline,
+            })
+        }),
+        (any::<u32>(), mode()).prop_map(|(n, mode)| Message::Command(Command {
+            node: NodeId(n),
+            mode
+        })),
+        (
+            (any::<u32>(), prop::option::of(any::<u32>()), any::<u64>(), time()),
+            (vec6(), psd(), contributors()),
+            (0.0..1e6f64, any::<u64>())
+        )
+            .prop_map(
+                |((t, g, step, time), (mean, cov, contributors), (power_mw, late))| {
+                    Message::TrackReport(TrackReport {
+                        target: TargetId(t),
+                        global: g.map(TargetId),
+                        step,
+                        time,
+                        mean,
+                        cov,
+                        contributors,
+                        power_mw,
+                        late,
+                    })
+                }
+            ),
+        (any::<u32>(), any::<u32>()).prop_map(|(n, h)| Message::Assignment(Assignment {
+            node: NodeId(n),
+            head: NodeId(h)
+        })),
+        (
+            any::<u32>(),
+            any::<u32>(),
+            prop::option::of(any::<u32>()),
+            time(),
+            vec6(),
+            psd()
+        )
+            .prop_map(|(g, to, from, time, mean, cov)| Message::Handover(Handover {
+                global: TargetId(g),
+                to_head: NodeId(to),
+                from_head: from.map(NodeId),
+                time,
+                mean,
+                cov,
+            })),
+        (any::<u32>(), any::<u64>(), time()).prop_map(|(l, round, leader_time)| Message::SyncBeacon(
+            SyncBeacon {
+                leader: NodeId(l),
+                round,
+                leader_time
+            }
+        )),
+        (any::<u32>(), any::<bool>()).prop_map(|(n, up)| Message::Liveness(Liveness { node: NodeId(n), up })),
+    ]
+}
+
+fn envelope() -> impl Strategy<Value = Envelope> {
+    (any::<u32>(), any::<u64>(), time(), message()).prop_map(|(s, seq, time, body)| Envelope {
+        source: NodeId(s),
+        seq,
+        time,
+        body,
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    #[test]
+    fn every_kind_round_trips(env in envelope()) {
+        let frame = encode(&env).map_err(|e| TestCaseError::fail(format!("{} did not encode: {e}", env.body.kind())))?;
+        prop_assert_eq!(decode(&frame).unwrap(), env);
+    }
+
+    /// Any prefix of a valid frame is rejected, never accepted or panicking.
+    #[test]
+    fn every_strict_prefix_is_rejected(env in envelope()) {
+        let frame = encode(&env).unwrap();
+        for n in 0..frame.len() {
+            prop_assert!(decode(&frame[..n]).is_err());
+        }
+    }
+
+    /// Arbitrary bytes never panic the decoder.
+    #[test]
+    fn arbitrary_bytes_never_panic(bytes in prop::collection::vec(any::<u8>(), 0..600)) {
+        let _ = decode(&bytes);
+    }
+}
+
+/// Every kind appears among the strategy's values (the `prop_oneof!` list is complete).
+#[test]
+fn strategy_covers_every_kind() {
+    use proptest::strategy::ValueTree;
+    use proptest::test_runner::TestRunner;
+    let mut runner = TestRunner::deterministic();
+    let mut seen = std::collections::BTreeSet::new();
+    for _ in 0..2000 {
+        seen.insert(message().new_tree(&mut runner).unwrap().current().kind());
+    }
+    assert_eq!(seen.len(), proto::wire::MESSAGE_KINDS.len(), "{seen:?}");
+}
