@@ -23,6 +23,17 @@ pub struct Cli {
 pub enum Command {
     /// Print or check scenarios.
     Scenario(cmd::scenario::Args),
+    /// Measure speed; print JSON.
+    Bench {
+        #[command(subcommand)]
+        what: BenchCommand,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+pub enum BenchCommand {
+    /// Camera node: segmentation + undistortion + contribution per frame.
+    Camera(cmd::bench_camera::Args),
 }
 
 /// Install the tracing subscriber (`RUST_LOG`, default `info`) on standard error.
@@ -44,6 +55,9 @@ pub fn main() -> ExitCode {
     init_tracing(cli.log_json);
     let result = match cli.command {
         Command::Scenario(args) => cmd::scenario::run(args),
+        Command::Bench {
+            what: BenchCommand::Camera(args),
+        } => cmd::bench_camera::run(args),
     };
     match result {
         Ok(code) => code,
