@@ -39,15 +39,6 @@ pub enum Command {
 pub enum Bench {
     /// The head's EIF update and activation decision.
     Head(cmd::bench_head::Args),
-    /// Measure speed; print JSON.
-    Bench {
-        #[command(subcommand)]
-        what: BenchCommand,
-    },
-}
-
-#[derive(Subcommand, Debug)]
-pub enum BenchCommand {
     /// Camera node: segmentation + undistortion + contribution per frame.
     Camera(cmd::bench_camera::Args),
 }
@@ -75,9 +66,7 @@ pub fn main() -> ExitCode {
         Command::Report(args) => cmd::report::run(args),
         Command::Export(args) => cmd::export::run(args),
         Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
-        Command::Bench {
-            what: BenchCommand::Camera(args),
-        } => cmd::bench_camera::run(args),
+        Command::Bench(Bench::Camera(args)) => cmd::bench_camera::run(args),
     };
     match result {
         Ok(code) => code,
