@@ -23,6 +23,18 @@ pub struct Cli {
 pub enum Command {
     /// Print or check scenarios.
     Scenario(cmd::scenario::Args),
+    /// Measure parts of the system; prints JSON.
+    #[command(subcommand)]
+    Bench(Bench),
+    /// Run one transport endpoint as a process (for tests and probes).
+    #[command(hide = true)]
+    Peer(cmd::peer::Args),
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Bench {
+    /// One-way latency over iceoryx2 and TCP, encode/decode cost per message kind.
+    Transport(cmd::bench_transport::Args),
 }
 
 /// Install the tracing subscriber (`RUST_LOG`, default `info`) on standard error.
@@ -44,6 +56,8 @@ pub fn main() -> ExitCode {
     init_tracing(cli.log_json);
     let result = match cli.command {
         Command::Scenario(args) => cmd::scenario::run(args),
+        Command::Bench(Bench::Transport(args)) => cmd::bench_transport::run(args),
+        Command::Peer(args) => cmd::peer::run(args),
     };
     match result {
         Ok(code) => code,

@@ -424,7 +424,7 @@ fn publish(
     let sample = sample.write_from_slice(bytes);
     match sample.send() {
         Ok(0) => {
-            bump(&stats.dropped_no_receiver);
+            bump(&stats.dropped_undelivered);
             tracing::debug!(%to, "no live receiver for the frame");
         }
         Ok(_) => {
@@ -433,7 +433,7 @@ fn publish(
             }
         }
         Err(e) => {
-            bump(&stats.dropped_no_receiver);
+            bump(&stats.dropped_undelivered);
             tracing::warn!(%to, error = ?e, "iceoryx2 send failed");
         }
     }

@@ -14,8 +14,8 @@ pub struct TransportStats {
     pub dropped_queue_full: AtomicU64,
     /// Droppable messages not handed to the runtime because the inbox was full.
     pub dropped_inbox_full: AtomicU64,
-    /// Frames published while the recipient had no live receiver (iceoryx2).
-    pub dropped_no_receiver: AtomicU64,
+    /// Frames iceoryx2 delivered to no receiver: none was alive, or its buffer was full.
+    pub dropped_undelivered: AtomicU64,
     pub rejected_malformed: AtomicU64,
     pub rejected_oversized: AtomicU64,
     pub rejected_version: AtomicU64,
@@ -42,7 +42,7 @@ pub struct StatsSnapshot {
     pub received: u64,
     pub dropped_queue_full: u64,
     pub dropped_inbox_full: u64,
-    pub dropped_no_receiver: u64,
+    pub dropped_undelivered: u64,
     pub rejected_malformed: u64,
     pub rejected_oversized: u64,
     pub rejected_version: u64,
@@ -70,7 +70,7 @@ impl TransportStats {
             received: g(&self.received),
             dropped_queue_full: g(&self.dropped_queue_full),
             dropped_inbox_full: g(&self.dropped_inbox_full),
-            dropped_no_receiver: g(&self.dropped_no_receiver),
+            dropped_undelivered: g(&self.dropped_undelivered),
             rejected_malformed: g(&self.rejected_malformed),
             rejected_oversized: g(&self.rejected_oversized),
             rejected_version: g(&self.rejected_version),
