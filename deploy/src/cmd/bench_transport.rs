@@ -133,7 +133,9 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
     let (done_tx, done_rx) = std::sync::mpsc::channel::<()>();
     let receiver_domain = domain.clone();
     let receiver = std::thread::spawn(move || -> Result<(Vec<u64>, usize, u64)> {
-        let rt = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()?;
         rt.block_on(async move {
             let cfg = match kind {
                 Kind::Ipc => TransportConfig::Ipc(IpcConfig::new(receiver_domain, NodeId(1), Role::Head, 2)),
@@ -145,7 +147,9 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
                 }
             };
             let (ep, mut inbox, rstats, shutdown) = open(cfg).await?;
-            addr_tx.send(ep.local_addr()).map_err(|_| anyhow!("sender gone"))?;
+            addr_tx
+                .send(ep.local_addr())
+                .map_err(|_| anyhow!("sender gone"))?;
             let mut lat = Vec::with_capacity(count);
             let mut received = 0;
             loop {
@@ -160,13 +164,13 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
                 };
                 if let Event::Message(m) = ev {
                     let t = now_ns(base);
-                    if let Message::Measurement(meas) = &m.env.body {
-                        if meas.step == 1 {
-                            lat.push((t - m.env.time.0).max(0) as u64);
-                            received += 1;
-                            if received == count {
-                                break;
-                            }
+                    if let Message::Measurement(meas) = &m.env.body
+                        && meas.step == 1
+                    {
+                        lat.push((t - m.env.time.0).max(0) as u64);
+                        received += 1;
+                        if received == count {
+                            break;
                         }
                     }
                 }
@@ -179,13 +183,16 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
         .recv_timeout(Duration::from_secs(10))
         .map_err(|_| anyhow!("receiver did not start"))?;
     let sender = std::thread::spawn(move || -> Result<(usize, u64, Duration)> {
-        let rt = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()?;
         rt.block_on(async move {
             let cfg = match kind {
                 Kind::Ipc => TransportConfig::Ipc(IpcConfig::new(domain, NodeId(2), Role::Camera, 2)),
                 Kind::Tcp => {
                     let mut c = TcpConfig::new(NodeId(2), Role::Camera);
-                    c.peers.insert(NodeId(1), addr.ok_or_else(|| anyhow!("no listen address"))?);
+                    c.peers
+                        .insert(NodeId(1), addr.ok_or_else(|| anyhow!("no listen address"))?);
                     c.queue_len = 4096;
                     TransportConfig::Tcp(c)
                 }
@@ -201,11 +208,16 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
                 }
             }
             for _ in 0..WARMUP {
-                ep.send(Outgoing::new(NodeId(1), measurement(0)), ClusterTime(now_ns(base))).await?;
+                ep.send(
+                    Outgoing::new(NodeId(1), measurement(0)),
+                    ClusterTime(now_ns(base)),
+                )
+                .await?;
                 tokio::time::sleep(Duration::from_millis(1)).await;
             }
             tokio::time::sleep(Duration::from_millis(100)).await;
-            let dropped_of = |s: proto::transport::StatsSnapshot| s.dropped_queue_full + s.dropped_undelivered;
+            let dropped_of =
+                |s: proto::transport::StatsSnapshot| s.dropped_queue_full + s.dropped_undelivered;
             let dropped_before = dropped_of(stats.snapshot());
             #[allow(clippy::disallowed_methods)] // a benchmark runtime owns its clock
             let start = Instant::now();
@@ -215,7 +227,11 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
                     next += iv;
                     tokio::time::sleep_until(next).await;
                 }
-                ep.send(Outgoing::new(NodeId(1), measurement(1)), ClusterTime(now_ns(base))).await?;
+                ep.send(
+                    Outgoing::new(NodeId(1), measurement(1)),
+                    ClusterTime(now_ns(base)),
+                )
+                .await?;
             }
             let wall = start.elapsed();
             // Let the link drain before stopping it.
@@ -227,7 +243,8 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
     });
     let (sent, dropped, wall) = sender.join().map_err(|_| anyhow!("sender panicked"))??;
     let _ = done_tx.send(());
-    let (latencies_ns, received, dropped_inbox) = receiver.join().map_err(|_| anyhow!("receiver panicked"))??;
+    let (latencies_ns, received, dropped_inbox) =
+        receiver.join().map_err(|_| anyhow!("receiver panicked"))??;
     Ok(Phase {
         sent,
         received,

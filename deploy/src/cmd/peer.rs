@@ -73,7 +73,9 @@ pub struct Args {
 }
 
 fn parse_peer(s: &str) -> Result<(u32, SocketAddr), String> {
-    let (id, addr) = s.split_once('=').ok_or_else(|| format!("expected ID=ADDR, got {s:?}"))?;
+    let (id, addr) = s
+        .split_once('=')
+        .ok_or_else(|| format!("expected ID=ADDR, got {s:?}"))?;
     let id = id.parse().map_err(|e| format!("bad node id {id:?}: {e}"))?;
     let addr = addr.parse().map_err(|e| format!("bad address {addr:?}: {e}"))?;
     Ok((id, addr))
@@ -113,7 +115,11 @@ fn config(args: &Args) -> Result<TransportConfig> {
         Kind::Tcp => {
             let mut c = TcpConfig::new(me, Role::Tool);
             c.listen = args.listen;
-            c.peers = args.peers.iter().map(|&(id, a)| (NodeId(id), a)).collect::<BTreeMap<_, _>>();
+            c.peers = args
+                .peers
+                .iter()
+                .map(|&(id, a)| (NodeId(id), a))
+                .collect::<BTreeMap<_, _>>();
             c.heartbeat = Duration::from_millis(args.heartbeat_ms);
             c.liveness_timeout = Duration::from_millis(args.liveness_ms);
             if c.listen.is_none() && c.peers.is_empty() {
@@ -134,7 +140,8 @@ fn beacon(me: NodeId, round: u64) -> Message {
 
 async fn run_async(args: Args) -> Result<ExitCode> {
     let me = NodeId(args.id);
-    let (endpoint, mut inbox, stats, shutdown) = open(config(&args)?).await.context("opening the transport")?;
+    let (endpoint, mut inbox, stats, shutdown) =
+        open(config(&args)?).await.context("opening the transport")?;
     line(json!({
         "event": "ready",
         "id": args.id,
@@ -149,7 +156,11 @@ async fn run_async(args: Args) -> Result<ExitCode> {
         tokio::spawn(async move {
             let to = NodeId(to);
             if garbage {
-                let frames = [vec![1u8, 0xff, 0xff, 0xff], vec![0u8; MAX_FRAME_BYTES + 1], vec![9u8, 0]];
+                let frames = [
+                    vec![1u8, 0xff, 0xff, 0xff],
+                    vec![0u8; MAX_FRAME_BYTES + 1],
+                    vec![9u8, 0],
+                ];
                 for f in frames {
                     if let Err(e) = ep.send_raw_frame(to, f).await {
                         tracing::warn!(error = %e, "could not inject a raw frame");
@@ -189,10 +200,8 @@ async fn run_async(args: Args) -> Result<ExitCode> {
             _ = &mut stop_at => break,
             d = done_rx.recv(), if sending => {
                 sending = false;
-                if d.is_some() {
-                    if let Some(l) = linger {
-                        stop_at.as_mut().reset(tokio::time::Instant::now() + l);
-                    }
+                if let (Some(()), Some(l)) = (d, linger) {
+                    stop_at.as_mut().reset(tokio::time::Instant::now() + l);
                 }
             }
             _ = ticker.tick() => report_if_changed(&stats, &mut last),
@@ -212,10 +221,10 @@ async fn run_async(args: Args) -> Result<ExitCode> {
                         "kind": m.env.body.kind(),
                         "round": round,
                     }));
-                    if args.echo {
-                        if let Err(e) = endpoint.send(Outgoing::new(m.from, m.env.body), m.env.time).await {
-                            tracing::warn!(error = %e, "echo failed");
-                        }
+                    if args.echo
+                        && let Err(e) = endpoint.send(Outgoing::new(m.from, m.env.body), m.env.time).await
+                    {
+                        tracing::warn!(error = %e, "echo failed");
                     }
                     report_if_changed(&stats, &mut last);
                 }

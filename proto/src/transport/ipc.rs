@@ -19,7 +19,6 @@ use super::stats::{TransportStats, bump};
 use super::{Delivery, Event, Incoming, OutFrame, SendError, ShutdownHandle, TransportError};
 use crate::MAX_FRAME_BYTES;
 use crate::ids::{NodeId, Role};
-use bytes::Bytes;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -34,6 +33,10 @@ use tokio::sync::mpsc;
 /// Room in a shared-memory slot beyond [`MAX_FRAME_BYTES`], so that an oversized frame
 /// reaches the receiver and is rejected there (counted, logged) like on every other transport.
 const SLOT_SLACK: usize = 64;
+/// How long a publisher keeps retrying a frame that must not be dropped while the recipient's
+/// buffer is full, before giving up on it (counted in `dropped_undelivered`): a crashed
+/// receiver's buffer never drains, and the sender thread serves every other link too.
+const MUST_DELIVER_PATIENCE: Duration = Duration::from_secs(2);
 /// How often the receiver thread looks at the stop flag when nothing arrives.
 const STOP_POLL: Duration = Duration::from_millis(50);
 
@@ -347,7 +350,11 @@ fn receiver_thread(
     drop(node);
 }
 
-type Outlet = (Publisher<ipc::Service, [u8], ()>, Notifier<ipc::Service>);
+struct Outlet {
+    data: iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
+    publisher: Publisher<ipc::Service, [u8], ()>,
+    notifier: Notifier<ipc::Service>,
+}
 
 fn sender_thread(
     cfg: IpcConfig,
@@ -371,31 +378,51 @@ fn sender_thread(
         }
     };
     let mut outlets: HashMap<NodeId, Outlet> = HashMap::new();
+    let must_deliver = Arc::new(AtomicBool::new(false));
     while let Some(Cmd::Frame(frame)) = rx.blocking_recv() {
-        let (publisher, notifier) = match outlets.entry(frame.to) {
+        must_deliver.store(!frame.droppable, Ordering::Relaxed);
+        let outlet = match outlets.entry(frame.to) {
             std::collections::hash_map::Entry::Occupied(o) => o.into_mut(),
-            std::collections::hash_map::Entry::Vacant(v) => match open_outlet(&node, &cfg, frame.to) {
-                Ok(o) => v.insert(o),
-                Err(e) => {
-                    bump(&stats.unroutable);
-                    tracing::warn!(to = %frame.to, error = %e, "cannot open the recipient's inbox");
-                    continue;
+            std::collections::hash_map::Entry::Vacant(v) => {
+                match open_outlet(&node, &cfg, frame.to, must_deliver.clone()) {
+                    Ok(o) => v.insert(o),
+                    Err(e) => {
+                        bump(&stats.unroutable);
+                        tracing::warn!(to = %frame.to, error = %e, "cannot open the recipient's inbox");
+                        continue;
+                    }
                 }
-            },
+            }
         };
-        publish(publisher, notifier, &frame.bytes, frame.to, &stats);
+        publish(outlet, &frame, &stats);
     }
     drop(outlets);
     drop(node);
 }
 
-fn open_outlet(node: &Node<ipc::Service>, cfg: &IpcConfig, to: NodeId) -> Result<Outlet, TransportError> {
+/// Open a publisher and notifier on `to`'s inbox. When the inbox buffer is full, droppable
+/// frames are discarded at once; others are retried (the receiver drains as its runtime
+/// reads) for up to [`MUST_DELIVER_PATIENCE`].
+fn open_outlet(
+    node: &Node<ipc::Service>,
+    cfg: &IpcConfig,
+    to: NodeId,
+    must_deliver: Arc<AtomicBool>,
+) -> Result<Outlet, TransportError> {
     let (data, wake) = open_inbox(node, &inbox_name(&cfg.domain, to)?, &cfg.limits)?;
     let publisher = data
         .publisher_builder()
         .initial_max_slice_len(MAX_FRAME_BYTES + SLOT_SLACK)
         .allocation_strategy(AllocationStrategy::Static)
         .backpressure_strategy(BackpressureStrategy::DiscardData)
+        .set_backpressure_handler(move |info: &iceoryx2::port::BackpressureInfo| {
+            if must_deliver.load(Ordering::Relaxed) && info.elapsed_time < MUST_DELIVER_PATIENCE {
+                std::thread::sleep(Duration::from_micros(50));
+                iceoryx2::port::BackpressureAction::Retry
+            } else {
+                iceoryx2::port::BackpressureAction::DiscardData
+            }
+        })
         .max_loaned_samples(2)
         .create()
         .map_err(|e| ipc_err("publisher", e))?;
@@ -403,39 +430,54 @@ fn open_outlet(node: &Node<ipc::Service>, cfg: &IpcConfig, to: NodeId) -> Result
         .notifier_builder()
         .create()
         .map_err(|e| ipc_err("notifier", e))?;
-    Ok((publisher, notifier))
+    Ok(Outlet {
+        data,
+        publisher,
+        notifier,
+    })
 }
 
-fn publish(
-    publisher: &Publisher<ipc::Service, [u8], ()>,
-    notifier: &Notifier<ipc::Service>,
-    bytes: &Bytes,
-    to: NodeId,
-    stats: &TransportStats,
-) {
-    let sample = match publisher.loan_slice_uninit(bytes.len()) {
-        Ok(s) => s,
-        Err(e) => {
-            bump(&stats.rejected_oversized);
-            tracing::warn!(%to, len = bytes.len(), error = ?e, "frame does not fit a shared-memory slot");
-            return;
-        }
-    };
-    let sample = sample.write_from_slice(bytes);
-    match sample.send() {
-        Ok(0) => {
-            bump(&stats.dropped_undelivered);
-            tracing::debug!(%to, "no live receiver for the frame");
-        }
-        Ok(_) => {
-            if let Err(e) = notifier.notify() {
-                tracing::warn!(%to, error = ?e, "iceoryx2 notify failed");
+/// Publish one frame and wake the recipient. A frame that must not be dropped and reached
+/// no receiver although one is subscribed (its buffer was full) is published again until
+/// [`MUST_DELIVER_PATIENCE`] runs out; a frame for an inbox nobody reads is dropped at once.
+/// Either way an undelivered frame is counted.
+fn publish(outlet: &Outlet, frame: &OutFrame, stats: &TransportStats) {
+    use iceoryx2::service::port_factory::PortFactory;
+    let to = frame.to;
+    #[allow(clippy::disallowed_methods)] // a transport thread, not node logic
+    let started = std::time::Instant::now();
+    loop {
+        let sample = match outlet.publisher.loan_slice_uninit(frame.bytes.len()) {
+            Ok(s) => s,
+            Err(e) => {
+                bump(&stats.rejected_oversized);
+                tracing::warn!(%to, len = frame.bytes.len(), error = ?e, "frame does not fit a shared-memory slot");
+                return;
+            }
+        };
+        let sample = sample.write_from_slice(&frame.bytes);
+        match sample.send() {
+            Ok(0) => {
+                let subscribed = outlet.data.dynamic_config().number_of_subscribers() > 0;
+                if !frame.droppable && subscribed && started.elapsed() < MUST_DELIVER_PATIENCE {
+                    let _ = outlet.notifier.notify();
+                    std::thread::sleep(Duration::from_micros(50));
+                    continue;
+                }
+                bump(&stats.dropped_undelivered);
+                tracing::debug!(%to, subscribed, "frame reached no receiver");
+            }
+            Ok(_) => {
+                if let Err(e) = outlet.notifier.notify() {
+                    tracing::warn!(%to, error = ?e, "iceoryx2 notify failed");
+                }
+            }
+            Err(e) => {
+                bump(&stats.dropped_undelivered);
+                tracing::warn!(%to, error = ?e, "iceoryx2 send failed");
             }
         }
-        Err(e) => {
-            bump(&stats.dropped_undelivered);
-            tracing::warn!(%to, error = ?e, "iceoryx2 send failed");
-        }
+        return;
     }
 }
 
