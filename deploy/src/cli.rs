@@ -29,6 +29,9 @@ pub enum Command {
     Report(cmd::report::Args),
     /// Export the tracks of a server recording as CSV or JSON Lines.
     Export(cmd::export::Args),
+    /// Start every node of a scenario on this host, each its own process (default scenario
+    /// when none is given).
+    Launch(cmd::launch::Args),
     /// Run a scenario's nodes in one process on a virtual clock (deterministic for a seed).
     Sim(cmd::sim::Args),
     /// Measure parts of the system; prints JSON.
@@ -73,6 +76,7 @@ pub fn main() -> ExitCode {
         Command::Report(args) => cmd::report::run(args),
         Command::Export(args) => cmd::export::run(args),
         Command::Sim(args) => cmd::sim::run(args),
+        Command::Launch(args) => cmd::launch::run(args),
         Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
         Command::Bench(Bench::Camera(args)) => cmd::bench_camera::run(args),
         Command::Bench(Bench::Transport(args)) => cmd::bench_transport::run(args),
