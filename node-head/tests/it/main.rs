@@ -2,6 +2,7 @@
 
 mod activation;
 mod filter;
+mod fusion;
 mod rssi;
 mod sim;
 mod step;
