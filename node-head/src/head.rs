@@ -169,18 +169,7 @@ impl HeadNode {
                 None => self.reject(src, "node_status"),
             },
             Message::Handover(h) if from_server => self.on_handover(now, h),
-            Message::Liveness(l) if from_server => {
-                if let Some(&slot) = self.slots.get(&l.node) {
-                    self.nodes[slot].up = l.up;
-                    if !l.up {
-                        info!(node = %l.node, "node down; not waiting for it");
-                        self.window.release(slot);
-                        if self.window.complete() {
-                            self.close_step(now, &mut out);
-                        }
-                    }
-                }
-            }
+            Message::Liveness(l) if from_server => out = self.node_liveness(now, l.node, l.up),
             Message::Assignment(a) if from_server => {
                 if let Some(&slot) = self.slots.get(&a.node) {
                     let mine = a.head == self.cfg.id;
@@ -201,12 +190,41 @@ impl HeadNode {
         out
     }
 
+    /// A node went down or came back (from the server's `Liveness`, or from the runtime when
+    /// its link drops). A node down is not waited for and draws no power.
+    pub fn node_liveness(&mut self, now: ClusterTime, node: NodeId, up: bool) -> Vec<Outgoing> {
+        let mut out = Vec::new();
+        if let Some(&slot) = self.slots.get(&node) {
+            if self.nodes[slot].up != up {
+                info!(node = %node, up, "node liveness changed");
+            }
+            self.nodes[slot].up = up;
+            if !up {
+                self.window.release(slot);
+                if self.window.complete() {
+                    self.close_step(now, &mut out);
+                }
+            }
+        }
+        out
+    }
+
     fn reject(&mut self, src: NodeId, kind: &'static str) {
         self.counters.rejected += 1;
         warn!(node = %src, kind, "message from a node not allowed to send it; ignored");
     }
 
     fn on_contribution(&mut self, now: ClusterTime, slot: usize, c: Contribution, out: &mut Vec<Outgoing>) {
+        if c.info_matrix
+            .iter()
+            .flatten()
+            .chain(&c.info_vector)
+            .any(|x| !x.is_finite())
+        {
+            self.counters.rejected += 1;
+            warn!(node = %self.nodes[slot].info.id, "contribution with non-finite numbers; ignored");
+            return;
+        }
         let Some(t) = self.tracks.iter().position(|tr| tr.local == c.target) else {
             self.counters.unknown_target += 1;
             debug!(node = %self.nodes[slot].info.id, target = %c.target, "contribution for an unknown track");
