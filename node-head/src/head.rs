@@ -243,7 +243,7 @@ impl HeadNode {
                     track.last_seen = now;
                 }
                 if let Some(dbm) = rssi {
-                    track.rssi.push((slot, dbm));
+                    track.hear(slot, dbm);
                 }
                 if c.camera || rssi.is_some() {
                     track.contributors.push(proto::msg::Contributor {

@@ -129,7 +129,7 @@ impl HeadNode {
                 Fusion::DistributedEif => {}
             }
             if let Some(r) = d.rssi.filter(|_| node.rssi) {
-                track.rssi.push((d.slot, r.dbm));
+                track.hear(d.slot, r.dbm);
             }
             track.note(node.id, true, d.rssi.is_some() && node.rssi);
         }
@@ -298,7 +298,8 @@ impl HeadNode {
             |n, t| {
                 let node = &nodes[slots[n]].info;
                 let model = tracks[t].trainers[slots[n]].model();
-                let rssi = node.rssi.then_some((&model, &node.position));
+                let heard = node.rssi && tracks[t].rssi_heard[slots[n]];
+                let rssi = heard.then_some((&model, &node.position));
                 Expected::at(Some(&node.camera), sigma, rssi, &means[t])
             },
         )?;
