@@ -58,6 +58,8 @@ impl HeadNode {
             self.fuse_track(t, now, &mut stats, &mut rssi_nodes);
         }
         stats.rssi_nodes = rssi_nodes.iter().filter(|&&b| b).count();
+        self.merge_duplicates();
+        stats.tracks = self.tracks.len();
         for t in &self.tracks {
             if let Some(server) = self.cfg.server {
                 out.push(Outgoing::new(
@@ -220,7 +222,7 @@ impl HeadNode {
             let local = self.alloc_local();
             match self.new_track(local, None, b.mean, b.cov, now) {
                 Ok(t) => {
-                    info!(target = %local, cameras = b.members.len(), "new track");
+                    info!(target = %local, cameras = b.members.len(), x = b.mean[0], y = b.mean[1], z = b.mean[2], "new track");
                     self.counters.births += 1;
                     self.tracks.push(t);
                 }
@@ -239,6 +241,41 @@ impl HeadNode {
             .filter(|n| n.member && n.up)
             .map(|n| n.info.power.in_mode(n.mode))
             .sum()
+    }
+
+    /// Two tracks on one target (a track born next to another, or two converging on the same
+    /// detections, which cameras may gate to both priors) would be updated together forever.
+    /// When their positions agree within the gate (Mahalanobis with the summed covariances),
+    /// keep the one with a global id, else the older, and drop the other.
+    fn merge_duplicates(&mut self) {
+        let gate = self.cfg.method.gate_chi2;
+        let mut i = 0;
+        'outer: while i < self.tracks.len() {
+            let mut j = i + 1;
+            while j < self.tracks.len() {
+                let (a, b) = (&self.tracks[i], &self.tracks[j]);
+                let d = a.position() - b.position();
+                let s = a.filter.cov().fixed_view::<3, 3>(0, 0) + b.filter.cov().fixed_view::<3, 3>(0, 0);
+                if s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate) {
+                    // Prefer the track the server knows, then the older (lower index).
+                    let gone = if b.global.is_some() && a.global.is_none() {
+                        i
+                    } else {
+                        j
+                    };
+                    let kept = if gone == i { j } else { i };
+                    info!(kept = %self.tracks[kept].local, dropped = %self.tracks[gone].local, "duplicate tracks merged");
+                    self.counters.merges += 1;
+                    self.tracks.remove(gone);
+                    if gone == i {
+                        continue 'outer;
+                    }
+                } else {
+                    j += 1;
+                }
+            }
+            i += 1;
+        }
     }
 
     pub(super) fn command(&mut self, slot: usize, mode: Mode, out: &mut Vec<Outgoing>) {

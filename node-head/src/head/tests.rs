@@ -131,3 +131,19 @@ fn assignment_moves_a_camera_out_of_the_cluster() {
     );
     assert!(h.power_mw() > power_before);
 }
+
+#[test]
+fn duplicate_tracks_on_one_target_are_merged() {
+    let s = Scenario::default_scenario();
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    h.tick(ClusterTime::ZERO);
+    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.0)));
+    h.on_message(ClusterTime::ZERO, env(1, handover(8, 2, None, 3.05)));
+    h.on_message(ClusterTime::ZERO, env(1, handover(9, 2, None, 5.0)));
+    assert_eq!(h.tracks().len(), 3);
+    h.tick(ClusterTime::from_millis(200));
+    h.tick(ClusterTime::from_millis(281));
+    assert_eq!(h.counters().merges, 1);
+    let globals: Vec<_> = h.tracks().iter().map(|t| t.global).collect();
+    assert_eq!(globals, vec![Some(TargetId(7)), Some(TargetId(9))]);
+}
