@@ -3,6 +3,7 @@
 mod activation;
 mod filter;
 mod fusion;
+mod process;
 mod rssi;
 mod sim;
 mod step;
