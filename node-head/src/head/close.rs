@@ -245,8 +245,8 @@ impl HeadNode {
 
     /// Two tracks on one target (a track born next to another, or two converging on the same
     /// detections, which cameras may gate to both priors) would be updated together forever.
-    /// When their positions agree within the gate (Mahalanobis with the summed covariances),
-    /// keep the one with a global id, else the older, and drop the other.
+    /// When their states (position and velocity) agree within the gate (Mahalanobis with the
+    /// summed covariances), keep the one with a global id, else the older, and drop the other.
     fn merge_duplicates(&mut self) {
         let gate = self.cfg.method.gate_chi2;
         let mut i = 0;
@@ -254,8 +254,9 @@ impl HeadNode {
             let mut j = i + 1;
             while j < self.tracks.len() {
                 let (a, b) = (&self.tracks[i], &self.tracks[j]);
-                let d = a.position() - b.position();
-                let s = a.filter.cov().fixed_view::<3, 3>(0, 0) + b.filter.cov().fixed_view::<3, 3>(0, 0);
+                // Position and velocity: two targets crossing are near but move apart.
+                let d = a.filter.mean() - b.filter.mean();
+                let s = a.filter.cov() + b.filter.cov();
                 if s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate) {
                     // Prefer the track the server knows, then the older (lower index).
                     let gone = if b.global.is_some() && a.global.is_none() {
