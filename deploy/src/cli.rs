@@ -34,6 +34,8 @@ pub enum Command {
     Launch(cmd::launch::Args),
     /// Run a scenario's nodes in one process on a virtual clock (deterministic for a seed).
     Sim(cmd::sim::Args),
+    /// Run one cluster head as its own process.
+    Head(cmd::head::Args),
     /// Measure parts of the system; prints JSON.
     #[command(subcommand)]
     Bench(Bench),
@@ -77,6 +79,7 @@ pub fn main() -> ExitCode {
         Command::Export(args) => cmd::export::run(args),
         Command::Sim(args) => cmd::sim::run(args),
         Command::Launch(args) => cmd::launch::run(args),
+        Command::Head(args) => cmd::head::run(args),
         Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
         Command::Bench(Bench::Camera(args)) => cmd::bench_camera::run(args),
         Command::Bench(Bench::Transport(args)) => cmd::bench_transport::run(args),

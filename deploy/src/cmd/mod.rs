@@ -4,6 +4,7 @@ pub mod bench_camera;
 pub mod bench_head;
 pub mod bench_transport;
 pub mod export;
+pub mod head;
 pub mod launch;
 pub mod peer;
 pub mod report;
