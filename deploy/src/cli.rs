@@ -23,15 +23,13 @@ pub struct Cli {
 pub enum Command {
     /// Print or check scenarios.
     Scenario(cmd::scenario::Args),
-    /// Measure speed; print JSON.
-    Bench {
-        #[command(subcommand)]
-        what: BenchCommand,
-    },
+    /// Measure parts of the system; prints JSON.
+    #[command(subcommand)]
+    Bench(Bench),
 }
 
 #[derive(Subcommand, Debug)]
-pub enum BenchCommand {
+pub enum Bench {
     /// Camera node: segmentation + undistortion + contribution per frame.
     Camera(cmd::bench_camera::Args),
 }
@@ -55,9 +53,7 @@ pub fn main() -> ExitCode {
     init_tracing(cli.log_json);
     let result = match cli.command {
         Command::Scenario(args) => cmd::scenario::run(args),
-        Command::Bench {
-            what: BenchCommand::Camera(args),
-        } => cmd::bench_camera::run(args),
+        Command::Bench(Bench::Camera(args)) => cmd::bench_camera::run(args),
     };
     match result {
         Ok(code) => code,
