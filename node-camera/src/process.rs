@@ -17,8 +17,7 @@ use crate::source::{FrameSource, ImageSequence, SourceError};
 use nalgebra::Vector3;
 use proto::scenario::{Scenario, TransportKind};
 use proto::transport::{
-    Clock, Delivery, Event, IpcConfig, StatsSnapshot, TcpConfig, TransportConfig, TransportError,
-    open,
+    Clock, Delivery, Event, IpcConfig, StatsSnapshot, TcpConfig, TransportConfig, TransportError, open,
 };
 use proto::{ClusterTime, NodeId, Role, TargetId};
 use std::net::ToSocketAddrs;
@@ -37,10 +36,7 @@ pub enum SourceSpec {
     /// The synthetic world of the scenario.
     Synthetic,
     /// A directory of PNG/JPEG frames, at the camera's rate or with a manifest; loops.
-    Images {
-        dir: PathBuf,
-        manifest: Option<PathBuf>,
-    },
+    Images { dir: PathBuf, manifest: Option<PathBuf> },
     /// A V4L2 device (feature `v4l2`).
     #[cfg(feature = "v4l2")]
     V4l2 { device: String },
@@ -314,6 +310,11 @@ pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<Summ
         frames_lost: lost.load(Ordering::Relaxed),
         send_failures,
     };
-    info!(node = cfg.id, frames = summary.counters.frames, dropped = summary.counters.dropped, "camera stopped");
+    info!(
+        node = cfg.id,
+        frames = summary.counters.frames,
+        dropped = summary.counters.dropped,
+        "camera stopped"
+    );
     Ok(summary)
 }

@@ -42,7 +42,10 @@ async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
 
     // Head (node 2) and server (node 1) away for a while: the camera keeps going.
     tokio::time::sleep(Duration::from_millis(1500)).await;
-    assert!(!task.is_finished(), "the camera must not stop when its peers are away");
+    assert!(
+        !task.is_finished(),
+        "the camera must not stop when its peers are away"
+    );
 
     let (head, mut inbox, _stats, handle) = open(TransportConfig::InProcess {
         hub: hub.clone(),
