@@ -23,13 +23,24 @@ pub struct Cli {
 pub enum Command {
     /// Print or check scenarios.
     Scenario(cmd::scenario::Args),
-    /// Measure parts of the system; prints JSON.
+    /// Undistort CSV rows (OpenCV test-vector format) from stdin: one `x,y` line per row.
+    Undistort(cmd::undistort::Args),
+    /// Print the report of a server recording (table or JSON).
+    Report(cmd::report::Args),
+    /// Export the tracks of a server recording as CSV or JSON Lines.
+    Export(cmd::export::Args),
+    /// Run a scenario's nodes in one process on a virtual clock (deterministic for a seed).
+    Sim(cmd::sim::Args),
+    /// Measure speed; print JSON.
     #[command(subcommand)]
     Bench(Bench),
 }
 
+/// What `ocelli bench` measures.
 #[derive(Subcommand, Debug)]
 pub enum Bench {
+    /// The head's EIF update and activation decision.
+    Head(cmd::bench_head::Args),
     /// Camera node: segmentation + undistortion + contribution per frame.
     Camera(cmd::bench_camera::Args),
 }
@@ -53,6 +64,11 @@ pub fn main() -> ExitCode {
     init_tracing(cli.log_json);
     let result = match cli.command {
         Command::Scenario(args) => cmd::scenario::run(args),
+        Command::Undistort(args) => cmd::undistort::run(args),
+        Command::Report(args) => cmd::report::run(args),
+        Command::Export(args) => cmd::export::run(args),
+        Command::Sim(args) => cmd::sim::run(args),
+        Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
         Command::Bench(Bench::Camera(args)) => cmd::bench_camera::run(args),
     };
     match result {

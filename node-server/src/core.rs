@@ -171,6 +171,28 @@ impl ServerNode {
         self.reject(now, source, "frame", error.into());
     }
 
+    /// The transport saw a link to `node` come up or go down. A closed link marks the node
+    /// down at once (no need to wait for the liveness timeout); an opened one admits a declared
+    /// node like any first message.
+    pub fn on_link(&mut self, now: ClusterTime, node: NodeId, up: bool) -> Vec<Outgoing> {
+        self.journal(now, Record::Link { node, up });
+        let mut out = Vec::new();
+        if up {
+            let d = match (self.members.member(node), self.members.declared_role(node)) {
+                (Some(_), _) => self.members.seen(now, node),
+                (None, Some(r)) if r != Role::Server => self.members.admit(now, node, r),
+                _ => None,
+            };
+            if let Some(d) = d {
+                self.decide(now, d, &mut out);
+            }
+        } else if let Some(d) = self.members.mark_down(now, node) {
+            self.decide(now, d, &mut out);
+            // Its tracks move on the next tick (failover), like any other dead head's.
+        }
+        out
+    }
+
     /// Handle one decoded envelope.
     pub fn on_message(&mut self, now: ClusterTime, env: Envelope) -> Vec<Outgoing> {
         self.journal(now, Record::Received(env.clone()));
@@ -427,7 +449,36 @@ impl ServerNode {
         );
     }
 
-    /// Rebuild a server from the records of a previous run by feeding its inputs back in.
+    /// Feed one recorded input back in (received envelopes, state-changing ticks, link events,
+    /// restarts, undecodable frames), discarding the messages it would send. Returns whether
+    /// the record was an input.
+    pub fn feed(&mut self, s: &Stamped) -> bool {
+        match &s.record {
+            Record::Received(env) => {
+                self.on_message(s.at, env.clone());
+            }
+            Record::Tick => {
+                self.tick(s.at);
+            }
+            Record::Link { node, up } => {
+                self.on_link(s.at, *node, *up);
+            }
+            Record::Decision(Decision::Resumed {
+                records,
+                skipped_bytes,
+            }) => self.resume(s.at, *records, *skipped_bytes),
+            // Undecodable frames leave only their decision behind.
+            Record::Decision(d @ Decision::Rejected { what, .. }) if what == "frame" => {
+                self.counters.rejected += 1;
+                self.journal(s.at, Record::Decision(d.clone()));
+            }
+            Record::Decision(_) | Record::Scenario(_) | Record::Sent { .. } => return false,
+        }
+        true
+    }
+
+    /// Rebuild a server from the records of a previous run by feeding its inputs back in, and
+    /// check that the replay reproduces the recorded decisions.
     pub fn restore(cfg: ServerConfig, records: &[Stamped]) -> (ServerNode, RestoreStats) {
         let mut cfg = cfg;
         cfg.journal = true;
@@ -435,33 +486,11 @@ impl ServerNode {
         let mut stats = RestoreStats::default();
         let mut recorded = Vec::new();
         for s in records {
-            match &s.record {
-                Record::Received(env) => {
-                    stats.replayed += 1;
-                    node.on_message(s.at, env.clone());
-                }
-                Record::Tick => {
-                    stats.replayed += 1;
-                    node.tick(s.at);
-                }
-                Record::Decision(d) => {
-                    if let Decision::Resumed {
-                        records,
-                        skipped_bytes,
-                    } = d
-                    {
-                        node.resume(s.at, *records, *skipped_bytes);
-                    }
-                    // Undecodable frames leave only their decision behind; count them again.
-                    if let Decision::Rejected { what, .. } = d
-                        && what == "frame"
-                    {
-                        node.counters.rejected += 1;
-                        node.journal(s.at, Record::Decision(d.clone()));
-                    }
-                    recorded.push(d.clone());
-                }
-                Record::Scenario(_) | Record::Sent { .. } => {}
+            if let Record::Decision(d) = &s.record {
+                recorded.push(d.clone());
+            }
+            if node.feed(s) && !matches!(s.record, Record::Decision(_)) {
+                stats.replayed += 1;
             }
         }
         let replayed: Vec<Decision> = node

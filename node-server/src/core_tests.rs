@@ -409,3 +409,32 @@ fn resume_gives_nodes_a_grace_period() {
     s.tick(ms(11_200));
     assert!(!s.membership().is_up(H2));
 }
+
+#[test]
+fn a_closed_link_marks_a_head_down_at_once_and_replays() {
+    let cfg = ServerConfig::from_scenario(crate::testkit::scenario(), NodeId(1));
+    let mut s = ServerNode::new(cfg.clone());
+    let mut records = Vec::new();
+    // Over TCP the transport does the handshake; the core sees links come up.
+    for n in [H2, H3, CAM] {
+        s.on_link(ms(0), n, true);
+    }
+    assert!(s.membership().is_up(H2));
+    s.on_message(ms(100), report(H2, 5, None, ms(100), 3.0, 4.0));
+    let out = s.on_link(ms(150), H2, false);
+    assert!(!s.membership().is_up(H2));
+    assert!(
+        out.iter()
+            .any(|o| o.to == CAM && matches!(&o.body, Message::Assignment(a) if a.head == H3))
+    );
+    let out = s.tick(ms(160));
+    assert!(
+        handovers(&out)
+            .iter()
+            .any(|(to, h)| *to == H3 && h.from_head == Some(H2))
+    );
+    records.extend(s.take_records());
+    let (r, stats) = ServerNode::restore(cfg, &records);
+    assert_eq!(stats.decisions_mismatched, 0);
+    assert_eq!(r.globals().next().unwrap().1.owner, H3);
+}

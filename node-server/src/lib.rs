@@ -10,9 +10,12 @@ pub mod core;
 #[cfg(test)]
 mod core_tests;
 pub mod decision;
+pub mod export;
 pub mod membership;
 pub mod record;
 pub mod recording;
+pub mod replay;
+pub mod report;
 #[cfg(test)]
 pub(crate) mod testkit;
 pub mod tracks;

@@ -207,6 +207,19 @@ impl Membership {
         out
     }
 
+    /// Mark a member down at once (its link closed). `None` if it was not up.
+    pub fn mark_down(&mut self, now: ClusterTime, node: NodeId) -> Option<Decision> {
+        let m = self.members.get_mut(&node)?;
+        if !m.up || m.role == Role::Tool {
+            return None;
+        }
+        m.up = false;
+        Some(Decision::Down {
+            node,
+            silent_ms: u64::try_from((now - m.last_seen) / 1_000_000).unwrap_or(0),
+        })
+    }
+
     /// Give every up member a fresh grace period from `now` (after a server restart).
     pub fn refresh_all(&mut self, now: ClusterTime) {
         for m in self.members.values_mut() {

@@ -4,8 +4,8 @@
 //!
 //! Payload layout (inside the recording's length + CRC framing, see [`crate::recording`]):
 //! `u8 kind | i64 LE at | body`, where the body is the scenario's TOML text, an encoded
-//! envelope (`proto::wire::encode`), `u32 LE destination` + encoded envelope, nothing, or a
-//! decision as JSON.
+//! envelope (`proto::wire::encode`), `u32 LE destination` + encoded envelope, nothing, a
+//! decision as JSON, or `u32 LE node` + `u8 up` for a link event.
 
 use crate::decision::Decision;
 use proto::{ClusterTime, Envelope, NodeId, WireError};
@@ -24,6 +24,8 @@ pub enum Record {
     Tick,
     /// A decision.
     Decision(Decision),
+    /// The transport reported a link to `node` up or down.
+    Link { node: NodeId, up: bool },
 }
 
 /// A record with the server's cluster time when it was made.
@@ -44,6 +46,7 @@ const KIND_RECEIVED: u8 = 1;
 const KIND_SENT: u8 = 2;
 const KIND_TICK: u8 = 3;
 const KIND_DECISION: u8 = 4;
+const KIND_LINK: u8 = 5;
 
 /// A record payload that could not be encoded or decoded.
 #[derive(Debug, Error)]
@@ -73,6 +76,7 @@ impl Stamped {
             Record::Sent { .. } => KIND_SENT,
             Record::Tick => KIND_TICK,
             Record::Decision(_) => KIND_DECISION,
+            Record::Link { .. } => KIND_LINK,
         };
         out.push(kind);
         out.extend_from_slice(&self.at.0.to_le_bytes());
@@ -85,6 +89,10 @@ impl Stamped {
             }
             Record::Tick => {}
             Record::Decision(d) => out.extend_from_slice(&serde_json::to_vec(d)?),
+            Record::Link { node, up } => {
+                out.extend_from_slice(&node.0.to_le_bytes());
+                out.push(u8::from(*up));
+            }
         }
         Ok(out)
     }
@@ -119,6 +127,15 @@ impl Stamped {
             }
             KIND_TICK => Record::Tick,
             KIND_DECISION => Record::Decision(serde_json::from_slice(body)?),
+            KIND_LINK => {
+                if body.len() != 5 {
+                    return Err(RecordError::Short(payload.len()));
+                }
+                Record::Link {
+                    node: NodeId(u32::from_le_bytes([body[0], body[1], body[2], body[3]])),
+                    up: body[4] != 0,
+                }
+            }
             k => return Err(RecordError::UnknownKind(k)),
         };
         Ok(Stamped { at, record })
@@ -154,6 +171,10 @@ mod tests {
             },
             Record::Tick,
             Record::Decision(Decision::Up { node: NodeId(3) }),
+            Record::Link {
+                node: NodeId(7),
+                up: false,
+            },
         ];
         for r in all {
             let s = Stamped::new(ClusterTime(-17), r);

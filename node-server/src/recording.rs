@@ -546,4 +546,29 @@ mod tests {
             Err(RecordingError::Io { .. })
         ));
     }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// Cut anywhere after the header: exactly the records that fit whole read back.
+        #[test]
+        fn any_cut_reads_back_the_whole_records_before_it(n in 1i64..12, frac in 0.0f64..1.0) {
+            let path = tmp(&format!("prop-{n}-{}", (frac * 1e6) as u64));
+            let recs = sample(n);
+            let mut r = Recorder::create(&path, "p").unwrap();
+            let mut ends = Vec::new();
+            for s in &recs {
+                r.append(s).unwrap();
+                ends.push(r.bytes());
+            }
+            let full = std::fs::read(&path).unwrap();
+            let header = 12 + 1; // magic, version, name length, "p"
+            let cut = header + ((full.len() as u64 - header) as f64 * frac) as u64;
+            std::fs::write(&path, &full[..cut as usize]).unwrap();
+            let back = read_all(&path).unwrap();
+            let whole = ends.iter().filter(|e| **e <= cut).count();
+            proptest::prop_assert_eq!(&back.records[..], &recs[..whole]);
+            let _ = std::fs::remove_dir_all(path.parent().unwrap());
+            proptest::prop_assert_eq!(back.tail.is_some(), cut != header && !ends.contains(&cut));
+        }
+    }
 }

@@ -1,4 +1,9 @@
 //! One module per `ocelli` subcommand.
 
 pub mod bench_camera;
+pub mod bench_head;
+pub mod export;
+pub mod report;
 pub mod scenario;
+pub mod sim;
+pub mod undistort;

@@ -1,0 +1,59 @@
+//! `ocelli export`: write the tracks of a recording as CSV or JSON Lines.
+
+use anyhow::{Context, Result};
+use node_server::export::{Format, track_rows, write_rows};
+use node_server::replay::load;
+use proto::scenario::Scenario;
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum FormatArg {
+    Csv,
+    Jsonl,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The server's recording file.
+    pub recording: PathBuf,
+    #[arg(long, value_enum, default_value = "csv")]
+    pub format: FormatArg,
+    /// Write here instead of standard output.
+    #[arg(long, short)]
+    pub out: Option<PathBuf>,
+    /// Scenario to replay with (default: the one stored in the recording).
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    let scenario = args.scenario.as_deref().map(Scenario::load).transpose()?;
+    let loaded = load(&args.recording, scenario)?;
+    if let Some(tail) = &loaded.tail {
+        tracing::warn!(offset = tail.offset, skipped = tail.skipped_bytes, problem = ?tail.problem, "recording has a torn tail; exported what precedes it");
+    }
+    let rows = track_rows(&loaded);
+    let format = match args.format {
+        FormatArg::Csv => Format::Csv,
+        FormatArg::Jsonl => Format::JsonLines,
+    };
+    match &args.out {
+        Some(p) => {
+            let mut f = std::io::BufWriter::new(
+                std::fs::File::create(p).with_context(|| format!("creating {}", p.display()))?,
+            );
+            write_rows(&rows, format, &mut f)?;
+            f.flush()?;
+            eprintln!("{} track rows written to {}", rows.len(), p.display());
+        }
+        None => {
+            let stdout = std::io::stdout();
+            let mut lock = stdout.lock();
+            write_rows(&rows, format, &mut lock)?;
+            lock.flush()?;
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
