@@ -212,7 +212,6 @@ pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<Summ
     let core_cfg = CameraConfig::from_scenario(&cfg.scenario, cfg.id)?;
     let fps = core_cfg.fps;
     let clock = cfg.clock.clone();
-    let source = make_source(&cfg, fps)?;
     let (endpoint, mut inbox, stats, handle) = open(cfg.transport.clone()).await?;
     let mut node = CameraNode::new(core_cfg, clock());
     info!(node = cfg.id, fps, source = ?cfg.source, "camera running");
@@ -221,13 +220,34 @@ pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<Summ
     let stop = Arc::new(AtomicBool::new(false));
     let lost = Arc::new(AtomicU64::new(0));
     let (tx, rx) = mpsc::channel::<Frame>(2);
+    // The source is opened on its own thread (a V4L2 handle is not `Send`), which reports
+    // whether that worked before the loop starts.
+    let (ready_tx, ready_rx) = std::sync::mpsc::sync_channel::<Result<(), ProcessError>>(1);
     let capture = {
         let (clock, on, stop, lost) = (clock.clone(), camera_on.clone(), stop.clone(), lost.clone());
+        let source_cfg = cfg.clone();
         std::thread::Builder::new()
             .name(format!("camera-{}-capture", cfg.id))
-            .spawn(move || capture_loop(source, fps, clock, on, stop, lost, tx))
+            .spawn(move || match make_source(&source_cfg, fps) {
+                Ok(source) => {
+                    let _ = ready_tx.send(Ok(()));
+                    capture_loop(source, fps, clock, on, stop, lost, tx);
+                }
+                Err(e) => {
+                    let _ = ready_tx.send(Err(e));
+                }
+            })
             .map_err(|e| SourceError::Device(format!("capture thread: {e}")))?
     };
+    let ready = tokio::task::spawn_blocking(move || ready_rx.recv())
+        .await
+        .ok()
+        .and_then(|r| r.ok())
+        .unwrap_or_else(|| Err(SourceError::Device("capture thread ended".into()).into()));
+    if let Err(e) = ready {
+        handle.shutdown().await;
+        return Err(e);
+    }
     let mut frames = Some(rx);
 
     // Synthetic radio: every tagged target's RSSI at this node, at the frame rate.

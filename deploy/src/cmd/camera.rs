@@ -134,6 +134,7 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
                 "rejected": summary.counters.rejected,
                 "frames_lost": summary.frames_lost,
                 "send_failures": summary.send_failures,
+                "transport": summary.transport,
             })
         );
         Ok(ExitCode::SUCCESS)
