@@ -190,7 +190,10 @@ impl Paper000 {
             let refr = &mut self.reference[a * 3..(a + g.width) * 3];
             let changed = &mut self.changed[a..a + g.width];
             let wrow = &mut self.windows[(gy / win) * wx..(gy / win + 1) * wx];
-            let pixels = src.chunks_exact(step3).zip(refr.chunks_exact_mut(3)).zip(changed.iter_mut());
+            let pixels = src
+                .chunks_exact(step3)
+                .zip(refr.chunks_exact_mut(3))
+                .zip(changed.iter_mut());
             for (x, ((px, rp), ch)) in pixels.enumerate() {
                 let dr = px[0] as i32 - rp[0] as i32;
                 let dg = px[1] as i32 - rp[1] as i32;
