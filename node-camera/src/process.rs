@@ -10,6 +10,7 @@
 
 use crate::config::{CameraConfig, ConfigError};
 use crate::core::{CameraNode, Counters};
+use crate::detect::ReferencePoint;
 use crate::frame::Frame;
 use crate::radio::{self, MultipathField};
 use crate::render::SyntheticSource;
@@ -56,6 +57,8 @@ pub struct ProcessConfig {
     pub clock: Clock,
     /// Period of `tick`.
     pub tick: Duration,
+    /// Which point of a region stands for the target (the foot point for people).
+    pub reference: ReferencePoint,
 }
 
 impl std::fmt::Debug for ProcessConfig {
@@ -209,7 +212,8 @@ fn capture_loop(
 /// The node is not a camera, the source or the transport cannot be opened. Once running,
 /// nothing the peers do ends the run: lost messages are counted.
 pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<Summary, ProcessError> {
-    let core_cfg = CameraConfig::from_scenario(&cfg.scenario, cfg.id)?;
+    let mut core_cfg = CameraConfig::from_scenario(&cfg.scenario, cfg.id)?;
+    core_cfg.reference = cfg.reference;
     let fps = core_cfg.fps;
     let clock = cfg.clock.clone();
     let (endpoint, mut inbox, stats, handle) = open(cfg.transport.clone()).await?;

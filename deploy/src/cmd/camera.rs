@@ -6,6 +6,7 @@
 //! process), which `launch` sets to the same value for every camera.
 
 use anyhow::{Context, Result, bail};
+use node_camera::detect::ReferencePoint;
 use node_camera::process::{ProcessConfig, SourceSpec, run, transport_config};
 use proto::ClusterTime;
 use proto::scenario::{Scenario, TransportKind};
@@ -41,6 +42,15 @@ pub struct Args {
     /// Cluster time (ns since the Unix epoch) of scenario time 0.
     #[arg(long)]
     pub epoch_ns: Option<i64>,
+    /// The region point that stands for the target: its centre (solids) or foot (people).
+    #[arg(long, value_enum, default_value_t = Reference::Centre)]
+    pub reference: Reference,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reference {
+    Centre,
+    Foot,
 }
 
 #[allow(clippy::disallowed_methods)] // the process runtime owns the clock
@@ -92,6 +102,10 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
         epoch: args.epoch_ns.map_or_else(wall_clock, ClusterTime),
         clock,
         tick: Duration::from_millis(100),
+        reference: match args.reference {
+            Reference::Centre => ReferencePoint::Centre,
+            Reference::Foot => ReferencePoint::Foot,
+        },
     };
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)

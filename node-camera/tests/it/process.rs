@@ -1,6 +1,7 @@
 //! The camera process over the in-process transport: it runs with its head away (counting
 //! what it cannot deliver), answers a head that appears, and stops cleanly when told.
 
+use node_camera::detect::ReferencePoint;
 use node_camera::process::{ProcessConfig, SourceSpec, run};
 use proto::msg::{Message, Prior};
 use proto::node::Outgoing;
@@ -36,6 +37,7 @@ async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
         epoch: ClusterTime::ZERO,
         clock: clock.clone(),
         tick: Duration::from_millis(100),
+        reference: ReferencePoint::Centre,
     };
     let stop = CancellationToken::new();
     // The camera's future is driven on this task (the transport's shutdown future is not
