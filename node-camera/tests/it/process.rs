@@ -40,8 +40,9 @@ async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
         reference: ReferencePoint::Centre,
     };
     let stop = CancellationToken::new();
-    // The camera's future is driven on this task (the transport's shutdown future is not
-    // `Send`, so `run` cannot be `tokio::spawn`ed); the driver plays the absent, then present,
+    // The camera's future is driven on this task: `proto::transport::open`'s future holds a
+    // `&ShutdownHandle` (not `Sync`) across an await, so `run` cannot be `tokio::spawn`ed.
+    // The driver plays the absent, then present,
     // head alongside it.
     let camera = run(cfg, stop.clone());
     let driver = async {
