@@ -23,6 +23,8 @@ pub struct Cli {
 pub enum Command {
     /// Print or check scenarios.
     Scenario(cmd::scenario::Args),
+    /// Run one camera node (until SIGINT/SIGTERM).
+    Camera(cmd::camera::Args),
     /// Undistort CSV rows (OpenCV test-vector format) from stdin: one `x,y` line per row.
     Undistort(cmd::undistort::Args),
     /// Print the report of a server recording (table or JSON).
@@ -74,6 +76,7 @@ pub fn main() -> ExitCode {
     init_tracing(cli.log_json);
     let result = match cli.command {
         Command::Scenario(args) => cmd::scenario::run(args),
+        Command::Camera(args) => cmd::camera::run_cmd(args),
         Command::Undistort(args) => cmd::undistort::run(args),
         Command::Report(args) => cmd::report::run(args),
         Command::Export(args) => cmd::export::run(args),

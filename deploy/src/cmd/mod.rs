@@ -3,6 +3,7 @@
 pub mod bench_camera;
 pub mod bench_head;
 pub mod bench_transport;
+pub mod camera;
 pub mod export;
 pub mod head;
 pub mod launch;
