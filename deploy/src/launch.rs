@@ -29,6 +29,14 @@ pub struct LaunchOptions {
     pub progress: bool,
 }
 
+/// Cluster time is the host's wall clock (ns since the Unix epoch); processes on one host agree
+/// without sync, and the server's beacons correct what differs across hosts.
+#[allow(clippy::disallowed_methods)] // the launcher is a runtime: it owns the clock
+fn wall_clock() -> ClusterTime {
+    let ns = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+    ClusterTime(i64::try_from(ns).unwrap_or(i64::MAX))
+}
+
 /// A free loopback port (bound then released; the child binds it right after).
 fn free_port() -> Result<u16> {
     Ok(std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
@@ -48,14 +56,16 @@ pub fn effective_scenario(mut s: Scenario, transport: TransportKind) -> Result<S
     Ok(s)
 }
 
-fn spawn_node(
-    sup: &mut Supervisor,
-    exe: &Path,
-    role: &str,
-    id: u32,
-    scenario_path: &Path,
-    opts: &LaunchOptions,
-) -> Result<()> {
+/// How to start one node process.
+struct Spawn<'a> {
+    exe: &'a Path,
+    scenario_path: &'a Path,
+    epoch: ClusterTime,
+    opts: &'a LaunchOptions,
+}
+
+fn spawn_node(sup: &mut Supervisor, how: &Spawn<'_>, role: &str, id: u32) -> Result<()> {
+    let (exe, scenario_path, opts) = (how.exe, how.scenario_path, how.opts);
     let mut cmd = Command::new(exe);
     cmd.arg(role)
         .arg("--scenario")
@@ -66,8 +76,15 @@ fn spawn_node(
         TransportKind::Ipc => "ipc",
         TransportKind::Tcp => "tcp",
     });
-    if role == "server" {
-        cmd.arg("--record").arg(&opts.record);
+    match role {
+        "server" => {
+            cmd.arg("--record").arg(&opts.record);
+        }
+        // Scenario time 0 for the synthetic world, the same for every camera.
+        "camera" => {
+            cmd.arg("--epoch-ns").arg(how.epoch.0.to_string());
+        }
+        _ => {}
     }
     let log = std::fs::File::create(opts.run_dir.join(format!("{role}-{id}.log")))?;
     cmd.stdout(Stdio::null()).stderr(log);
@@ -76,7 +93,7 @@ fn spawn_node(
 }
 
 /// One progress line per global track: position, σ, sensors and, with truth, error.
-fn progress_lines(record: &Path, scenario: &Scenario) -> Vec<String> {
+fn progress_lines(record: &Path, scenario: &Scenario, epoch: ClusterTime) -> Vec<String> {
     let Ok(back) = recording::read_all(record) else {
         return Vec::new();
     };
@@ -97,14 +114,14 @@ fn progress_lines(record: &Path, scenario: &Scenario) -> Vec<String> {
                 .targets
                 .iter()
                 .map(|t| {
-                    let x = t.truth_at(r.t);
+                    let x = t.truth_at(r.t - epoch.as_secs_f64());
                     ((x[0] - r.x).powi(2) + (x[1] - r.y).powi(2) + (x[2] - r.z).powi(2)).sqrt()
                 })
                 .min_by(f64::total_cmp)
                 .map_or(String::new(), |e| format!("  error {e:.2} m"));
             format!(
                 "t={:6.1}s  target g{:<3} ({:6.2}, {:6.2}, {:5.2}) m  σ {:.2} m  cameras {:2}  rssi {:2}  head {}{err}",
-                r.t, r.global, r.x, r.y, r.z, r.sigma_m, r.cameras, r.rssi_nodes, r.head
+                r.t - epoch.as_secs_f64(), r.global, r.x, r.y, r.z, r.sigma_m, r.cameras, r.rssi_nodes, r.head
             )
         })
         .collect()
@@ -134,6 +151,8 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
     std::fs::write(&scenario_path, scenario.to_toml())?;
     let exe = std::env::current_exe().context("locating the ocelli binary")?;
     let mut sup = Supervisor::new(Duration::from_secs(5));
+    let epoch = wall_clock();
+    let how = Spawn { exe: &exe, scenario_path: &scenario_path, epoch, opts };
     let by_role = |r: NodeRole| scenario.nodes.iter().filter(move |n| n.role == r).map(|n| n.id);
     for (role, name) in [
         (NodeRole::Server, "server"),
@@ -141,7 +160,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
         (NodeRole::Camera, "camera"),
     ] {
         for id in by_role(role) {
-            spawn_node(&mut sup, &exe, name, id, &scenario_path, opts)?;
+            spawn_node(&mut sup, &how, name, id)?;
         }
     }
     tracing::info!(
@@ -164,7 +183,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
                 tracing::warn!(child = %name, %status, "a node process ended");
             }
             if opts.progress {
-                for line in progress_lines(&opts.record, &scenario) {
+                for line in progress_lines(&opts.record, &scenario, epoch) {
                     eprintln!("{line}");
                 }
             }
@@ -196,10 +215,5 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
     }
     let loaded = node_server::replay::load(&opts.record, Some(scenario.clone()))
         .with_context(|| format!("reading the recording {}", opts.record.display()))?;
-    Ok(report::compute(&loaded, first_time(&loaded)))
-}
-
-/// Cluster time at which the scenario started: the first record's stamp.
-fn first_time(loaded: &Loaded) -> ClusterTime {
-    loaded.records.first().map_or(ClusterTime::ZERO, |r| r.at)
+    Ok(report::compute(&loaded, epoch))
 }
