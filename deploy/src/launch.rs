@@ -163,6 +163,9 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
             spawn_node(&mut sup, &how, name, id)?;
         }
     }
+    // Who runs where, for operators and tests that need to stop one node on purpose.
+    let pids: String = sup.children_mut().iter().map(|c| format!("{} {}\n", c.name, c.pid())).collect();
+    std::fs::write(opts.run_dir.join("pids"), pids)?;
     tracing::info!(
         nodes = scenario.nodes.len(),
         run_dir = %opts.run_dir.display(),

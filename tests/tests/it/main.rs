@@ -1,3 +1,4 @@
 //! End-to-end tests: real `ocelli` processes.
 
+mod cluster;
 mod transport;

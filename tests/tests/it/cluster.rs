@@ -1,0 +1,310 @@
+//! The product as a user meets it: `ocelli launch` starts every node of the default scenario as
+//! its own process, over iceoryx2 and over TCP; nodes are killed mid-run on purpose. Each test
+//! reads the launch's final JSON report and the server's recording (through `ocelli export`),
+//! and checks that no process and no `/dev/shm` file is left behind.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+/// Mean-error bound for a whole run over real processes, metres. The simulation of the same
+/// scenario (`ocelli sim`, seeds 1–5, see `deploy/tests/it/sim.rs`) tracks within a few
+/// decimetres; real processes add scheduling jitter, start-up (tracks born late) and the
+/// two-core CI machine running 24 processes at once, so the bound leaves a margin of about 3×.
+const MEAN_ERROR_BOUND_M: f64 = 1.0;
+
+const EXE: &str = env!("CARGO_BIN_EXE_ocelli-e2e");
+
+#[allow(clippy::disallowed_methods)] // the harness's own deadlines, never asserted on
+fn now() -> std::time::Instant {
+    std::time::Instant::now()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("ocelli-e2e-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir
+}
+
+fn signal(pid: u32, sig: libc::c_int) {
+    #[allow(unsafe_code)]
+    // SAFETY: kill(2) has no memory-safety preconditions.
+    unsafe {
+        libc::kill(pid as libc::pid_t, sig);
+    }
+}
+
+fn alive(pid: u32) -> bool {
+    #[allow(unsafe_code)]
+    // SAFETY: signal 0 only checks for existence.
+    let r = unsafe { libc::kill(pid as libc::pid_t, 0) };
+    r == 0
+}
+
+/// A running `ocelli launch`, killed on drop.
+struct Launch {
+    child: Option<Child>,
+    dir: PathBuf,
+    domain: String,
+}
+
+impl Launch {
+    fn start(name: &str, transport: &str, seconds: f64, scenario: Option<&Path>) -> Launch {
+        let dir = scratch(name);
+        let mut cmd = Command::new(EXE);
+        cmd.arg("launch");
+        if let Some(s) = scenario {
+            cmd.arg(s);
+        }
+        cmd.args(["--transport", transport, "--duration", &seconds.to_string(), "--json", "--quiet"])
+            .arg("--run-dir")
+            .arg(dir.join("run"))
+            .arg("--record")
+            .arg(dir.join("rec.ocrec"))
+            .env("RUST_LOG", "info")
+            .env("NO_COLOR", "1")
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(std::fs::File::create(dir.join("launch.log")).expect("log"));
+        let child = cmd.spawn().expect("spawning ocelli launch");
+        let domain = format!("ocelli-{}", child.id());
+        Launch { child: Some(child), dir, domain }
+    }
+
+    fn record(&self) -> PathBuf {
+        self.dir.join("rec.ocrec")
+    }
+
+    fn run_dir(&self) -> PathBuf {
+        self.dir.join("run")
+    }
+
+    /// Node name (`camera-12`, `head-2`, `server-1`) → pid, once the launch has written it.
+    fn pid_of(&self, node: &str) -> u32 {
+        let deadline = now() + Duration::from_secs(20);
+        loop {
+            if let Ok(text) = std::fs::read_to_string(self.run_dir().join("pids"))
+                && let Some(pid) = text
+                    .lines()
+                    .filter_map(|l| l.split_once(' '))
+                    .find(|(n, _)| *n == node)
+                    .and_then(|(_, p)| p.parse().ok())
+            {
+                return pid;
+            }
+            assert!(now() < deadline, "launch never listed {node}");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    fn all_pids(&self) -> Vec<u32> {
+        std::fs::read_to_string(self.run_dir().join("pids"))
+            .unwrap_or_default()
+            .lines()
+            .filter_map(|l| l.split_once(' ').and_then(|(_, p)| p.parse().ok()))
+            .collect()
+    }
+
+    fn log(&self, node: &str) -> String {
+        std::fs::read_to_string(self.run_dir().join(format!("{node}.log"))).unwrap_or_default()
+    }
+
+    /// Wait for the launch to end by itself; its JSON report.
+    fn finish(mut self, within: Duration) -> (Value, Launch) {
+        let mut child = self.child.take().expect("running");
+        let deadline = now() + within;
+        let status = loop {
+            if let Some(s) = child.try_wait().expect("try_wait") {
+                break s;
+            }
+            if now() >= deadline {
+                let _ = child.kill();
+                let _ = child.wait();
+                panic!("launch did not finish within {within:?}; log:\n{}", self.launch_log());
+            }
+            std::thread::sleep(Duration::from_millis(200));
+        };
+        let mut out = String::new();
+        use std::io::Read;
+        child.stdout.take().expect("stdout").read_to_string(&mut out).expect("stdout");
+        assert!(status.success(), "launch failed ({status}); log:\n{}", self.launch_log());
+        let report: Value = serde_json::from_str(&out)
+            .unwrap_or_else(|e| panic!("launch printed no JSON report ({e}):\n{out}\n{}", self.launch_log()));
+        (report, self)
+    }
+
+    fn launch_log(&self) -> String {
+        std::fs::read_to_string(self.dir.join("launch.log")).unwrap_or_default()
+    }
+
+    /// Nothing of the run is left: no node process, no shared-memory file of its domain.
+    fn assert_clean(&self) {
+        for pid in self.all_pids() {
+            assert!(!alive(pid), "node process {pid} outlived the launch");
+        }
+        let prefix = format!("iox2_{}_", self.domain);
+        let left: Vec<String> = std::fs::read_dir("/dev/shm")
+            .map(|d| {
+                d.flatten()
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .filter(|n| n.starts_with(&prefix))
+                    .collect()
+            })
+            .unwrap_or_default();
+        assert!(left.is_empty(), "files left in /dev/shm: {left:?}");
+    }
+}
+
+impl Drop for Launch {
+    fn drop(&mut self) {
+        if let Some(mut c) = self.child.take() {
+            signal(c.id(), libc::SIGINT);
+            std::thread::sleep(Duration::from_millis(200));
+            signal(c.id(), libc::SIGINT);
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+        for pid in self.all_pids() {
+            signal(pid, libc::SIGKILL);
+        }
+    }
+}
+
+/// The recording's owner track rows (`ocelli export --format jsonl`).
+fn track_rows(record: &Path) -> Vec<Value> {
+    let out = Command::new(EXE)
+        .args(["export", "--format", "jsonl"])
+        .arg(record)
+        .env("RUST_LOG", "error")
+        .output()
+        .expect("ocelli export");
+    assert!(out.status.success(), "export failed: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str::<Value>(l).expect("export JSON line"))
+        .filter(|r| r["owner"].as_bool() == Some(true))
+        .collect()
+}
+
+fn f(v: &Value, key: &str) -> f64 {
+    v[key].as_f64().unwrap_or_else(|| panic!("report has no number {key}: {v}"))
+}
+
+fn assert_tracked(report: &Value) {
+    let targets = report["targets"].as_array().expect("targets");
+    assert_eq!(targets.len(), 1, "one robot in the default scenario: {report}");
+    assert!(f(&targets[0], "samples") >= 30.0, "too few track samples: {report}");
+    let err = f(report, "mean_error_m");
+    assert!(err < MEAN_ERROR_BOUND_M, "mean error {err} m ≥ {MEAN_ERROR_BOUND_M} m: {report}");
+}
+
+fn cluster_tracks(transport: &str) {
+    let run = Launch::start(&format!("track-{transport}"), transport, 20.0, None);
+    let (report, run) = run.finish(Duration::from_secs(90));
+    assert_tracked(&report);
+    run.assert_clean();
+}
+
+#[test]
+fn ipc_cluster_tracks_the_default_scenario() {
+    cluster_tracks("ipc");
+}
+
+#[test]
+fn tcp_cluster_tracks_the_default_scenario() {
+    cluster_tracks("tcp");
+}
+
+/// A camera killed mid-run: tracking continues and its head stops waiting for it.
+#[test]
+fn killing_a_camera_mid_run_leaves_tracking_running() {
+    // Every camera on, so the head expects the victim in every step.
+    let scenario_dir = scratch("kill-camera-scenario");
+    let text = proto::scenario::DEFAULT_SCENARIO_TOML.replace("activation = \"three-mode\"", "activation = \"all-on\"");
+    assert_ne!(text, proto::scenario::DEFAULT_SCENARIO_TOML, "default scenario layout changed");
+    let path = scenario_dir.join("all-on.toml");
+    std::fs::write(&path, text).unwrap();
+    let run = Launch::start("kill-camera", "ipc", 20.0, Some(&path));
+    let victim = "camera-12";
+    let pid = run.pid_of(victim);
+    std::thread::sleep(Duration::from_secs(8));
+    signal(pid, libc::SIGKILL);
+    let (report, run) = run.finish(Duration::from_secs(90));
+    assert_tracked(&report);
+    let head_log = run.log("head-2");
+    assert!(
+        head_log.lines().any(|l| l.contains("not waiting for it") && l.contains("n12")),
+        "head 2 never stopped waiting for camera 12:\n{head_log}"
+    );
+    run.assert_clean();
+}
+
+/// The head owning the robot's track is killed: the server fails over to the other head and the
+/// robot keeps its global id.
+#[test]
+fn killing_the_owning_head_fails_over_and_keeps_the_global_id() {
+    let run = Launch::start("kill-head", "ipc", 24.0, None);
+    // Wait until the robot is tracked, then kill whichever head owns it.
+    let deadline = now() + Duration::from_secs(30);
+    let (global, owner, t_kill) = loop {
+        let rows = track_rows(&run.record());
+        if let Some(last) = rows.last()
+            && rows.len() >= 10
+        {
+            break (last["global"].as_u64().unwrap(), last["head"].as_u64().unwrap(), f(last, "t"));
+        }
+        assert!(now() < deadline, "the robot was never tracked; launch log:\n{}", run.launch_log());
+        std::thread::sleep(Duration::from_millis(500));
+    };
+    signal(run.pid_of(&format!("head-{owner}")), libc::SIGKILL);
+    let (_report, run) = run.finish(Duration::from_secs(90));
+    let after: Vec<Value> = track_rows(&run.record()).into_iter().filter(|r| f(r, "t") > t_kill + 0.5).collect();
+    assert!(!after.is_empty(), "no track after the head {owner} died");
+    assert!(
+        after.iter().all(|r| r["head"].as_u64() != Some(owner)),
+        "the dead head {owner} still owns a track"
+    );
+    assert!(
+        after.iter().any(|r| r["global"].as_u64() == Some(global)),
+        "global id {global} was lost at failover; after: {:?}",
+        after.iter().map(|r| r["global"].clone()).collect::<Vec<_>>()
+    );
+    run.assert_clean();
+}
+
+/// The server is killed and restarted: nodes keep tracking and reconnect, and everything
+/// recorded before the crash is still in the recording.
+#[test]
+fn killing_and_restarting_the_server_loses_no_recorded_data() {
+    let run = Launch::start("kill-server", "ipc", 24.0, None);
+    let server_pid = run.pid_of("server-1");
+    std::thread::sleep(Duration::from_secs(9));
+    signal(server_pid, libc::SIGKILL);
+    let before = track_rows(&run.record());
+    assert!(!before.is_empty(), "nothing was recorded before the crash");
+    std::thread::sleep(Duration::from_secs(2));
+    let mut restarted = Command::new(EXE)
+        .args(["server", "--id", "1", "--transport", "ipc", "--scenario"])
+        .arg(run.run_dir().join("scenario.toml"))
+        .arg("--record")
+        .arg(run.record())
+        .env("RUST_LOG", "info")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(run.dir.join("server-restarted.log")).unwrap())
+        .spawn()
+        .expect("restarting the server");
+    let (_report, run) = run.finish(Duration::from_secs(90));
+    signal(restarted.id(), libc::SIGTERM);
+    let _ = restarted.wait();
+    let after = track_rows(&run.record());
+    assert!(after.len() > before.len(), "no tracking recorded after the restart");
+    assert_eq!(&after[..before.len()], &before[..], "records from before the crash changed");
+    let globals_before: std::collections::BTreeSet<u64> = before.iter().filter_map(|r| r["global"].as_u64()).collect();
+    let last_global = after.last().and_then(|r| r["global"].as_u64()).unwrap();
+    assert!(globals_before.contains(&last_global), "the robot got a new global id after the restart");
+    // The launch removed the domain's files; the restarted server was ours to stop.
+    run.assert_clean();
+}
