@@ -163,8 +163,16 @@ fn a_silent_camera_is_reported_down_to_its_head_and_readmitted() {
 #[test]
 fn first_report_gets_a_global_id() {
     let mut s = started();
-    s.on_message(ms(100), report(H2, 5, None, ms(100), 2.0, 2.0));
+    let out = s.on_message(ms(100), report(H2, 5, None, ms(100), 2.0, 2.0));
     let g = s.global_of(H2, TargetId(5)).unwrap();
+    // The head is told the id by a naming handover to itself.
+    let named = handovers(&out);
+    assert_eq!(named.len(), 1);
+    assert_eq!(
+        (named[0].0, named[0].1.to_head, named[0].1.from_head),
+        (H2, H2, None)
+    );
+    assert_eq!(named[0].1.global, g);
     assert_eq!(
         decisions(&mut s),
         vec![Decision::NewGlobal {
@@ -175,6 +183,10 @@ fn first_report_gets_a_global_id() {
     );
     let (_, gt) = s.globals().next().unwrap();
     assert_eq!(gt.owner, H2);
+    // A report that already carries an (unknown) id gets a new one but is not named again.
+    let out = s.on_message(ms(300), report(H2, 6, Some(77), ms(300), 2.0, 6.0));
+    assert!(handovers(&out).is_empty());
+    assert!(s.global_of(H2, TargetId(6)).is_some_and(|x| x != g));
 }
 
 #[test]
@@ -185,7 +197,10 @@ fn leaving_a_region_hands_the_track_over_with_the_last_posterior() {
     let out = s.on_message(ms(200), report(H2, 5, None, ms(200), 6.2, 4.0));
     assert!(handovers(&out).is_empty());
     let out = s.on_message(ms(400), report(H2, 5, None, ms(400), 6.4, 4.1));
-    let h = handovers(&out);
+    let h: Vec<_> = handovers(&out)
+        .into_iter()
+        .filter(|(_, m)| m.from_head.is_some())
+        .collect();
     assert_eq!(h.len(), 2, "sent to the new and the old head: {out:?}");
     assert!(h.iter().any(|(to, _)| *to == H3) && h.iter().any(|(to, _)| *to == H2));
     let g = s.global_of(H2, TargetId(5)).unwrap();
@@ -315,7 +330,8 @@ fn a_crossing_target_keeps_one_global_id() {
     let mut s = started();
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let mut owner = H2;
-    let mut carried: Option<u32> = None;
+    // The global id each simulated head labels its track with (learned from handovers).
+    let mut label: std::collections::BTreeMap<NodeId, u32> = Default::default();
     let mut ids = std::collections::BTreeSet::new();
     let mut handed = 0;
     for k in 0..50i64 {
@@ -329,12 +345,17 @@ fn a_crossing_target_keeps_one_global_id() {
                 continue;
             }
             let local = if head == H2 { 5 } else { 9 };
-            let global = if head == owner { carried } else { None };
+            let global = label.get(&head).copied();
             let out = s.on_message(t, report(head, local, global, t, x + noise(&mut rng), 4.0));
             for (to, h) in handovers(&out) {
                 if to == h.to_head {
+                    label.insert(to, h.global.0);
+                }
+                if let Some(from) = h.from_head
+                    && to == h.to_head
+                    && from != to
+                {
                     owner = to;
-                    carried = Some(h.global.0);
                     handed += 1;
                 }
             }

@@ -438,6 +438,7 @@ mod tests {
             for o in out {
                 if let Message::Handover(h) = o.body
                     && o.to == h.to_head
+                    && h.from_head.is_some()
                 {
                     owner = h.to_head;
                     carried = Some(h.global);
