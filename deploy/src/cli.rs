@@ -23,10 +23,24 @@ pub struct Cli {
 pub enum Command {
     /// Print or check scenarios.
     Scenario(cmd::scenario::Args),
+    /// Undistort CSV rows (OpenCV test-vector format) from stdin: one `x,y` line per row.
+    Undistort(cmd::undistort::Args),
     /// Print the report of a server recording (table or JSON).
     Report(cmd::report::Args),
     /// Export the tracks of a server recording as CSV or JSON Lines.
     Export(cmd::export::Args),
+    /// Measure speed; print JSON.
+    #[command(subcommand)]
+    Bench(Bench),
+}
+
+/// What `ocelli bench` measures.
+#[derive(Subcommand, Debug)]
+pub enum Bench {
+    /// The head's EIF update and activation decision.
+    Head(cmd::bench_head::Args),
+    /// Camera node: segmentation + undistortion + contribution per frame.
+    Camera(cmd::bench_camera::Args),
 }
 
 /// Install the tracing subscriber (`RUST_LOG`, default `info`) on standard error.
@@ -48,8 +62,11 @@ pub fn main() -> ExitCode {
     init_tracing(cli.log_json);
     let result = match cli.command {
         Command::Scenario(args) => cmd::scenario::run(args),
+        Command::Undistort(args) => cmd::undistort::run(args),
         Command::Report(args) => cmd::report::run(args),
         Command::Export(args) => cmd::export::run(args),
+        Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
+        Command::Bench(Bench::Camera(args)) => cmd::bench_camera::run(args),
     };
     match result {
         Ok(code) => code,

@@ -12,7 +12,10 @@ pub mod region;
 pub mod seg000;
 pub mod seg004;
 pub mod source;
+#[cfg(feature = "v4l2")]
+pub mod v4l2;
 pub mod measure;
+pub mod radio;
 pub mod render;
 pub mod segment;
 pub mod config;

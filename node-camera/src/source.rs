@@ -40,7 +40,7 @@ pub enum SourceError {
 }
 
 /// Something that produces frames.
-pub trait FrameSource: Send {
+pub trait FrameSource {
     /// Frame size, pixels.
     fn size(&self) -> (u32, u32);
 

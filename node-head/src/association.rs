@@ -97,6 +97,9 @@ fn reprojection_chi2(camera: &CameraModel, det: &Detection, p: &nalgebra::Vector
     Some(nu.dot(&det.cov.cholesky()?.solve(&nu)))
 }
 
+/// A candidate birth: members, summed reprojection χ², point and its covariance.
+type Group = (Vec<usize>, f64, nalgebra::Vector3<f64>, nalgebra::Matrix3<f64>);
+
 /// Slack around the world box a born track may lie in, metres.
 pub const BIRTH_BOUNDS_MARGIN: f64 = 0.5;
 
@@ -125,7 +128,7 @@ pub fn births(
         cov: dets[i].cov,
     };
     loop {
-        let mut best: Option<(Vec<usize>, f64, nalgebra::Vector3<f64>, nalgebra::Matrix3<f64>)> = None;
+        let mut best: Option<Group> = None;
         for (a, &i) in left.iter().enumerate() {
             for &j in &left[a + 1..] {
                 if dets[i].slot == dets[j].slot {

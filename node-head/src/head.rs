@@ -361,7 +361,7 @@ impl HeadNode {
         self.counters.deaths += failed;
         self.step += 1;
         self.step_time = now;
-        self.detections.clear();
+        // Detections are kept: those that arrived between steps are associated at the close.
         let distributed = self.cfg.method.fusion == Fusion::DistributedEif;
         self.expected.clear();
         self.expected.extend(

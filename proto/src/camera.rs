@@ -214,18 +214,29 @@ impl Distortion {
         )
     }
 
-    /// Invert [`Distortion::distort`] by damped Newton iteration from the one-step estimate.
-    /// `None` if it does not converge to [`UNDISTORT_TOLERANCE`].
+    /// Invert [`Distortion::distort`] by damped Newton iteration from the one-step estimate,
+    /// then (if that fails) from `d` itself. A solution is accepted only where the lens map is
+    /// orientation-preserving (`det J > 0`): beyond the fold of a strongly distorting polynomial
+    /// a second, spurious preimage exists, and returning it would be silently wrong.
+    /// `None` if no start converges to [`UNDISTORT_TOLERANCE`] on the unfolded branch.
     pub fn undistort(&self, d: &Vector2<f64>) -> Option<Vector2<f64>> {
         if self.is_zero() {
             return Some(*d);
         }
         let (radial, tangential) = self.terms(d);
-        let mut p = if radial.abs() > 1e-6 {
+        let one_step = if radial.abs() > 1e-6 {
             (d - tangential) / radial
         } else {
             *d
         };
+        [one_step, *d]
+            .into_iter()
+            .filter_map(|start| self.newton(d, start))
+            .find(|p| self.distort_jacobian(p).determinant() > 0.0)
+    }
+
+    fn newton(&self, d: &Vector2<f64>, start: Vector2<f64>) -> Option<Vector2<f64>> {
+        let mut p = start;
         for _ in 0..UNDISTORT_MAX_ITERATIONS {
             let residual = self.distort(&p) - d;
             if residual.norm() <= UNDISTORT_TOLERANCE {

@@ -11,9 +11,11 @@ use crate::ids::{NodeId, TargetId};
 use crate::models::{MotionModel, RssiModel};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use thiserror::Error;
+
+mod check;
 
 /// The embedded default scenario, modelled on paper 002's 21-camera testbed.
 pub const DEFAULT_SCENARIO_TOML: &str = include_str!("../scenarios/default.toml");
@@ -333,9 +335,14 @@ fn default_fps() -> f64 {
 
 /// A camera pose: placed and aimed, or OpenCV `rvec`/`tvec` (world → camera).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all_fields = "kebab-case", untagged)]
+// `rename_all_fields`, not `rename_all`: an untagged enum's keys are its variants' fields.
+#[serde(
+    deny_unknown_fields,
+    rename_all_fields = "kebab-case",
+    untagged,
+    expecting = "a pose: `{ position = [x, y, z], look-at = [x, y, z] }` or `{ rvec = [..], tvec = [..] }`"
+)]
 pub enum PoseSpec {
-    // `rename_all_fields` above: `rename_all` on an enum renames variants, not their fields.
     LookAt { position: [f64; 3], look_at: [f64; 3] },
     Rodrigues { rvec: [f64; 3], tvec: [f64; 3] },
 }
@@ -446,145 +453,6 @@ impl Scenario {
         toml::to_string_pretty(self).expect("scenarios always serialize")
     }
 
-    /// Check what the types cannot.
-    ///
-    /// # Errors
-    /// The first problem, naming the field.
-    pub fn validate(&self, origin: &str, _unused: Option<()>) -> Result<(), ScenarioError> {
-        let bad = |field: String, problem: String| ScenarioError::Invalid {
-            path: origin.into(),
-            field,
-            problem,
-        };
-        for (i, (lo, hi)) in self.world.min.iter().zip(&self.world.max).enumerate() {
-            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
-                return Err(bad(
-                    format!("world.min/max[{i}]"),
-                    format!("expected finite min < max, got {lo} and {hi}"),
-                ));
-            }
-        }
-        if self.nodes.len() > crate::MAX_NODES {
-            return Err(bad(
-                "nodes".into(),
-                format!(
-                    "{} nodes exceed the maximum of {}",
-                    self.nodes.len(),
-                    crate::MAX_NODES
-                ),
-            ));
-        }
-        let mut ids = BTreeSet::new();
-        for n in &self.nodes {
-            if !ids.insert(n.id) {
-                return Err(bad(format!("nodes[id={}]", n.id), "duplicate node id".into()));
-            }
-        }
-        let heads: BTreeSet<u32> = self
-            .nodes
-            .iter()
-            .filter(|n| n.role == NodeRole::Head)
-            .map(|n| n.id)
-            .collect();
-        let servers = self.nodes.iter().filter(|n| n.role == NodeRole::Server).count();
-        if servers > 1 {
-            return Err(bad(
-                "nodes".into(),
-                format!("expected at most one server, found {servers}"),
-            ));
-        }
-        for n in &self.nodes {
-            match n.role {
-                NodeRole::Camera => {
-                    let Some(cam) = &n.camera else {
-                        return Err(bad(
-                            format!("nodes[id={}].camera", n.id),
-                            "a camera node needs camera geometry".into(),
-                        ));
-                    };
-                    if let Some(h) = n.head
-                        && !heads.contains(&h)
-                    {
-                        return Err(bad(
-                            format!("nodes[id={}].head", n.id),
-                            format!("no head with id {h}"),
-                        ));
-                    }
-                    if cam.opencv_intrinsic.is_none() && cam.intrinsics.is_none() {
-                        return Err(bad(
-                            format!("nodes[id={}].camera", n.id),
-                            "expected `intrinsics` or `opencv-intrinsic`".into(),
-                        ));
-                    }
-                    if cam.opencv_extrinsic.is_none() && cam.pose.is_none() {
-                        return Err(bad(
-                            format!("nodes[id={}].camera", n.id),
-                            "expected `pose` or `opencv-extrinsic`".into(),
-                        ));
-                    }
-                    if let Some(p) = &cam.pose
-                        && p.to_pose().is_none()
-                    {
-                        return Err(bad(
-                            format!("nodes[id={}].camera.pose", n.id),
-                            "degenerate pose (look-at equals position or is straight up/down)".into(),
-                        ));
-                    }
-                    if !(cam.fps.is_finite() && cam.fps > 0.0) {
-                        return Err(bad(
-                            format!("nodes[id={}].camera.fps", n.id),
-                            format!("expected a positive rate, got {}", cam.fps),
-                        ));
-                    }
-                }
-                NodeRole::Head | NodeRole::Server => {
-                    if n.camera.is_some() {
-                        return Err(bad(
-                            format!("nodes[id={}].camera", n.id),
-                            "only camera nodes have camera geometry".into(),
-                        ));
-                    }
-                }
-            }
-            if !(n.cost_factor.is_finite() && n.cost_factor > 0.0) {
-                return Err(bad(
-                    format!("nodes[id={}].cost-factor", n.id),
-                    "expected a positive number".into(),
-                ));
-            }
-        }
-        let mut tids = BTreeSet::new();
-        for t in &self.targets {
-            if !tids.insert(t.id) {
-                return Err(bad(format!("targets[id={}]", t.id), "duplicate target id".into()));
-            }
-            let (w, s) = match &t.trajectory {
-                Trajectory::Loop { waypoints, speed } | Trajectory::Path { waypoints, speed } => {
-                    (waypoints, *speed)
-                }
-            };
-            if w.len() < 2 {
-                return Err(bad(
-                    format!("targets[id={}].trajectory.waypoints", t.id),
-                    "expected at least two waypoints".into(),
-                ));
-            }
-            if !(s.is_finite() && s > 0.0) {
-                return Err(bad(
-                    format!("targets[id={}].trajectory.speed", t.id),
-                    "expected a positive speed".into(),
-                ));
-            }
-        }
-        if self.method.step_ms == 0 || self.method.deadline_ms >= self.method.step_ms {
-            return Err(bad(
-                "method.deadline-ms".into(),
-                "expected 0 < deadline-ms < step-ms".into(),
-            ));
-        }
-        Ok(())
-    }
-
     pub fn node(&self, id: u32) -> Option<&NodeSpec> {
         self.nodes.iter().find(|n| n.id == id)
     }
@@ -623,7 +491,9 @@ impl Scenario {
             .ok_or_else(|| bad("camera", "not a camera node".into()))?;
         let (mut intrinsics, mut distortion) = (cam.intrinsics, cam.distortion);
         if let Some(path) = &cam.opencv_intrinsic {
-            let (k, d) = crate::opencv::read_intrinsics(path)
+            // OpenCV files rarely carry the image size; inline intrinsics may supply it.
+            let size = intrinsics.map(|k| (k.width, k.height));
+            let (k, d) = crate::opencv::read_intrinsics_with(path, size)
                 .map_err(|e| bad("camera.opencv-intrinsic", e.to_string()))?;
             intrinsics = Some(k);
             distortion = d;

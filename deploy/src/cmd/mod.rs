@@ -2,4 +2,7 @@
 
 pub mod export;
 pub mod report;
+pub mod bench_head;
+pub mod bench_camera;
 pub mod scenario;
+pub mod undistort;

@@ -1,3 +1,4 @@
 //! Integration tests of the camera node: real datasets and whole-pipeline runs.
 
 mod multiviewx;
+mod synthetic;

@@ -4,4 +4,6 @@
 // (i, j) index loops over 6×6 matrices read clearer than zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
+mod camera;
+mod scenario;
 mod wire;

@@ -1,0 +1,61 @@
+//! Sensor activation through `HeadNode`: a higher energy weight keeps fewer cameras on.
+
+use crate::sim::{ONE_TARGET, Radio, Sim, error, ring_scenario};
+
+fn run(activation: &str, weight: f64, radio: bool) -> (f64, f64, f64, f64) {
+    let scenario = ring_scenario(8, "distributed-eif", activation, weight, ONE_TARGET);
+    let mut sim = Sim::new(&scenario, 31);
+    if radio {
+        sim.radio = Some(Radio {
+            tx_dbm: -48.0,
+            exponent: 2.6,
+            multipath_db: 3.0,
+            noise_db: 1.0,
+        });
+    }
+    let (mut cams, mut power, mut err, mut n, mut off) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for k in 0..80 {
+        let r = sim.step();
+        if k >= 20 {
+            let s = sim.head.last_step();
+            cams += s.active_cameras as f64;
+            off += s.camera_off as f64;
+            power += s.power_mw;
+            err += r.first().map_or(10.0, |r| error(&sim, r, 0));
+            n += 1.0;
+        }
+    }
+    assert!(sim.head.counters().commands > 0 || activation == "all-on");
+    (cams / n, power / n, err / n, off / n)
+}
+
+#[test]
+fn all_on_keeps_every_camera() {
+    let (cams, power, err, _) = run("all-on", 0.0, false);
+    assert_eq!(cams, 8.0);
+    assert!((power - 8.0 * 719.0).abs() < 1e-6);
+    assert!(err < 0.2, "{err}");
+}
+
+#[test]
+fn higher_energy_weight_chooses_fewer_cameras() {
+    let (cheap, p_cheap, e_cheap, _) = run("camera-entropy", 1e-4, false);
+    let (dear, p_dear, e_dear, _) = run("camera-entropy", 1e-3, false);
+    assert!(dear < cheap, "active cameras {dear} (dear) vs {cheap} (cheap)");
+    assert!(p_dear < p_cheap);
+    assert!(dear >= 1.0, "tracking needs a camera: {dear}");
+    assert!(e_cheap < 0.3 && e_dear < 0.6, "errors {e_cheap} {e_dear}");
+}
+
+#[test]
+fn three_mode_uses_camera_off_nodes_and_saves_power() {
+    let (_, p_full, _, _) = run("full-node", 1e-3, true);
+    let (cams, p_three, err, off) = run("three-mode", 1e-3, true);
+    assert!(cams < 8.0);
+    assert!(off > 0.0, "no node was ever left in CameraOff");
+    assert!(
+        p_three <= p_full * 1.05,
+        "three-mode {p_three} mW vs full-node {p_full} mW"
+    );
+    assert!(err < 0.6, "{err}");
+}

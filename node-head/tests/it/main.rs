@@ -1,0 +1,8 @@
+//! Integration tests of the head, driven by a tiny measurement-level simulator.
+
+mod activation;
+mod filter;
+mod rssi;
+mod sim;
+mod step;
+mod targets;
