@@ -41,6 +41,8 @@ pub enum Bench {
     Head(cmd::bench_head::Args),
     /// Camera node: segmentation + undistortion + contribution per frame.
     Camera(cmd::bench_camera::Args),
+    /// Server core (track reports, ticks), recording appends and restore.
+    Server(cmd::bench_server::Args),
 }
 
 /// Install the tracing subscriber (`RUST_LOG`, default `info`) on standard error.
@@ -67,6 +69,7 @@ pub fn main() -> ExitCode {
         Command::Export(args) => cmd::export::run(args),
         Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
         Command::Bench(Bench::Camera(args)) => cmd::bench_camera::run(args),
+        Command::Bench(Bench::Server(args)) => cmd::bench_server::run(args),
     };
     match result {
         Ok(code) => code,

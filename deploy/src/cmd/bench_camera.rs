@@ -168,7 +168,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
     for (w, h) in [(640u32, 480u32), (352, 288)] {
         let s = bench_scenario(w, h)?;
         let rec = recommended_step(w);
-        for (kind, name) in [(Segmentation::Paper004, "paper004"), (Segmentation::Paper000, "paper000")] {
+        for (kind, name) in [
+            (Segmentation::Paper004, "paper004"),
+            (Segmentation::Paper000, "paper000"),
+        ] {
             let mut steps = vec![1];
             if rec != 1 {
                 steps.push(rec);

@@ -1,8 +1,9 @@
 //! One module per `ocelli` subcommand.
 
+pub mod bench_camera;
+pub mod bench_head;
+pub mod bench_server;
 pub mod export;
 pub mod report;
-pub mod bench_head;
-pub mod bench_camera;
 pub mod scenario;
 pub mod undistort;

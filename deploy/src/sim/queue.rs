@@ -14,7 +14,11 @@ pub struct EventQueue<E> {
 
 impl<E> Default for EventQueue<E> {
     fn default() -> Self {
-        EventQueue { heap: BinaryHeap::new(), events: std::collections::HashMap::new(), next_seq: 0 }
+        EventQueue {
+            heap: BinaryHeap::new(),
+            events: std::collections::HashMap::new(),
+            next_seq: 0,
+        }
     }
 }
 
