@@ -144,6 +144,14 @@ impl ServerNode {
         &self.status
     }
 
+    /// Each node's visible sync error (the residual it last reported), ns.
+    pub fn sync_errors(&self) -> Vec<(NodeId, i64)> {
+        self.status
+            .iter()
+            .map(|(n, s)| (*n, s.sync_error_ns))
+            .collect()
+    }
+
     /// Records made since the last call, in order.
     pub fn take_records(&mut self) -> Vec<Stamped> {
         std::mem::take(&mut self.journal)

@@ -416,6 +416,7 @@ fn restore_rebuilds_the_same_state_and_reproduces_decisions() {
     let mb: Vec<_> = r.membership().members().map(|(i, m)| (i, m.clone())).collect();
     assert_eq!(ma, mb);
     assert_eq!(s.statuses(), r.statuses());
+    assert_eq!(r.sync_errors(), vec![(CAM, 1000)]);
 }
 
 #[test]
