@@ -29,6 +29,8 @@ pub enum Command {
     Report(cmd::report::Args),
     /// Export the tracks of a server recording as CSV or JSON Lines.
     Export(cmd::export::Args),
+    /// Run a scenario's nodes in one process on a virtual clock (deterministic for a seed).
+    Sim(cmd::sim::Args),
     /// Measure speed; print JSON.
     #[command(subcommand)]
     Bench(Bench),
@@ -67,6 +69,7 @@ pub fn main() -> ExitCode {
         Command::Undistort(args) => cmd::undistort::run(args),
         Command::Report(args) => cmd::report::run(args),
         Command::Export(args) => cmd::export::run(args),
+        Command::Sim(args) => cmd::sim::run(args),
         Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
         Command::Bench(Bench::Camera(args)) => cmd::bench_camera::run(args),
         Command::Bench(Bench::Server(args)) => cmd::bench_server::run(args),

@@ -2,10 +2,10 @@
 
 use crate::detect::ReferencePoint;
 use crate::segment::SegmentParams;
+use proto::NodeId;
 use proto::camera::CameraModel;
 use proto::msg::Mode;
 use proto::scenario::{Fusion, NodeRole, Scenario, ScenarioError};
-use proto::NodeId;
 use thiserror::Error;
 
 /// A camera configuration that could not be built.

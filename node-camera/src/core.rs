@@ -194,7 +194,11 @@ impl CameraNode {
 
     /// The contribution for one prior from the newest frame.
     fn answer(&self, now: ClusterTime, prior: &Prior) -> proto::msg::Contribution {
-        let rssi = self.rssi.get(&prior.target).copied().filter(|r| self.fresh(r.time, now));
+        let rssi = self
+            .rssi
+            .get(&prior.target)
+            .copied()
+            .filter(|r| self.fresh(r.time, now));
         let captured = self.captured.filter(|&t| self.fresh(t, now));
         let cam = &self.cfg.camera;
         let chosen = captured.and_then(|_| {
@@ -219,7 +223,10 @@ impl CameraNode {
         if (frame.width, frame.height) != (k.width, k.height) {
             self.reject(
                 "frame",
-                format!("{}x{} frame, camera is {}x{}", frame.width, frame.height, k.width, k.height),
+                format!(
+                    "{}x{} frame, camera is {}x{}",
+                    frame.width, frame.height, k.width, k.height
+                ),
             );
             return out;
         }
@@ -349,10 +356,10 @@ mod tests {
     use super::*;
     use crate::render::Renderer;
     use nalgebra::{Matrix6, Vector3};
+    use proto::NodeId;
     use proto::models;
     use proto::msg::{Command, Prior};
     use proto::scenario::Scenario;
-    use proto::NodeId;
 
     const CAM: u32 = 10;
 
@@ -405,7 +412,10 @@ mod tests {
         let cam = s.camera_model(CAM).unwrap();
         let outs = run(&mut node, &s, &r, 0.0, 6.0);
         // No prior yet: whatever it sees goes out as a track-starting measurement.
-        assert!(outs.iter().any(|o| matches!(&o.body, Message::Measurement(m) if m.target.is_none())));
+        assert!(
+            outs.iter()
+                .any(|o| matches!(&o.body, Message::Measurement(m) if m.target.is_none()))
+        );
         assert!(outs.iter().all(|o| o.to == NodeId(2)));
         let t = 6.0;
         let now = ClusterTime::from_secs_f64(t + 0.01);
@@ -414,7 +424,10 @@ mod tests {
         let Message::Contribution(c) = &got[0].body else {
             panic!("expected a contribution, got {:?}", got[0].body)
         };
-        assert_eq!((c.target, c.step, c.camera, c.mode), (TargetId(1), 31, true, Mode::Active));
+        assert_eq!(
+            (c.target, c.step, c.camera, c.mode),
+            (TargetId(1), 31, true, Mode::Active)
+        );
         assert_eq!(got[0].to, NodeId(2), "answers the head that asked");
         // Recover the measured point from ξ and Ω: the measurement the camera used lies
         // within a few pixels of the true centre's projection.
@@ -430,8 +443,18 @@ mod tests {
         let (p, _) = cam.normalized(&models::position(&truth));
         let px_err = (m.point - p).norm() * cam.intrinsics.fx;
         assert!(px_err < 12.0, "centre off by {px_err:.1} px");
-        let expected = measure::contribution(&cam, &prior(&s, t, 0.15, 31), Some(m), c.captured, Mode::Active, None);
-        assert_eq!(c.info_vector, expected.info_vector, "built from the nearest detection");
+        let expected = measure::contribution(
+            &cam,
+            &prior(&s, t, 0.15, 31),
+            Some(m),
+            c.captured,
+            Mode::Active,
+            None,
+        );
+        assert_eq!(
+            c.info_vector, expected.info_vector,
+            "built from the nearest detection"
+        );
     }
 
     #[test]
@@ -441,14 +464,19 @@ mod tests {
         let now = ClusterTime::from_secs_f64(2.05);
         // A prior 4 m away from anything the camera sees.
         let got = node.on_message(now, env(Message::Prior(prior(&s, 2.0, 4.0, 5))));
-        let Message::Contribution(c) = &got[0].body else { panic!() };
+        let Message::Contribution(c) = &got[0].body else {
+            panic!()
+        };
         assert!(!c.camera);
         assert!(c.info_matrix.iter().flatten().all(|&v| v == 0.0));
         let before = node.counters();
         let mut bad = prior(&s, 2.0, 0.0, 6);
         bad.mean[0] = f64::NAN;
         assert!(node.on_message(now, env(Message::Prior(bad))).is_empty());
-        let other = Command { node: NodeId(99), mode: Mode::Inactive };
+        let other = Command {
+            node: NodeId(99),
+            mode: Mode::Inactive,
+        };
         assert!(node.on_message(now, env(Message::Command(other))).is_empty());
         assert_eq!(node.mode(), Mode::Active);
         assert_eq!(node.counters().rejected, before.rejected + 2);
@@ -465,29 +493,54 @@ mod tests {
         let (s, mut node, r) = setup(Fusion::DistributedEif);
         run(&mut node, &s, &r, 0.0, 1.0);
         let frames = node.counters().frames;
-        let cmd = |m| env(Message::Command(Command { node: NodeId(CAM), mode: m }));
+        let cmd = |m| {
+            env(Message::Command(Command {
+                node: NodeId(CAM),
+                mode: m,
+            }))
+        };
         node.on_message(ClusterTime::from_secs_f64(1.0), cmd(Mode::CameraOff));
         run(&mut node, &s, &r, 1.2, 3.0);
-        assert_eq!(node.counters().frames, frames, "no capture when the camera is off");
+        assert_eq!(
+            node.counters().frames,
+            frames,
+            "no capture when the camera is off"
+        );
         assert_eq!(node.counters().frames_skipped, 10);
         node.on_rssi(ClusterTime::from_secs_f64(3.0), TargetId(1), -60.0);
-        let got = node.on_message(ClusterTime::from_secs_f64(3.05), env(Message::Prior(prior(&s, 3.0, 0.0, 9))));
-        let Message::Contribution(c) = &got[0].body else { panic!() };
+        let got = node.on_message(
+            ClusterTime::from_secs_f64(3.05),
+            env(Message::Prior(prior(&s, 3.0, 0.0, 9))),
+        );
+        let Message::Contribution(c) = &got[0].body else {
+            panic!()
+        };
         assert!(!c.camera && c.mode == Mode::CameraOff);
         assert_eq!(c.rssi.map(|r| r.dbm), Some(-60.0), "CameraOff still reports RSSI");
         node.on_message(ClusterTime::from_secs_f64(4.0), cmd(Mode::Inactive));
         node.on_rssi(ClusterTime::from_secs_f64(4.5), TargetId(1), -61.0);
-        assert!(node.on_message(ClusterTime::from_secs_f64(4.6), env(Message::Prior(prior(&s, 4.6, 0.0, 10)))).is_empty());
+        assert!(
+            node.on_message(
+                ClusterTime::from_secs_f64(4.6),
+                env(Message::Prior(prior(&s, 4.6, 0.0, 10)))
+            )
+            .is_empty()
+        );
         assert_eq!(node.counters().priors_ignored, 1);
         node.on_message(ClusterTime::from_secs_f64(7.0), cmd(Mode::Active));
         let t = node.time_in_mode_ns(ClusterTime::from_secs_f64(8.0));
         assert_eq!(t, [2_000_000_000, 3_000_000_000, 3_000_000_000]);
         let status = node.tick(ClusterTime::from_secs_f64(8.0));
         assert_eq!(status.len(), 2, "to the head and the server");
-        let Message::NodeStatus(st) = &status[0].body else { panic!() };
+        let Message::NodeStatus(st) = &status[0].body else {
+            panic!()
+        };
         assert_eq!(st.time_in_mode_ns, t);
         assert_eq!(st.mode, Mode::Active);
-        assert!(node.tick(ClusterTime::from_secs_f64(8.5)).is_empty(), "once per period");
+        assert!(
+            node.tick(ClusterTime::from_secs_f64(8.5)).is_empty(),
+            "once per period"
+        );
         assert_eq!(node.tick(ClusterTime::from_secs_f64(9.0)).len(), 2);
     }
 
@@ -496,8 +549,14 @@ mod tests {
         let (s, mut node, r) = setup(Fusion::CentralizedEif);
         run(&mut node, &s, &r, 0.0, 5.8);
         let t = 6.0;
-        let got = node.on_message(ClusterTime::from_secs_f64(5.9), env(Message::Prior(prior(&s, t, 0.1, 40))));
-        assert!(got.is_empty(), "centralized nodes do not answer priors with contributions");
+        let got = node.on_message(
+            ClusterTime::from_secs_f64(5.9),
+            env(Message::Prior(prior(&s, t, 0.1, 40))),
+        );
+        assert!(
+            got.is_empty(),
+            "centralized nodes do not answer priors with contributions"
+        );
         let outs = run(&mut node, &s, &r, t, t);
         let gated: Vec<_> = outs
             .iter()

@@ -54,7 +54,8 @@ impl Frame {
     /// # Errors
     /// [`FrameError::Size`] or [`FrameError::Buffer`].
     pub fn check(&self) -> Result<(), FrameError> {
-        if self.width == 0 || self.height == 0 || self.width > MAX_FRAME_SIDE || self.height > MAX_FRAME_SIDE {
+        if self.width == 0 || self.height == 0 || self.width > MAX_FRAME_SIDE || self.height > MAX_FRAME_SIDE
+        {
             return Err(FrameError::Size {
                 width: self.width,
                 height: self.height,
@@ -109,7 +110,14 @@ mod tests {
         let mut f = Frame::new(4, 3, ClusterTime::ZERO);
         assert_eq!(f.check(), Ok(()));
         f.data.pop();
-        assert!(matches!(f.check(), Err(FrameError::Buffer { got: 35, want: 36, .. })));
+        assert!(matches!(
+            f.check(),
+            Err(FrameError::Buffer {
+                got: 35,
+                want: 36,
+                ..
+            })
+        ));
         let z = Frame {
             width: 0,
             height: 3,

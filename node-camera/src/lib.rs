@@ -6,17 +6,17 @@
 //! [`seg004`] segment them ([`segment`] selects), [`measure`] undistorts, gates and linearizes,
 //! [`core`] is the node's state machine, [`render`] and [`radio`] are the synthetic world.
 
+pub mod config;
+pub mod core;
 pub mod detect;
 pub mod frame;
+pub mod measure;
+pub mod radio;
 pub mod region;
+pub mod render;
 pub mod seg000;
 pub mod seg004;
+pub mod segment;
 pub mod source;
 #[cfg(feature = "v4l2")]
 pub mod v4l2;
-pub mod measure;
-pub mod radio;
-pub mod render;
-pub mod segment;
-pub mod config;
-pub mod core;

@@ -209,9 +209,24 @@ mod tests {
         let pb_px = c.project(&b).unwrap();
         let pa_px = c.project(&a).unwrap();
         assert!((pb_px - pa_px).norm() > 100.0, "{pa_px} {pb_px}");
-        assert!(pb_px.x > 0.0 && pb_px.x < 352.0 && pb_px.y > 0.0 && pb_px.y < 288.0, "{pb_px}");
-        let ma = measure(&c, &detection_at(c.project(&a).unwrap()), ReferencePoint::Centre, 18.0).unwrap();
-        let mb = measure(&c, &detection_at(c.project(&b).unwrap()), ReferencePoint::Centre, 18.0).unwrap();
+        assert!(
+            pb_px.x > 0.0 && pb_px.x < 352.0 && pb_px.y > 0.0 && pb_px.y < 288.0,
+            "{pb_px}"
+        );
+        let ma = measure(
+            &c,
+            &detection_at(c.project(&a).unwrap()),
+            ReferencePoint::Centre,
+            18.0,
+        )
+        .unwrap();
+        let mb = measure(
+            &c,
+            &detection_at(c.project(&b).unwrap()),
+            ReferencePoint::Centre,
+            18.0,
+        )
+        .unwrap();
         let pa = prior(1, a + Vector3::new(0.1, -0.05, 0.0), 0.1);
         let pb = prior(2, b, 0.1);
         let far = prior(3, Vector3::new(9.0, 7.0, 0.25), 0.2);
@@ -227,7 +242,13 @@ mod tests {
     fn contribution_matches_proto_and_zero_when_empty() {
         let c = cam();
         let a = Vector3::new(3.5, 2.2, 0.25);
-        let m = measure(&c, &detection_at(c.project(&a).unwrap()), ReferencePoint::Centre, 18.0).unwrap();
+        let m = measure(
+            &c,
+            &detection_at(c.project(&a).unwrap()),
+            ReferencePoint::Centre,
+            18.0,
+        )
+        .unwrap();
         let p = prior(1, a, 0.3);
         let got = contribution(&c, &p, Some(&m), ClusterTime(5), Mode::Active, None);
         assert!(got.camera);
@@ -239,7 +260,15 @@ mod tests {
         let empty = contribution(&c, &p, None, ClusterTime(5), Mode::CameraOff, None);
         assert!(!empty.camera);
         assert!(empty.info_matrix.iter().flatten().all(|&v| v == 0.0));
-        let meas = measurement(&c, &m, Some((TargetId(1), 7)), None, ClusterTime(5), Mode::Active, None);
+        let meas = measurement(
+            &c,
+            &m,
+            Some((TargetId(1), 7)),
+            None,
+            ClusterTime(5),
+            Mode::Active,
+            None,
+        );
         assert_eq!(meas.target, Some(TargetId(1)));
         assert_eq!(meas.pose, c.pose.to_wire());
     }

@@ -42,7 +42,12 @@ impl MultipathField {
 
     /// Field value at a floor position, dB.
     pub fn at(&self, p: &Vector2<f64>) -> f64 {
-        self.amplitude * self.waves.iter().map(|(k, phi)| (k.dot(p) + phi).cos()).sum::<f64>()
+        self.amplitude
+            * self
+                .waves
+                .iter()
+                .map(|(k, phi)| (k.dot(p) + phi).cos())
+                .sum::<f64>()
     }
 }
 
@@ -148,10 +153,17 @@ mod tests {
                 }
             }
         }
-        let (rl, rd) = ((err_local / count as f64).sqrt(), (err_default / count as f64).sqrt());
+        let (rl, rd) = (
+            (err_local / count as f64).sqrt(),
+            (err_default / count as f64).sqrt(),
+        );
         eprintln!("rms error: local linear {rl:.2} dB, default log {rd:.2} dB");
         assert!(rl < 0.7 * rd, "local {rl:.2} dB vs default {rd:.2} dB");
-        assert!(rl > 1.0, "noise ({} dB) cannot be learned away: {rl:.2}", world.radio.noise_db);
+        assert!(
+            rl > 1.0,
+            "noise ({} dB) cannot be learned away: {rl:.2}",
+            world.radio.noise_db
+        );
     }
 
     #[test]

@@ -66,7 +66,13 @@ fn static_hit(world: &World, origin: &Vector3<f64>, dir: &Vector3<f64>) -> (f64,
         let fy = p.y / 0.5 - ty as f64;
         let grout = fx < 0.04 || fy < 0.04;
         let wave = ((p.x * 0.7).sin() * (p.y * 0.9).cos() * 10.0) as i32;
-        let base: i32 = if grout { 70 } else if checker { 150 } else { 120 };
+        let base: i32 = if grout {
+            70
+        } else if checker {
+            150
+        } else {
+            120
+        };
         let v = (base + wave).clamp(0, 255) as u8;
         consider(s, [v, v.saturating_sub(6), v.saturating_sub(14)]);
         let s = (hi[2] - origin.z) / dir.z;
@@ -152,7 +158,11 @@ impl Renderer {
     ///
     /// # Errors
     /// The node has no usable camera geometry.
-    pub fn for_node(scenario: &Scenario, id: u32, seed: u64) -> Result<Renderer, proto::scenario::ScenarioError> {
+    pub fn for_node(
+        scenario: &Scenario,
+        id: u32,
+        seed: u64,
+    ) -> Result<Renderer, proto::scenario::ScenarioError> {
         let cam = scenario.camera_model(id)?;
         Ok(Renderer::new(&scenario.world, &cam, mix(seed, id as u64)))
     }
@@ -202,7 +212,10 @@ impl Renderer {
                 let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
                 let mut poly = [Vector2::zeros(); 4];
                 let mut ok = true;
-                for (k, (s1, s2)) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)].into_iter().enumerate() {
+                for (k, (s1, s2)) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+                    .into_iter()
+                    .enumerate()
+                {
                     let mut p = fc;
                     p[a1] += s1 * half[a1];
                     p[a2] += s2 * half[a2];
@@ -216,7 +229,9 @@ impl Renderer {
                     continue;
                 }
                 let shade = 0.55 + 0.45 * normal.dot(&light).max(0.0);
-                let rgb = tg.colour.map(|v| (v as f64 * shade).round().clamp(0.0, 255.0) as u8);
+                let rgb = tg
+                    .colour
+                    .map(|v| (v as f64 * shade).round().clamp(0.0, 255.0) as u8);
                 self.fill(&poly, rgb, dist, data);
             }
         }
@@ -306,7 +321,12 @@ impl Renderer {
 ///
 /// # Errors
 /// The node has no usable camera geometry.
-pub fn render_frame(scenario: &Scenario, id: u32, t: f64, seed: u64) -> Result<Frame, proto::scenario::ScenarioError> {
+pub fn render_frame(
+    scenario: &Scenario,
+    id: u32,
+    t: f64,
+    seed: u64,
+) -> Result<Frame, proto::scenario::ScenarioError> {
     let r = Renderer::for_node(scenario, id, seed)?;
     let mut f = Frame::new(0, 0, ClusterTime::ZERO);
     r.render(&scenario.targets, t, ClusterTime::from_secs_f64(t), &mut f);
@@ -344,16 +364,19 @@ mod tests {
             .map(|k| k as f64 * 0.25)
             .find(|&t| {
                 let x = tg.truth_at(t);
-                cam.project(&Vector3::new(x[0], x[1], x[2])).is_some_and(|p| {
-                    p.x > 60.0 && p.x < 290.0 && p.y > 60.0 && p.y < 230.0
-                })
+                cam.project(&Vector3::new(x[0], x[1], x[2]))
+                    .is_some_and(|p| p.x > 60.0 && p.x < 290.0 && p.y > 60.0 && p.y < 230.0)
             })
             .expect("target visible at some time");
         r.render(&s.targets, t, ClusterTime::ZERO, &mut f);
         let x = tg.truth_at(t);
         let p = cam.project(&Vector3::new(x[0], x[1], x[2])).unwrap();
         let [red, g, b] = f.pixel(p.x as u32, p.y as u32);
-        assert!(red as i32 > g as i32 + 60 && red as i32 > b as i32 + 60, "{:?} at {p}", [red, g, b]);
+        assert!(
+            red as i32 > g as i32 + 60 && red as i32 > b as i32 + 60,
+            "{:?} at {p}",
+            [red, g, b]
+        );
         // Far from it, no target colour.
         let far = f.pixel(5, 5);
         assert!((far[0] as i32 - far[1] as i32).abs() < 40, "{far:?}");

@@ -356,7 +356,10 @@ mod tests {
         seg.process(&scene(0, None), &mut out).unwrap();
         let bg = seg.background().to_vec();
         let other = Frame::new(60, 40, ClusterTime::ZERO);
-        assert!(matches!(seg.process(&other, &mut out), Err(FrameError::Mismatch { .. })));
+        assert!(matches!(
+            seg.process(&other, &mut out),
+            Err(FrameError::Mismatch { .. })
+        ));
         assert_eq!(seg.background(), &bg[..]);
         assert_eq!(seg.frames(), 1);
     }
@@ -373,6 +376,10 @@ mod tests {
         seg.process(&scene(1, Some(60)), &mut out).unwrap();
         assert_eq!(out.len(), 1, "{out:?}");
         assert!((out[0].centre[0] - 65.5).abs() < 2.0, "{:?}", out[0]);
-        assert!(out[0].bbox.xmin >= 58.0 && out[0].bbox.xmax <= 73.0, "{:?}", out[0]);
+        assert!(
+            out[0].bbox.xmin >= 58.0 && out[0].bbox.xmax <= 73.0,
+            "{:?}",
+            out[0]
+        );
     }
 }

@@ -11,10 +11,7 @@ use thiserror::Error;
 #[derive(Debug, Error)]
 pub enum SourceError {
     #[error("cannot read {path}: {source}")]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    Io { path: PathBuf, source: std::io::Error },
     #[error("cannot decode image {path}: {message}")]
     Decode { path: PathBuf, message: String },
     #[error("{path}: no PNG or JPEG frames")]
@@ -125,7 +122,9 @@ impl ImageSequence {
             entries.push((path, t));
         }
         if entries.is_empty() {
-            return Err(SourceError::Empty { path: manifest.into() });
+            return Err(SourceError::Empty {
+                path: manifest.into(),
+            });
         }
         let (files, times) = entries.into_iter().unzip();
         Self::build(files, times)

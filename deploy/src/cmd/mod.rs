@@ -6,4 +6,5 @@ pub mod bench_server;
 pub mod export;
 pub mod report;
 pub mod scenario;
+pub mod sim;
 pub mod undistort;

@@ -111,7 +111,14 @@ fn picture(frame: &Frame, dets: &[Detection], truth: &[[f32; 2]], path: &Path) {
     let mut img = frame.clone();
     for d in dets {
         let b = d.bbox;
-        img.draw_box(b.xmin as i64, b.ymin as i64, b.xmax as i64, b.ymax as i64, [255, 0, 255], 4);
+        img.draw_box(
+            b.xmin as i64,
+            b.ymin as i64,
+            b.xmax as i64,
+            b.ymax as i64,
+            [255, 0, 255],
+            4,
+        );
     }
     for p in truth {
         let (x, y) = (p[0] as i64, p[1] as i64);
@@ -139,21 +146,42 @@ fn paper004_finds_the_moving_people_of_multiviewx() {
     for (cam, truth) in [(1usize, &C1_FRAME2[..]), (3, &C3_FRAME2[..])] {
         let (frames, dets) = detect_view(&dir, cam);
         let d2 = &dets[2];
-        picture(&frames[2], d2, truth, &out.join(format!("multiviewx_c{cam}_paper004.png")));
+        picture(
+            &frames[2],
+            d2,
+            truth,
+            &out.join(format!("multiviewx_c{cam}_paper004.png")),
+        );
         let found = truth.iter().filter(|p| d2.iter().any(|d| contains(d, p))).count();
         let frame_area = (frames[2].width * frames[2].height) as f32;
         for d in d2 {
             let a = (d.bbox.xmax - d.bbox.xmin) * (d.bbox.ymax - d.bbox.ymin);
             let share = a / frame_area;
-            assert!(share < 0.2, "C{cam}: a box covers {:.0}% of the frame", 100.0 * share);
+            assert!(
+                share < 0.2,
+                "C{cam}: a box covers {:.0}% of the frame",
+                100.0 * share
+            );
         }
-        eprintln!("C{cam} frame 2: {found}/{} people in {} boxes", truth.len(), d2.len());
-        assert!(found * 100 >= truth.len() * 85, "C{cam}: recall {found}/{}", truth.len());
+        eprintln!(
+            "C{cam} frame 2: {found}/{} people in {} boxes",
+            truth.len(),
+            d2.len()
+        );
+        assert!(
+            found * 100 >= truth.len() * 85,
+            "C{cam}: recall {found}/{}",
+            truth.len()
+        );
         if cam == 1 {
             let correct = d2.iter().filter(|d| truth.iter().any(|p| contains(d, p))).count();
             eprintln!("C1 frame 2: {correct}/{} boxes hold a person", d2.len());
             assert!(d2.len() >= 4, "groups should not all merge: {} boxes", d2.len());
-            assert!(correct * 100 >= d2.len() * 80, "C1: precision {correct}/{}", d2.len());
+            assert!(
+                correct * 100 >= d2.len() * 80,
+                "C1: precision {correct}/{}",
+                d2.len()
+            );
         }
         // Every view, every frame: people are found (boxes are mostly people-sized).
         for (i, d) in dets.iter().enumerate() {

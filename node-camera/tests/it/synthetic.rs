@@ -29,28 +29,46 @@ fn both_pipelines_find_the_rendered_target() {
                 r.render(&s.targets, t, ClusterTime::from_secs_f64(t), &mut f);
                 seg.process(&f, &mut dets).unwrap();
                 let x = s.targets[0].truth_at(t);
-                let Some(p) = cam.project(&Vector3::new(x[0], x[1], x[2])) else { continue };
+                let Some(p) = cam.project(&Vector3::new(x[0], x[1], x[2])) else {
+                    continue;
+                };
                 // Count frames after warm-up where the target is well inside the image.
                 if k < 15 || p.x < 20.0 || p.y < 20.0 || p.x > 332.0 || p.y > 268.0 {
                     continue;
                 }
                 seen += 1;
-                if dets.iter().any(|d| ((d.centre[0] as f64 - p.x).powi(2) + (d.centre[1] as f64 - p.y).powi(2)).sqrt() < 12.0) {
+                if dets.iter().any(|d| {
+                    ((d.centre[0] as f64 - p.x).powi(2) + (d.centre[1] as f64 - p.y).powi(2)).sqrt() < 12.0
+                }) {
                     found += 1;
                 }
                 if cam_id == 10 && k == 60 {
                     let mut img = f.clone();
                     for d in &dets {
                         let b = d.bbox;
-                        img.draw_box(b.xmin as i64 - 1, b.ymin as i64 - 1, b.xmax as i64 + 1, b.ymax as i64 + 1, [0, 255, 0], 1);
+                        img.draw_box(
+                            b.xmin as i64 - 1,
+                            b.ymin as i64 - 1,
+                            b.xmax as i64 + 1,
+                            b.ymax as i64 + 1,
+                            [0, 255, 0],
+                            1,
+                        );
                     }
-                    let out = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../target/synthetic_cam10_{kind:?}.png"));
-                    image::RgbImage::from_raw(img.width, img.height, img.data).unwrap().save(out).unwrap();
+                    let out = Path::new(env!("CARGO_MANIFEST_DIR"))
+                        .join(format!("../target/synthetic_cam10_{kind:?}.png"));
+                    image::RgbImage::from_raw(img.width, img.height, img.data)
+                        .unwrap()
+                        .save(out)
+                        .unwrap();
                 }
             }
         }
         eprintln!("{kind:?}: found in {found}/{seen} frames");
         assert!(seen > 50, "{kind:?}: target rarely in view ({seen})");
-        assert!(found * 100 >= seen * 90, "{kind:?}: found in {found}/{seen} frames");
+        assert!(
+            found * 100 >= seen * 90,
+            "{kind:?}: found in {found}/{seen} frames"
+        );
     }
 }
