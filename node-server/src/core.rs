@@ -146,10 +146,7 @@ impl ServerNode {
 
     /// Each node's visible sync error (the residual it last reported), ns.
     pub fn sync_errors(&self) -> Vec<(NodeId, i64)> {
-        self.status
-            .iter()
-            .map(|(n, s)| (*n, s.sync_error_ns))
-            .collect()
+        self.status.iter().map(|(n, s)| (*n, s.sync_error_ns)).collect()
     }
 
     /// Records made since the last call, in order.

@@ -460,3 +460,23 @@ fn a_closed_link_marks_a_head_down_at_once_and_replays() {
     assert_eq!(stats.decisions_mismatched, 0);
     assert_eq!(r.globals().next().unwrap().1.owner, H3);
 }
+
+#[test]
+fn a_head_restarting_its_track_of_a_target_keeps_the_global_id() {
+    let mut s = started();
+    // The target moves at 1 m/s in x (the reports' velocity).
+    let x = |k: i64| 1.0 + 0.2 * k as f64;
+    for k in 0..5i64 {
+        s.on_message(ms(k * 200), report(H2, 5, None, ms(k * 200), x(k), 4.0));
+    }
+    let g = s.global_of(H2, TargetId(5)).unwrap();
+    // Track 5 falls silent; a second later the head starts track 6 at the same place.
+    for k in 10..14i64 {
+        s.on_message(ms(k * 200), report(H2, 6, None, ms(k * 200), x(k) + 0.05, 4.0));
+    }
+    assert_eq!(s.global_of(H2, TargetId(6)), Some(g));
+    assert_eq!(s.globals().count(), 1);
+    // While track 5 is still live, a second track of the same head is a different target.
+    s.on_message(ms(2800), report(H2, 7, None, ms(2800), x(14), 4.0));
+    assert_ne!(s.global_of(H2, TargetId(7)), Some(g));
+}

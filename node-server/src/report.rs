@@ -5,7 +5,10 @@
 //! - **Error**: per owner track sample (see [`crate::export`]), the 3-D distance between the
 //!   estimated position and the true position of the target the global track is associated with
 //!   at the report's time (`t − t0`). A global track is associated with the true target it is
-//!   nearest to on average over its samples. Ground truth is only read here, never by a filter.
+//!   nearest to on average over its samples, if that mean distance is within
+//!   [`ASSOCIATION_GATE_M`]; otherwise it is a *false track* (clutter, a ghost), counted in
+//!   `false_tracks` / `false_track_samples` and not in the error. Ground truth is only read
+//!   here, never by a filter.
 //! - **Active cameras / RSSI nodes per step**: contributors with a camera measurement / with an
 //!   RSSI reading, per owner track report.
 //! - **Energy per node**: from the latest `NodeStatus.time_in_mode_ns` with the node's power
@@ -26,6 +29,9 @@ use proto::{ClusterTime, Mode, NodeId};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
+
+/// A global track whose mean distance to every true target exceeds this is a false track, m.
+pub const ASSOCIATION_GATE_M: f64 = 2.0;
 
 /// Error statistics of one true target.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -78,6 +84,9 @@ pub struct Report {
     pub error_std_m: Option<f64>,
     pub rmse_m: Option<f64>,
     pub targets: Vec<TargetError>,
+    /// Global tracks associated with no true target, and their owner samples.
+    pub false_tracks: u64,
+    pub false_track_samples: u64,
     pub active_cameras_mean: f64,
     pub rssi_nodes_mean: f64,
     pub power_mw_mean: f64,
@@ -114,8 +123,14 @@ fn status_energy(s: &NodeStatus, power: &proto::scenario::PowerFigures) -> (f64,
     (energy_mj * 1e-3, secs)
 }
 
-/// Compute the report; `t0` is the cluster time at which the scenario's trajectories start.
+/// Compute the report with the default association gate; `t0` is the cluster time at which
+/// the scenario's trajectories start.
 pub fn compute(loaded: &Loaded, t0: ClusterTime) -> Report {
+    compute_with(loaded, t0, ASSOCIATION_GATE_M)
+}
+
+/// Compute the report with an association gate (m).
+pub fn compute_with(loaded: &Loaded, t0: ClusterTime, gate_m: f64) -> Report {
     let sc = &loaded.scenario;
     let rows: Vec<_> = track_rows(loaded).into_iter().filter(|r| r.owner).collect();
     let truth = !sc.targets.is_empty();
@@ -132,6 +147,7 @@ pub fn compute(loaded: &Loaded, t0: ClusterTime) -> Report {
         by_global.entry(r.global).or_default().push(r);
     }
     let mut per_target: BTreeMap<usize, (Vec<f64>, Vec<u32>)> = BTreeMap::new();
+    let (mut false_tracks, mut false_samples) = (0u64, 0u64);
     if truth {
         for (g, rs) in &by_global {
             let best = (0..sc.targets.len())
@@ -140,7 +156,12 @@ pub fn compute(loaded: &Loaded, t0: ClusterTime) -> Report {
                     (k, d / rs.len() as f64)
                 })
                 .min_by(|a, b| a.1.total_cmp(&b.1));
-            if let Some((k, _)) = best {
+            if let Some((k, mean_d)) = best {
+                if mean_d > gate_m {
+                    false_tracks += 1;
+                    false_samples += rs.len() as u64;
+                    continue;
+                }
                 let e = per_target.entry(k).or_default();
                 e.0.extend(rs.iter().map(|r| d3(true_pos(k, r.t), r)));
                 e.1.push(*g);
@@ -264,6 +285,8 @@ pub fn compute(loaded: &Loaded, t0: ClusterTime) -> Report {
         error_std_m: (!all.is_empty()).then_some(std),
         rmse_m: (!all.is_empty()).then_some(rmse),
         targets,
+        false_tracks,
+        false_track_samples: false_samples,
         active_cameras_mean: per_step(cams),
         rssi_nodes_mean: per_step(rssi),
         power_mw_mean,
@@ -293,6 +316,13 @@ impl Report {
         let _ = writeln!(s, "mean error      {}", opt(self.mean_error_m, "m"));
         let _ = writeln!(s, "error std       {}", opt(self.error_std_m, "m"));
         let _ = writeln!(s, "rmse            {}", opt(self.rmse_m, "m"));
+        if self.truth {
+            let _ = writeln!(
+                s,
+                "false tracks    {} ({} samples)",
+                self.false_tracks, self.false_track_samples
+            );
+        }
         let _ = writeln!(s, "active cameras  {:.2} per step", self.active_cameras_mean);
         let _ = writeln!(s, "rssi nodes      {:.2} per step", self.rssi_nodes_mean);
         let _ = writeln!(s, "power           {:.0} mW (mean total)", self.power_mw_mean);
@@ -489,6 +519,7 @@ mod tests {
         assert!(r.error_std_m.unwrap() < 1e-9);
         assert_eq!(r.targets.len(), 1);
         assert_eq!(r.targets[0].globals.len(), 1, "one global id for the target");
+        assert_eq!(r.false_tracks, 0);
         assert_eq!(r.handovers, 1);
         assert!((r.active_cameras_mean - 2.0).abs() < 1e-12);
         assert!((r.rssi_nodes_mean - 3.0).abs() < 1e-12);
@@ -555,5 +586,35 @@ mod tests {
             .collect();
         assert_eq!(lines.len(), 50);
         assert!((lines[0]["sigma_m"].as_f64().unwrap() - 0.03f64.sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_ghost_track_is_a_false_track_not_an_error() {
+        let path = record_run("ghost");
+        let mut loaded = load(&path, None).unwrap();
+        // Head 2 also reports a stationary ghost far from the target's path.
+        let mut extra = Vec::new();
+        for s in &loaded.records {
+            if let Record::Received(env) = &s.record
+                && let Message::TrackReport(r) = &env.body
+                && env.source == NodeId(2)
+            {
+                let mut ghost = r.clone();
+                ghost.target = TargetId(77);
+                ghost.global = None;
+                ghost.mean = [1.0, 7.5, 0.5, 0.0, 0.0, 0.0];
+                let mut env = env.clone();
+                env.body = Message::TrackReport(ghost);
+                extra.push((s.at, env));
+            }
+        }
+        for (at, env) in extra {
+            loaded.records.push(Stamped::new(at, Record::Received(env)));
+        }
+        loaded.records.sort_by_key(|s| s.at);
+        let r = compute(&loaded, ClusterTime::ZERO);
+        assert_eq!(r.false_tracks, 1);
+        assert!(r.false_track_samples > 10);
+        assert!((r.mean_error_m.unwrap() - 0.1).abs() < 1e-9);
     }
 }

@@ -150,12 +150,14 @@ impl Tracks {
         g
     }
 
-    /// The nearest live global within the gate that `head` does not feed yet.
+    /// The nearest live global within the gate that `head` does not feed yet. A global whose
+    /// only track from `head` fell silent (for the owner staleness) is a candidate again: the
+    /// head dropped and restarted its track of that target.
     fn candidate(&self, now: ClusterTime, head: NodeId, r: &TrackReport) -> Option<TargetId> {
         let fed: Vec<TargetId> = self
             .locals
             .iter()
-            .filter(|((h, _), _)| *h == head)
+            .filter(|((h, _), l)| *h == head && now - l.last <= self.params.owner_stale_ns)
             .map(|(_, l)| match l.binding {
                 Binding::Bound(g) | Binding::Pending(g) => g,
             })
