@@ -20,6 +20,7 @@
 //!   `rejected` = inputs the server refused.
 //! - **Sync error**: the `sync_error_ns` each node reports (its regression residual).
 
+use crate::core::{ServerConfig, ServerNode};
 use crate::decision::Decision;
 use crate::export::track_rows;
 use crate::record::Record;
@@ -218,13 +219,24 @@ pub fn compute_with(loaded: &Loaded, t0: ClusterTime, gate_m: f64) -> Report {
                 }
             }
             Record::Sent { .. } => msgs.sent += 1,
-            Record::Decision(d) => match d {
-                Decision::Rejected { .. } | Decision::Refused { .. } => msgs.rejected += 1,
-                Decision::Handover { .. } => handovers += 1,
-                Decision::NewGlobal { .. } | Decision::Split { .. } => globals += 1,
-                _ => {}
-            },
             _ => {}
+        }
+    }
+    // Decisions as this build's server makes them from the recorded inputs (the same replay
+    // the track rows come from; for a recording made by this build they equal the recorded
+    // ones).
+    let mut node = ServerNode::new(ServerConfig::from_scenario(sc.clone(), loaded.server_id()));
+    for s in &loaded.records {
+        node.feed(s);
+        for r in node.take_records() {
+            if let Record::Decision(d) = r.record {
+                match d {
+                    Decision::Rejected { .. } | Decision::Refused { .. } => msgs.rejected += 1,
+                    Decision::Handover { .. } => handovers += 1,
+                    Decision::NewGlobal { .. } | Decision::Split { .. } => globals += 1,
+                    _ => {}
+                }
+            }
         }
     }
     for r in &rows {
@@ -378,7 +390,6 @@ impl Report {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::{ServerConfig, ServerNode};
     use crate::export::{Format, write_rows};
     use crate::record::Stamped;
     use crate::recording::Recorder;
