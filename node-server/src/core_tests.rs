@@ -480,3 +480,31 @@ fn a_head_restarting_its_track_of_a_target_keeps_the_global_id() {
     s.on_message(ms(2800), report(H2, 7, None, ms(2800), x(14), 4.0));
     assert_ne!(s.global_of(H2, TargetId(7)), Some(g));
 }
+
+#[test]
+fn a_track_that_leaves_its_global_for_another_joins_that_one() {
+    let mut s = started();
+    // Head 2 tracks two targets, 3 m apart and still (velocity 1 m/s in the reports is matched
+    // by moving them along x).
+    let x = |k: i64| 1.0 + 0.2 * k as f64;
+    let mut g = Vec::new();
+    for k in 0..4i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H2, 1, None, t, x(k), 2.0));
+        s.on_message(t, report(H2, 2, None, t, x(k), 5.0));
+        // Head 3 sees the first one.
+        s.on_message(t, report(H3, 9, None, t, x(k) + 0.1, 2.0));
+    }
+    g.push(s.global_of(H2, TargetId(1)).unwrap());
+    g.push(s.global_of(H2, TargetId(2)).unwrap());
+    assert_eq!(s.global_of(H3, TargetId(9)), Some(g[0]));
+    // Head 3's track jumps onto the second target (an association swap in its cameras).
+    for k in 4..8i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H2, 1, None, t, x(k), 2.0));
+        s.on_message(t, report(H2, 2, None, t, x(k), 5.0));
+        s.on_message(t, report(H3, 9, None, t, x(k) + 0.1, 5.0));
+    }
+    assert_eq!(s.global_of(H3, TargetId(9)), Some(g[1]));
+    assert_eq!(s.globals().count(), 2, "no new id for a known target");
+}

@@ -260,13 +260,16 @@ impl Membership {
         }
     }
 
-    /// Where each camera should report given which heads are up: its scenario head if up, else
-    /// the live head whose region is nearest to that head's region centre. Returns the changes.
+    /// Where each camera should report given which heads are up: its scenario head unless that
+    /// head went down, else the live head whose region is nearest to that head's region centre. Returns the changes.
     pub fn rebalance(&mut self) -> Vec<Decision> {
         let mut out = Vec::new();
         let homes: Vec<(NodeId, NodeId)> = self.home.iter().map(|(c, h)| (*c, *h)).collect();
         for (cam, home) in homes {
-            let want = if self.is_up(home) || self.live_heads().is_empty() {
+            // Only a head that was seen and went down loses its cameras; one not seen yet (at
+            // start-up) keeps them.
+            let down = self.members.get(&home).is_some_and(|m| !m.up);
+            let want = if !down || self.live_heads().is_empty() {
                 home
             } else {
                 let (x, y) = self.regions.get(&home).map_or((0.0, 0.0), centre);

@@ -10,7 +10,8 @@
 //!   so an id never appears only to vanish again.
 //! - A track far from everything gets a new global id at once (`NewGlobal`), owned by its head.
 //! - A merged track that disagrees with its global's owner for `hysteresis` consecutive reports
-//!   is split off with a new global id (`Split`).
+//!   joins another global it now lies on (`Merged`), or else is split off with a new global id
+//!   (`Split`).
 //! - When the owner's estimate leaves the owner's region by more than the handover margin and
 //!   lies in a live head's region, the track is handed over to that head (`Handover`, reason
 //!   `Region`); the margin is the hysteresis band that stops a target on a border from
@@ -295,16 +296,30 @@ impl Tracks {
                         } else {
                             l.disagree += 1;
                             if l.disagree >= n {
-                                let ng = self.new_global(now, head, r);
-                                *self.locals.get_mut(&key).expect("present") =
-                                    LocalTrack::new(Binding::Bound(ng), now);
-                                out.push(Decision::Split {
-                                    head,
-                                    local,
-                                    from: g,
-                                    global: ng,
-                                });
-                                Binding::Bound(ng)
+                                // It left g for good. If it now sits on another global, it joins
+                                // that one (it disagreed with g n times: hysteresis enough);
+                                // only a track near nothing gets a new id.
+                                if let Some(c) = self.candidate(now, head, r) {
+                                    *self.locals.get_mut(&key).expect("present") =
+                                        LocalTrack::new(Binding::Bound(c), now);
+                                    out.push(Decision::Merged {
+                                        head,
+                                        local,
+                                        global: c,
+                                    });
+                                    Binding::Bound(c)
+                                } else {
+                                    let ng = self.new_global(now, head, r);
+                                    *self.locals.get_mut(&key).expect("present") =
+                                        LocalTrack::new(Binding::Bound(ng), now);
+                                    out.push(Decision::Split {
+                                        head,
+                                        local,
+                                        from: g,
+                                        global: ng,
+                                    });
+                                    Binding::Bound(ng)
+                                }
                             } else {
                                 Binding::Bound(g)
                             }
