@@ -82,6 +82,8 @@ pub enum Decision {
         from: NodeId,
         to: NodeId,
     },
+    /// Two global tracks stayed together: `global` is absorbed into the older `into`.
+    Absorbed { global: TargetId, into: TargetId },
     /// No head reported a global track for the track timeout; it is dropped.
     Lost { global: TargetId },
     /// A head's local track fell silent and its mapping was forgotten.

@@ -12,6 +12,9 @@
 //! - A merged track that disagrees with its global's owner for `hysteresis` consecutive reports
 //!   joins another global it now lies on (`Merged`), or else is split off with a new global id
 //!   (`Split`).
+//! - Two global tracks whose owners keep reporting them within the gate of each other for
+//!   `hysteresis` reports are one target: the younger is absorbed into the older (`Absorbed`)
+//!   and its local tracks rebound to it (`Merged`).
 //! - When the owner's estimate leaves the owner's region by more than the handover margin and
 //!   lies in a live head's region, the track is handed over to that head (`Handover`, reason
 //!   `Region`); the margin is the hysteresis band that stops a target on a border from
@@ -80,6 +83,8 @@ pub struct Tracks {
     next_global: u32,
     globals: BTreeMap<TargetId, GlobalTrack>,
     locals: BTreeMap<(NodeId, TargetId), LocalTrack>,
+    /// Consecutive owner reports of the younger global found within the gate of the older one.
+    close: BTreeMap<(TargetId, TargetId), u32>,
 }
 
 impl GlobalTrack {
@@ -105,6 +110,7 @@ impl Tracks {
             next_global: 1,
             globals: BTreeMap::new(),
             locals: BTreeMap::new(),
+            close: BTreeMap::new(),
         }
     }
 
@@ -342,8 +348,64 @@ impl Tracks {
                 if let Some(d) = self.region_handover(g, members) {
                     out.push(d);
                 }
+                out.extend(self.merge_globals(now, g));
             }
         }
+        out
+    }
+
+    /// Two global tracks that stay together are one target (paper 004 §3.3.3): after the
+    /// younger one's owner reported it within the gate of an older live global for
+    /// `hysteresis` consecutive reports, it is absorbed into the older one and its local tracks
+    /// rebound to it.
+    fn merge_globals(&mut self, now: ClusterTime, g: TargetId) -> Vec<Decision> {
+        let Some(gt) = self.globals.get(&g) else {
+            return Vec::new();
+        };
+        let p = [gt.mean[0], gt.mean[1], gt.mean[2]];
+        let t = gt.time;
+        let near = self
+            .globals
+            .range(..g)
+            .filter(|(_, o)| now - o.last_report <= self.params.owner_stale_ns)
+            .map(|(id, o)| {
+                let q = o.position_at(t);
+                (
+                    *id,
+                    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt(),
+                )
+            })
+            .filter(|(_, d)| *d <= self.params.merge_gate_m)
+            .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+            .map(|(id, _)| id);
+        self.close.retain(|(a, b), _| *b != g || Some(*a) == near);
+        let Some(keep) = near else {
+            return Vec::new();
+        };
+        let count = self.close.entry((keep, g)).or_insert(0);
+        *count += 1;
+        if *count < self.params.hysteresis.max(1) {
+            return Vec::new();
+        }
+        let mut out = Vec::new();
+        for ((head, local), l) in &mut self.locals {
+            if matches!(l.binding, Binding::Bound(x) | Binding::Pending(x) if x == g) {
+                l.binding = Binding::Bound(keep);
+                l.agree = 0;
+                l.disagree = 0;
+                out.push(Decision::Merged {
+                    head: *head,
+                    local: *local,
+                    global: keep,
+                });
+            }
+        }
+        self.globals.remove(&g);
+        self.close.retain(|(a, b), _| *a != g && *b != g);
+        out.push(Decision::Absorbed {
+            global: g,
+            into: keep,
+        });
         out
     }
 
@@ -378,6 +440,7 @@ impl Tracks {
             .collect();
         for g in lost {
             self.globals.remove(&g);
+            self.close.retain(|(a, b), _| *a != g && *b != g);
             self.locals
                 .retain(|_, l| !matches!(l.binding, Binding::Bound(x) | Binding::Pending(x) if x == g));
             out.push(Decision::Lost { global: g });
