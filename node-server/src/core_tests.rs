@@ -534,3 +534,12 @@ fn two_globals_that_stay_together_become_one() {
     assert_eq!(s.global_of(H2, TargetId(2)), Some(a));
     assert!(decisions(&mut s).contains(&Decision::Absorbed { global: b, into: a }));
 }
+
+#[test]
+fn a_track_started_in_another_clusters_area_is_not_pushed_onto_that_head() {
+    let mut s = started();
+    // Head 3's cameras see a target deep in head 2's area: head 3 keeps it.
+    let out = s.on_message(ms(0), report(H3, 9, None, ms(0), 3.0, 4.0));
+    assert!(handovers(&out).iter().all(|(_, h)| h.from_head.is_none()));
+    assert_eq!(s.globals().next().unwrap().1.owner, H3);
+}

@@ -18,7 +18,8 @@
 //! - When the owner's estimate leaves the owner's region by more than the handover margin and
 //!   lies in a live head's region, the track is handed over to that head (`Handover`, reason
 //!   `Region`); the margin is the hysteresis band that stops a target on a border from
-//!   bouncing between heads.
+//!   bouncing between heads. Only a track that was inside its owner's region can leave it (see
+//!   [`GlobalTrack::entered`]).
 //! - When the owner is down, on the next tick the track goes to the live head covering its last
 //!   position, else the nearest one (`Handover`, reason `Failover`).
 //! - A global no head reported for the track timeout is dropped (`Lost`); a silent local track
@@ -60,6 +61,11 @@ pub struct GlobalTrack {
     pub last_report: ClusterTime,
     /// Server time of the owner's last report (or of the handover to it).
     pub owner_report: ClusterTime,
+    /// Whether the owner's estimate has been inside the owner's region since it took the
+    /// track. Only a track that was inside can *leave*: a head that starts a track of a target
+    /// in another cluster's area keeps it (that cluster's own track will be merged with it)
+    /// instead of pushing a posterior from distant cameras onto the other head.
+    pub entered: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -152,6 +158,7 @@ impl Tracks {
                 cov: r.cov,
                 last_report: now,
                 owner_report: now,
+                entered: false,
             },
         );
         g
@@ -288,6 +295,7 @@ impl Tracks {
                         l.disagree = 0;
                         let gt = self.globals.get_mut(&g).expect("present");
                         gt.owner = head;
+                        gt.entered = false;
                         out.push(Decision::OwnerChanged {
                             global: g,
                             from: o,
@@ -415,11 +423,16 @@ impl Tracks {
         let region = members.region(gt.owner)?;
         let (x, y) = (gt.mean[0], gt.mean[1]);
         if distance_to_region(region, x, y) <= self.params.handover_margin_m {
+            gt.entered = true;
+            return None;
+        }
+        if !gt.entered {
             return None;
         }
         let to = members.live_head_covering(x, y, 0.0, gt.owner)?;
         let from = gt.owner;
         gt.owner = to;
+        gt.entered = true; // `to` covers the estimate
         Some(Decision::Handover {
             global: g,
             from: Some(from),
@@ -471,6 +484,8 @@ impl Tracks {
                     reason: HandoverReason::Failover,
                 });
                 gt.owner = to;
+                // A stand-in owner hands the track back as soon as a live head covers it.
+                gt.entered = true;
                 gt.owner_report = now;
                 gt.last_report = now;
             }
