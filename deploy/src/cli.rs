@@ -31,9 +31,12 @@ pub enum Command {
     Export(cmd::export::Args),
     /// Run a scenario's nodes in one process on a virtual clock (deterministic for a seed).
     Sim(cmd::sim::Args),
-    /// Measure speed; print JSON.
+    /// Measure parts of the system; prints JSON.
     #[command(subcommand)]
     Bench(Bench),
+    /// Run one transport endpoint as a process (for tests and probes).
+    #[command(hide = true)]
+    Peer(cmd::peer::Args),
 }
 
 /// What `ocelli bench` measures.
@@ -45,6 +48,8 @@ pub enum Bench {
     Camera(cmd::bench_camera::Args),
     /// Server core (track reports, ticks), recording appends and restore.
     Server(cmd::bench_server::Args),
+    /// One-way latency over iceoryx2 and TCP, encode/decode cost per message kind.
+    Transport(cmd::bench_transport::Args),
 }
 
 /// Install the tracing subscriber (`RUST_LOG`, default `info`) on standard error.
@@ -73,6 +78,8 @@ pub fn main() -> ExitCode {
         Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
         Command::Bench(Bench::Camera(args)) => cmd::bench_camera::run(args),
         Command::Bench(Bench::Server(args)) => cmd::bench_server::run(args),
+        Command::Bench(Bench::Transport(args)) => cmd::bench_transport::run(args),
+        Command::Peer(args) => cmd::peer::run(args),
     };
     match result {
         Ok(code) => code,

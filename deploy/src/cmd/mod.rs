@@ -3,7 +3,9 @@
 pub mod bench_camera;
 pub mod bench_head;
 pub mod bench_server;
+pub mod bench_transport;
 pub mod export;
+pub mod peer;
 pub mod report;
 pub mod scenario;
 pub mod sim;

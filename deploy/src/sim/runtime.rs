@@ -413,8 +413,15 @@ mod tests {
     use super::*;
 
     fn short(seed: u64) -> Vec<Stamped> {
-        let opts = SimOptions { seed, duration_s: 3.0, ..SimOptions::default() };
-        Sim::new(Scenario::default_scenario(), opts).unwrap().run().records
+        let opts = SimOptions {
+            seed,
+            duration_s: 3.0,
+            ..SimOptions::default()
+        };
+        Sim::new(Scenario::default_scenario(), opts)
+            .unwrap()
+            .run()
+            .records
     }
 
     #[test]

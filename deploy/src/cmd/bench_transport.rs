@@ -1,0 +1,450 @@
+//! `ocelli bench transport`: one-way latency over iceoryx2 and TCP loopback through the real
+//! transport interface (the sender stamps the envelope with a monotonic clock just before
+//! `Endpoint::send`, which encodes; the receiver reads the clock when the decoded message
+//! leaves the inbox), at a fixed rate (30 Hz, a camera's frame rate) and at full rate, plus
+//! encode/decode cost per message kind. Sender and receiver are two threads of this process,
+//! each with its own current-thread tokio runtime, so they share one clock.
+
+use anyhow::{Context, Result, anyhow};
+use proto::msg::*;
+use proto::node::Outgoing;
+use proto::transport::{Event, IpcConfig, TcpConfig, TransportConfig, open};
+use proto::{ClusterTime, Envelope, NodeId, Role, TargetId, decode, encode};
+use serde_json::{Value, json};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Messages in the fixed-rate phase.
+    #[arg(long, default_value_t = 300)]
+    pub rate_messages: usize,
+    /// Rate of the fixed-rate phase, Hz.
+    #[arg(long, default_value_t = 30.0)]
+    pub rate_hz: f64,
+    /// Messages in the full-rate phase.
+    #[arg(long, default_value_t = 20_000)]
+    pub burst_messages: usize,
+    /// Iterations per message kind for encode/decode costs.
+    #[arg(long, default_value_t = 20_000)]
+    pub codec_iterations: usize,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kind {
+    Ipc,
+    Tcp,
+}
+
+/// Result of one latency phase.
+#[derive(Debug)]
+struct Phase {
+    sent: usize,
+    received: usize,
+    dropped: u64,
+    latencies_ns: Vec<u64>,
+    wall: Duration,
+}
+
+fn percentile(sorted: &[u64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let idx = ((sorted.len() - 1) as f64 * p).round() as usize;
+    sorted[idx.min(sorted.len() - 1)] as f64 / 1000.0
+}
+
+impl Phase {
+    fn to_json(&self) -> Value {
+        let mut l = self.latencies_ns.clone();
+        l.sort_unstable();
+        let mean = if l.is_empty() {
+            f64::NAN
+        } else {
+            l.iter().sum::<u64>() as f64 / l.len() as f64 / 1000.0
+        };
+        json!({
+            "sent": self.sent,
+            "received": self.received,
+            "dropped": self.dropped,
+            "p50_us": percentile(&l, 0.50),
+            "p90_us": percentile(&l, 0.90),
+            "p99_us": percentile(&l, 0.99),
+            "max_us": percentile(&l, 1.0),
+            "mean_us": mean,
+            "msgs_per_s": self.received as f64 / self.wall.as_secs_f64(),
+        })
+    }
+
+    fn p99_us(&self) -> f64 {
+        let mut l = self.latencies_ns.clone();
+        l.sort_unstable();
+        percentile(&l, 0.99)
+    }
+}
+
+const WARMUP: usize = 50;
+
+fn measurement(step: u64) -> Message {
+    Message::Measurement(Measurement {
+        target: Some(TargetId(3)),
+        step,
+        point: [0.12, -0.05],
+        prev_point: Some([0.11, -0.05]),
+        cov: [2.5e-5, 1.0e-6, 2.5e-5],
+        pixel_box: PixelBox {
+            xmin: 310.0,
+            ymin: 200.0,
+            xmax: 342.0,
+            ymax: 268.0,
+        },
+        area: 1480,
+        colour: ColourSignature {
+            hue: 1.1,
+            saturation: 0.7,
+            intensity: 0.5,
+        },
+        pose: PoseWire {
+            rvec: [0.1, -1.2, 0.05],
+            tvec: [0.3, 1.1, 2.9],
+        },
+        captured: ClusterTime(1_000_000),
+        mode: Mode::Active,
+        rssi: Some(RssiReading {
+            dbm: -61.5,
+            time: ClusterTime(1_000_000),
+        }),
+    })
+}
+
+fn now_ns(base: Instant) -> i64 {
+    base.elapsed().as_nanos() as i64
+}
+
+/// Run one phase: `count` measured messages, `interval` apart (`None`: back to back).
+fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Result<Phase> {
+    #[allow(clippy::disallowed_methods)] // a benchmark runtime owns its clock
+    let base = Instant::now();
+    let domain = format!("bench-{}-{tag}", std::process::id());
+    let (addr_tx, addr_rx) = std::sync::mpsc::channel();
+    let (done_tx, done_rx) = std::sync::mpsc::channel::<()>();
+    let receiver_domain = domain.clone();
+    let receiver = std::thread::spawn(move || -> Result<(Vec<u64>, usize, u64)> {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()?;
+        rt.block_on(async move {
+            let cfg = match kind {
+                Kind::Ipc => TransportConfig::Ipc(IpcConfig::new(receiver_domain, NodeId(1), Role::Head, 2)),
+                Kind::Tcp => {
+                    let mut c = TcpConfig::new(NodeId(1), Role::Head);
+                    c.listen = Some("127.0.0.1:0".parse()?);
+                    c.queue_len = 4096;
+                    TransportConfig::Tcp(c)
+                }
+            };
+            let (ep, mut inbox, rstats, shutdown) = open(cfg).await?;
+            addr_tx
+                .send(ep.local_addr())
+                .map_err(|_| anyhow!("sender gone"))?;
+            let mut lat = Vec::with_capacity(count);
+            let mut received = 0;
+            loop {
+                let idle = if done_rx.try_recv().is_ok() {
+                    Duration::from_millis(500)
+                } else {
+                    Duration::from_secs(10)
+                };
+                let ev = match tokio::time::timeout(idle, inbox.recv()).await {
+                    Ok(Some(ev)) => ev,
+                    Ok(None) | Err(_) => break,
+                };
+                if let Event::Message(m) = ev {
+                    let t = now_ns(base);
+                    if let Message::Measurement(meas) = &m.env.body
+                        && meas.step == 1
+                    {
+                        lat.push((t - m.env.time.0).max(0) as u64);
+                        received += 1;
+                        if received == count {
+                            break;
+                        }
+                    }
+                }
+            }
+            shutdown.shutdown().await;
+            Ok((lat, received, rstats.snapshot().dropped_inbox_full))
+        })
+    });
+    let addr = addr_rx
+        .recv_timeout(Duration::from_secs(10))
+        .map_err(|_| anyhow!("receiver did not start"))?;
+    let sender = std::thread::spawn(move || -> Result<(usize, u64, Duration)> {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()?;
+        rt.block_on(async move {
+            let cfg = match kind {
+                Kind::Ipc => TransportConfig::Ipc(IpcConfig::new(domain, NodeId(2), Role::Camera, 2)),
+                Kind::Tcp => {
+                    let mut c = TcpConfig::new(NodeId(2), Role::Camera);
+                    c.peers
+                        .insert(NodeId(1), addr.ok_or_else(|| anyhow!("no listen address"))?);
+                    c.queue_len = 4096;
+                    TransportConfig::Tcp(c)
+                }
+            };
+            let (ep, mut inbox, stats, shutdown) = open(cfg).await?;
+            if kind == Kind::Tcp {
+                loop {
+                    match tokio::time::timeout(Duration::from_secs(10), inbox.recv()).await {
+                        Ok(Some(Event::PeerUp(_))) => break,
+                        Ok(Some(_)) => {}
+                        _ => return Err(anyhow!("tcp link did not come up")),
+                    }
+                }
+            }
+            for _ in 0..WARMUP {
+                ep.send(
+                    Outgoing::new(NodeId(1), measurement(0)),
+                    ClusterTime(now_ns(base)),
+                )
+                .await?;
+                tokio::time::sleep(Duration::from_millis(1)).await;
+            }
+            tokio::time::sleep(Duration::from_millis(100)).await;
+            let dropped_of =
+                |s: proto::transport::StatsSnapshot| s.dropped_queue_full + s.dropped_undelivered;
+            let dropped_before = dropped_of(stats.snapshot());
+            #[allow(clippy::disallowed_methods)] // a benchmark runtime owns its clock
+            let start = Instant::now();
+            let mut next = tokio::time::Instant::now();
+            for _ in 0..count {
+                if let Some(iv) = interval {
+                    next += iv;
+                    tokio::time::sleep_until(next).await;
+                }
+                ep.send(
+                    Outgoing::new(NodeId(1), measurement(1)),
+                    ClusterTime(now_ns(base)),
+                )
+                .await?;
+            }
+            let wall = start.elapsed();
+            // Let the link drain before stopping it.
+            tokio::time::sleep(Duration::from_millis(200)).await;
+            let dropped = dropped_of(stats.snapshot()) - dropped_before;
+            shutdown.shutdown().await;
+            Ok((count, dropped, wall))
+        })
+    });
+    let (sent, dropped, wall) = sender.join().map_err(|_| anyhow!("sender panicked"))??;
+    let _ = done_tx.send(());
+    let (latencies_ns, received, dropped_inbox) =
+        receiver.join().map_err(|_| anyhow!("receiver panicked"))??;
+    Ok(Phase {
+        sent,
+        received,
+        dropped: dropped + dropped_inbox,
+        latencies_ns,
+        wall,
+    })
+}
+
+fn samples() -> Vec<Message> {
+    let mut cov = [[0.0; 6]; 6];
+    for (i, row) in cov.iter_mut().enumerate() {
+        row[i] = 0.01 * (i + 1) as f64;
+    }
+    let contributors = (0..8)
+        .map(|n| Contributor {
+            node: NodeId(n),
+            camera: n % 2 == 0,
+            rssi: true,
+        })
+        .collect();
+    vec![
+        Message::Hello(Hello {
+            version: proto::PROTOCOL_VERSION,
+            role: Role::Camera,
+            node: NodeId(7),
+        }),
+        Message::HelloAck(HelloAck {
+            accepted: true,
+            reason: String::new(),
+        }),
+        Message::Heartbeat,
+        measurement(1),
+        Message::Contribution(Contribution {
+            target: TargetId(3),
+            step: 42,
+            info_matrix: cov,
+            info_vector: [0.1, 0.2, 0.0, 0.01, 0.02, 0.0],
+            camera: true,
+            captured: ClusterTime(5),
+            mode: Mode::Active,
+            rssi: None,
+        }),
+        Message::NodeStatus(NodeStatus {
+            mode: Mode::Active,
+            time_in_mode_ns: [1, 2, 3],
+            frames: 100,
+            detections: 90,
+            dropped: 0,
+            rejected: 0,
+            sync_offset_ns: 1200,
+            sync_error_ns: 40,
+        }),
+        Message::Prior(Prior {
+            target: TargetId(3),
+            step: 42,
+            mean: [1.0, 2.0, 0.0, 0.1, 0.0, 0.0],
+            cov,
+            deadline: ClusterTime(9),
+        }),
+        Message::Command(Command {
+            node: NodeId(7),
+            mode: Mode::CameraOff,
+        }),
+        Message::TrackReport(TrackReport {
+            target: TargetId(3),
+            global: Some(TargetId(1)),
+            step: 42,
+            time: ClusterTime(9),
+            mean: [1.0, 2.0, 0.0, 0.1, 0.0, 0.0],
+            cov,
+            contributors,
+            power_mw: 5400.0,
+            late: 0,
+        }),
+        Message::Assignment(Assignment {
+            node: NodeId(7),
+            head: NodeId(100),
+        }),
+        Message::Handover(Handover {
+            global: TargetId(1),
+            to_head: NodeId(101),
+            from_head: Some(NodeId(100)),
+            time: ClusterTime(9),
+            mean: [1.0, 2.0, 0.0, 0.1, 0.0, 0.0],
+            cov,
+        }),
+        Message::SyncBeacon(SyncBeacon {
+            leader: NodeId(200),
+            round: 12,
+            leader_time: ClusterTime(123_456_789),
+        }),
+        Message::Liveness(Liveness {
+            node: NodeId(7),
+            up: false,
+        }),
+    ]
+}
+
+fn codec_costs(iterations: usize) -> Result<Vec<Value>> {
+    let mut out = Vec::new();
+    for body in samples() {
+        let kind = body.kind();
+        let env = Envelope {
+            source: NodeId(7),
+            seq: 1234,
+            time: ClusterTime(987_654_321),
+            body,
+        };
+        let frame = encode(&env).with_context(|| format!("encoding {kind}"))?;
+        #[allow(clippy::disallowed_methods)] // a benchmark owns its clock
+        let t = Instant::now();
+        let mut bytes = 0usize;
+        for _ in 0..iterations {
+            bytes += std::hint::black_box(encode(std::hint::black_box(&env))?).len();
+        }
+        let encode_ns = t.elapsed().as_nanos() as f64 / iterations as f64;
+        #[allow(clippy::disallowed_methods)] // a benchmark owns its clock
+        let t = Instant::now();
+        for _ in 0..iterations {
+            std::hint::black_box(decode(std::hint::black_box(&frame))?);
+        }
+        let decode_ns = t.elapsed().as_nanos() as f64 / iterations as f64;
+        std::hint::black_box(bytes);
+        out.push(json!({"kind": kind, "bytes": frame.len(), "encode_ns": encode_ns, "decode_ns": decode_ns}));
+    }
+    Ok(out)
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    let interval = Duration::from_secs_f64(1.0 / args.rate_hz.max(0.1));
+    let codec = codec_costs(args.codec_iterations.max(1))?;
+    let mut transports = serde_json::Map::new();
+    let mut p99 = serde_json::Map::new();
+    for (kind, name) in [(Kind::Ipc, "ipc"), (Kind::Tcp, "tcp")] {
+        let rate = phase(kind, args.rate_messages, Some(interval), "rate")?;
+        let full = phase(kind, args.burst_messages, None, "full")?;
+        p99.insert(format!("{name}_p99_us"), json!(rate.p99_us()));
+        transports.insert(
+            name.into(),
+            json!({"fixed_rate": rate.to_json(), "full_rate": full.to_json()}),
+        );
+    }
+    let frame_bytes = encode(&Envelope {
+        source: NodeId(2),
+        seq: 0,
+        time: ClusterTime(0),
+        body: measurement(1),
+    })?
+    .len();
+    let mut report = json!({
+        "bench": "transport",
+        "mode": "two threads in one process (sender, receiver), each with its own current-thread tokio runtime",
+        "latency": "one-way, stamped before Endpoint::send (encode included), read after the decoded message leaves the Inbox",
+        "message": "measurement",
+        "frame_bytes": frame_bytes,
+        "rate_hz": args.rate_hz,
+        "p99_of": "fixed_rate phase",
+        "goals": {"ipc_p99_us": 20, "tcp_p99_us": 200},
+        "transports": transports,
+        "codec": codec,
+    });
+    if let Some(o) = report.as_object_mut() {
+        for (k, v) in p99 {
+            o.insert(k, v);
+        }
+    }
+    if args.json {
+        println!("{report}");
+    } else {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_sample_encodes_and_decodes_back() {
+        let s = samples();
+        assert_eq!(s.len(), 13, "one sample per message kind");
+        for body in s {
+            let env = Envelope {
+                source: NodeId(1),
+                seq: 0,
+                time: ClusterTime(0),
+                body,
+            };
+            assert_eq!(decode(&encode(&env).unwrap()).unwrap(), env);
+        }
+    }
+
+    #[test]
+    fn percentiles_pick_the_right_rank() {
+        let v: Vec<u64> = (1..=100).map(|x| x * 1000).collect();
+        assert_eq!(percentile(&v, 0.5), 51.0);
+        assert_eq!(percentile(&v, 0.99), 99.0);
+        assert_eq!(percentile(&v, 1.0), 100.0);
+        assert!(percentile(&[], 0.5).is_nan());
+    }
+}

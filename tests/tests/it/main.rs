@@ -1,0 +1,3 @@
+//! End-to-end tests: real `ocelli` processes.
+
+mod transport;
