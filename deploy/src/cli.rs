@@ -23,6 +23,8 @@ pub struct Cli {
 pub enum Command {
     /// Print or check scenarios.
     Scenario(cmd::scenario::Args),
+    /// Run the server: membership, handover, global ids, time leader, recording.
+    Server(cmd::server::Args),
     /// Undistort CSV rows (OpenCV test-vector format) from stdin: one `x,y` line per row.
     Undistort(cmd::undistort::Args),
     /// Print the report of a server recording (table or JSON).
@@ -71,6 +73,7 @@ pub fn main() -> ExitCode {
     init_tracing(cli.log_json);
     let result = match cli.command {
         Command::Scenario(args) => cmd::scenario::run(args),
+        Command::Server(args) => cmd::server::run(args),
         Command::Undistort(args) => cmd::undistort::run(args),
         Command::Report(args) => cmd::report::run(args),
         Command::Export(args) => cmd::export::run(args),

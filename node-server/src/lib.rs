@@ -12,6 +12,7 @@ mod core_tests;
 pub mod decision;
 pub mod export;
 pub mod membership;
+pub mod process;
 pub mod record;
 pub mod recording;
 pub mod replay;

@@ -271,7 +271,8 @@ pub fn compute_with(loaded: &Loaded, t0: ClusterTime, gate_m: f64) -> Report {
             });
         }
     }
-    let power_mw_mean = energy.iter().map(|e| e.mean_power_mw).sum();
+    // (An empty f64 sum is −0.0; add +0.0 so an idle run prints 0.)
+    let power_mw_mean = energy.iter().map(|e| e.mean_power_mw).sum::<f64>() + 0.0;
 
     let sync: Vec<NodeSync> = status
         .iter()

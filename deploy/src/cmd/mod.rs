@@ -8,5 +8,6 @@ pub mod export;
 pub mod peer;
 pub mod report;
 pub mod scenario;
+pub mod server;
 pub mod sim;
 pub mod undistort;
