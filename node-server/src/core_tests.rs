@@ -543,3 +543,24 @@ fn a_track_started_in_another_clusters_area_is_not_pushed_onto_that_head() {
     assert!(handovers(&out).iter().all(|(_, h)| h.from_head.is_none()));
     assert_eq!(s.globals().next().unwrap().1.owner, H3);
 }
+
+#[test]
+fn the_head_covering_a_target_it_already_tracks_takes_it_over() {
+    let mut s = started();
+    let x = |k: i64| 1.0 + 0.2 * k as f64;
+    // Head 3 started the track in head 2's area and keeps it; head 2's own track joins it.
+    s.on_message(ms(0), report(H3, 9, None, ms(0), x(0), 4.0));
+    let g = s.global_of(H3, TargetId(9)).unwrap();
+    for k in 1..5i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H3, 9, Some(g.0), t, x(k), 4.0));
+        s.on_message(t, report(H2, 1, None, t, x(k) + 0.1, 4.0));
+    }
+    assert_eq!(s.global_of(H2, TargetId(1)), Some(g));
+    assert_eq!(s.globals().next().unwrap().1.owner, H2);
+    assert!(decisions(&mut s).contains(&Decision::OwnerChanged {
+        global: g,
+        from: H3,
+        to: H2
+    }));
+}

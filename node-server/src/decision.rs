@@ -75,8 +75,9 @@ pub enum Decision {
         to: NodeId,
         reason: HandoverReason,
     },
-    /// The owner stopped reporting a global track that another head still reports; that head
-    /// owns it now (it already tracks it, so no handover message is sent).
+    /// The owner stopped reporting a global track that another head still reports, or that head
+    /// reports it inside its own region while it is outside the owner's; that head owns it now
+    /// (it already tracks it, so no handover message is sent).
     OwnerChanged {
         global: TargetId,
         from: NodeId,

@@ -20,6 +20,8 @@
 //!   `Region`); the margin is the hysteresis band that stops a target on a border from
 //!   bouncing between heads. Only a track that was inside its owner's region can leave it (see
 //!   [`GlobalTrack::entered`]).
+//! - A member head that reports the track inside its own region while it is outside the
+//!   owner's takes ownership without a handover (`OwnerChanged`): it already tracks it.
 //! - When the owner is down, on the next tick the track goes to the live head covering its last
 //!   position, else the nearest one (`Handover`, reason `Failover`).
 //! - A global no head reported for the track timeout is dropped (`Lost`); a silent local track
@@ -276,6 +278,20 @@ impl Tracks {
                     .globals
                     .get(&g)
                     .is_some_and(|gt| now - gt.owner_report > self.params.owner_stale_ns);
+                // A member head whose own region covers the target, while the owner's does not,
+                // takes the track over: it is the cluster responsible for that area and already
+                // tracks it, so no posterior needs to move.
+                let home = agrees
+                    && self.globals.get(&g).is_some_and(|gt| {
+                        let (x, y) = (gt.mean[0], gt.mean[1]);
+                        let outside_owner = members
+                            .region(gt.owner)
+                            .is_some_and(|reg| distance_to_region(reg, x, y) > self.params.handover_margin_m);
+                        let inside_me = members
+                            .region(head)
+                            .is_some_and(|reg| distance_to_region(reg, x, y) == 0.0);
+                        outside_owner && inside_me
+                    });
                 let l = self.locals.get_mut(&key).expect("present");
                 l.last = now;
                 match owner {
@@ -291,11 +307,11 @@ impl Tracks {
                         Binding::Bound(g)
                     }
                     Some(o) if o == head => Binding::Bound(g),
-                    Some(o) if stale => {
+                    Some(o) if stale || home => {
                         l.disagree = 0;
                         let gt = self.globals.get_mut(&g).expect("present");
                         gt.owner = head;
-                        gt.entered = false;
+                        gt.entered = home;
                         out.push(Decision::OwnerChanged {
                             global: g,
                             from: o,
