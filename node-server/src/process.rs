@@ -151,6 +151,7 @@ pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<RunS
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut sync = tokio::time::interval(cfg.sync_every);
     sync.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut syncs = 0u64;
     let result = loop {
         let out = tokio::select! {
             biased;
@@ -174,6 +175,10 @@ pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<RunS
             _ = sync.tick() => {
                 if let Err(e) = rec.sync() {
                     break Err(e.into());
+                }
+                syncs += 1;
+                if syncs.is_multiple_of(20) {
+                    log_status(&node);
                 }
                 continue;
             }
@@ -221,4 +226,22 @@ fn flush(node: &mut ServerNode, rec: &mut Recorder, summary: &mut RunSummary) ->
         summary.records += 1;
     }
     Ok(())
+}
+
+/// Membership, tracks and the worst visible sync error, for the operator.
+fn log_status(node: &ServerNode) {
+    let up = node.membership().members().filter(|(_, m)| m.up).count();
+    let worst_sync_ms = node
+        .sync_errors()
+        .iter()
+        .map(|(_, e)| *e as f64 * 1e-6)
+        .fold(None, |a: Option<f64>, e| Some(a.map_or(e, |a| a.max(e))));
+    tracing::info!(
+        nodes_up = up,
+        tracks = node.globals().count(),
+        handovers = node.counters().handovers,
+        rejected = node.counters().rejected,
+        worst_sync_ms = ?worst_sync_ms,
+        "server status"
+    );
 }
