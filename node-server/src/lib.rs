@@ -18,6 +18,8 @@ pub mod recording;
 pub mod replay;
 pub mod report;
 #[cfg(test)]
+mod report_tests;
+#[cfg(test)]
 pub(crate) mod testkit;
 pub mod tracks;
 
