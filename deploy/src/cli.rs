@@ -25,14 +25,21 @@ pub enum Command {
     Scenario(cmd::scenario::Args),
     /// Run the server: membership, handover, global ids, time leader, recording.
     Server(cmd::server::Args),
+    /// Run one camera node (until SIGINT/SIGTERM).
+    Camera(cmd::camera::Args),
     /// Undistort CSV rows (OpenCV test-vector format) from stdin: one `x,y` line per row.
     Undistort(cmd::undistort::Args),
     /// Print the report of a server recording (table or JSON).
     Report(cmd::report::Args),
     /// Export the tracks of a server recording as CSV or JSON Lines.
     Export(cmd::export::Args),
+    /// Start every node of a scenario on this host, each its own process (default scenario
+    /// when none is given).
+    Launch(cmd::launch::Args),
     /// Run a scenario's nodes in one process on a virtual clock (deterministic for a seed).
     Sim(cmd::sim::Args),
+    /// Run one cluster head as its own process.
+    Head(cmd::head::Args),
     /// Measure parts of the system; prints JSON.
     #[command(subcommand)]
     Bench(Bench),
@@ -74,10 +81,13 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Scenario(args) => cmd::scenario::run(args),
         Command::Server(args) => cmd::server::run(args),
+        Command::Camera(args) => cmd::camera::run_cmd(args),
         Command::Undistort(args) => cmd::undistort::run(args),
         Command::Report(args) => cmd::report::run(args),
         Command::Export(args) => cmd::export::run(args),
         Command::Sim(args) => cmd::sim::run(args),
+        Command::Launch(args) => cmd::launch::run(args),
+        Command::Head(args) => cmd::head::run(args),
         Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
         Command::Bench(Bench::Camera(args)) => cmd::bench_camera::run(args),
         Command::Bench(Bench::Server(args)) => cmd::bench_server::run(args),

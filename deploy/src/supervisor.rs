@@ -50,6 +50,14 @@ fn signal_group(pid: u32, sig: libc::c_int) {
     }
 }
 
+/// SIGKILL the given process groups (children of a supervisor busy stopping elsewhere); the
+/// supervisor still reaps them.
+pub fn kill_groups(groups: &[u32]) {
+    for &g in groups {
+        signal_group(g, libc::SIGKILL);
+    }
+}
+
 impl Supervisor {
     pub fn new(grace: Duration) -> Self {
         Supervisor {
@@ -148,6 +156,14 @@ impl Supervisor {
     pub fn stop_all(&mut self) -> Vec<String> {
         let names: Vec<String> = self.children.iter().rev().map(|c| c.name.clone()).collect();
         self.stop(&names)
+    }
+
+    /// Process-group ids of the children still running (for [`kill_groups`] from elsewhere).
+    pub fn running_groups(&mut self) -> Vec<u32> {
+        self.children
+            .iter_mut()
+            .filter_map(|c| c.poll().is_none().then(|| c.pid()))
+            .collect()
     }
 
     /// Kill every child at once and reap (second Ctrl-C).

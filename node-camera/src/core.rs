@@ -139,7 +139,7 @@ impl CameraNode {
         warn!(node = %self.cfg.id, what, %problem, "rejected input");
     }
 
-    fn to_head(&mut self, body: Message, out: &mut Vec<Outgoing>) {
+    fn send_to_head(&mut self, body: Message, out: &mut Vec<Outgoing>) {
         match self.cfg.head {
             Some(h) => out.push(Outgoing::new(h, body)),
             None => self.counters.unsent += 1,
@@ -284,7 +284,7 @@ impl CameraNode {
         }
         for body in msgs {
             self.counters.measurements += 1;
-            self.to_head(body, out);
+            self.send_to_head(body, out);
         }
     }
 
@@ -325,7 +325,7 @@ impl CameraNode {
             sync_offset_ns: 0,
             sync_error_ns: 0,
         };
-        self.to_head(Message::NodeStatus(status.clone()), &mut out);
+        self.send_to_head(Message::NodeStatus(status.clone()), &mut out);
         match self.cfg.server {
             Some(s) if Some(s) != self.cfg.head => out.push(Outgoing::new(s, Message::NodeStatus(status))),
             Some(_) => {}

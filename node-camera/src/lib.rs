@@ -4,13 +4,15 @@
 //!
 //! A sans-IO core plus its process: [`frame`] and [`source`] produce frames, [`seg000`] and
 //! [`seg004`] segment them ([`segment`] selects), [`measure`] undistorts, gates and linearizes,
-//! [`core`] is the node's state machine, [`render`] and [`radio`] are the synthetic world.
+//! [`core`] is the node's state machine, [`render`] and [`radio`] are the synthetic world,
+//! [`process`] runs a camera as an OS process over a `proto::transport`.
 
 pub mod config;
 pub mod core;
 pub mod detect;
 pub mod frame;
 pub mod measure;
+pub mod process;
 pub mod radio;
 pub mod region;
 pub mod render;

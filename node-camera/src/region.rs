@@ -46,6 +46,22 @@ impl Grid {
     }
 }
 
+/// Index of the first non-zero byte at or after `from`, eight bytes at a time (masks are
+/// mostly zero).
+pub fn first_set(mask: &[u8], from: usize) -> Option<usize> {
+    let rest = mask.get(from..)?;
+    let mut chunks = rest.chunks_exact(8);
+    let mut base = from;
+    for c in chunks.by_ref() {
+        let word = u64::from_ne_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
+        if word != 0 {
+            return c.iter().position(|&v| v != 0).map(|p| base + p);
+        }
+        base += 8;
+    }
+    chunks.remainder().iter().position(|&v| v != 0).map(|p| base + p)
+}
+
 /// 4-neighbour erosion: a pixel survives if it is set and at least `min_neighbours` of its
 /// four neighbours are set (4 = classic erosion with a cross; 1 = only isolated pixels die).
 /// The outermost rows and columns are cleared.
@@ -84,8 +100,7 @@ pub fn grow_boxes(
     let (w, h) = (grid.width, grid.height);
     let reach = merge + 1;
     let mut start = 0;
-    while let Some(off) = mask[start..].iter().position(|&v| v != 0) {
-        let seed = start + off;
+    while let Some(seed) = first_set(mask, start) {
         let (sx, sy) = (seed % w, seed / w);
         let (mut x0, mut y0, mut x1, mut y1) = (sx, sy, sx, sy);
         loop {
@@ -156,8 +171,7 @@ pub fn grow_8(
 ) {
     let (w, h) = (grid.width, grid.height);
     let mut start = 0;
-    while let Some(off) = labels[start..].iter().position(|&v| v != 0) {
-        let seed = start + off;
+    while let Some(seed) = first_set(labels, start) {
         let class = labels[seed];
         labels[seed] = 0;
         stack.clear();
@@ -199,6 +213,21 @@ mod tests {
                 mask[y * w + x] = 1;
             }
         }
+    }
+
+    #[test]
+    fn first_set_finds_every_position() {
+        for len in [0usize, 1, 7, 8, 9, 31] {
+            for at in 0..len {
+                let mut m = vec![0u8; len];
+                m[at] = 3;
+                for from in 0..=len {
+                    let want = (at >= from).then_some(at);
+                    assert_eq!(first_set(&m, from), want, "len {len} at {at} from {from}");
+                }
+            }
+        }
+        assert_eq!(first_set(&[0u8; 4], 9), None);
     }
 
     #[test]

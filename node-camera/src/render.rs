@@ -316,6 +316,45 @@ impl Renderer {
     }
 }
 
+/// The synthetic world as a [`crate::source::FrameSource`]: scene time is `now − epoch`.
+#[derive(Debug, Clone)]
+pub struct SyntheticSource {
+    renderer: Renderer,
+    targets: Vec<TargetSpec>,
+    epoch: ClusterTime,
+}
+
+impl SyntheticSource {
+    /// Camera node `id` of `scenario`; cluster time `epoch` is scenario time 0.
+    ///
+    /// # Errors
+    /// The node has no usable camera geometry.
+    pub fn new(
+        scenario: &Scenario,
+        id: u32,
+        seed: u64,
+        epoch: ClusterTime,
+    ) -> Result<SyntheticSource, proto::scenario::ScenarioError> {
+        Ok(SyntheticSource {
+            renderer: Renderer::for_node(scenario, id, seed)?,
+            targets: scenario.targets.clone(),
+            epoch,
+        })
+    }
+}
+
+impl crate::source::FrameSource for SyntheticSource {
+    fn size(&self) -> (u32, u32) {
+        self.renderer.size()
+    }
+
+    fn capture(&mut self, now: ClusterTime, frame: &mut Frame) -> Result<bool, crate::source::SourceError> {
+        self.renderer
+            .render(&self.targets, now.secs_since(self.epoch), now, frame);
+        Ok(true)
+    }
+}
+
 /// Render one frame of camera node `id` at `t` seconds: the pure-function form (builds the
 /// renderer; runtimes keep a [`Renderer`] instead).
 ///

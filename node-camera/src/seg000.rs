@@ -87,11 +87,37 @@ pub struct Paper000 {
     windows: Vec<u32>,
     labels: Vec<u8>,
     stack: Vec<u32>,
+    /// Class of each RGB colour quantized to 5 bits per channel (0 = none), built once.
+    lut: Vec<u8>,
+}
+
+/// Index of an RGB colour in the 32×32×32 class table.
+#[inline]
+fn lut_index(r: u8, g: u8, b: u8) -> usize {
+    ((r as usize >> 3) << 10) | ((g as usize >> 3) << 5) | (b as usize >> 3)
+}
+
+/// The class table: each 5-bit-per-channel cell takes the class of its centre colour.
+fn build_lut(classes: &[HsiClass]) -> Vec<u8> {
+    let mut lut = vec![0u8; 1 << 15];
+    if classes.is_empty() {
+        return lut;
+    }
+    for (i, cell) in lut.iter_mut().enumerate() {
+        let centre = |shift: usize| (((i >> shift) & 31) * 8 + 4) as f32;
+        let (r, g, b) = (centre(10), centre(5), centre(0));
+        *cell = classes
+            .iter()
+            .position(|c| c.matches(r, g, b))
+            .map_or(0, |p| (p + 1).min(255) as u8);
+    }
+    lut
 }
 
 impl Paper000 {
     pub fn new(params: Paper000Params) -> Paper000 {
         Paper000 {
+            lut: build_lut(&params.classes),
             params,
             grid: None,
             reference: Vec::new(),
@@ -164,20 +190,22 @@ impl Paper000 {
             let refr = &mut self.reference[a * 3..(a + g.width) * 3];
             let changed = &mut self.changed[a..a + g.width];
             let wrow = &mut self.windows[(gy / win) * wx..(gy / win + 1) * wx];
-            for x in 0..g.width {
-                let s = x * step3;
-                let k = x * 3;
-                let dr = src[s] as i32 - refr[k] as i32;
-                let dg = src[s + 1] as i32 - refr[k + 1] as i32;
-                let db = src[s + 2] as i32 - refr[k + 2] as i32;
+            let pixels = src
+                .chunks_exact(step3)
+                .zip(refr.chunks_exact_mut(3))
+                .zip(changed.iter_mut());
+            for (x, ((px, rp), ch)) in pixels.enumerate() {
+                let dr = px[0] as i32 - rp[0] as i32;
+                let dg = px[1] as i32 - rp[1] as i32;
+                let db = px[2] as i32 - rp[2] as i32;
                 let c = dr.abs() + dg.abs() + db.abs() > t;
-                changed[x] = u8::from(c);
+                *ch = u8::from(c);
                 wrow[x / win] += u32::from(c);
-                if adapt && !c {
-                    refr[k] = (refr[k] as i32 + dr.signum()) as u8;
-                    refr[k + 1] = (refr[k + 1] as i32 + dg.signum()) as u8;
-                    refr[k + 2] = (refr[k + 2] as i32 + db.signum()) as u8;
-                }
+                // Unchanged pixels creep one level toward the image (a select, not a branch).
+                let k = i32::from(adapt && !c);
+                rp[0] = (rp[0] as i32 + k * dr.signum()) as u8;
+                rp[1] = (rp[1] as i32 + k * dg.signum()) as u8;
+                rp[2] = (rp[2] as i32 + k * db.signum()) as u8;
             }
         }
         self.labels.fill(0);
@@ -194,12 +222,7 @@ impl Paper000 {
                         self.changed[i]
                     } else {
                         let [r, gg, b] = g.rgb(frame, x, y);
-                        let (r, gg, b) = (r as f32, gg as f32, b as f32);
-                        self.params
-                            .classes
-                            .iter()
-                            .position(|c| c.matches(r, gg, b))
-                            .map_or(0, |p| (p + 1).min(255) as u8)
+                        self.lut[lut_index(r, gg, b)]
                     };
                 }
             }

@@ -6,20 +6,15 @@
 //! node's (trained or default) model, a `TrackReport` per track goes to the server, new tracks
 //! are born from agreeing unassociated detections, and activation sends at most one `Command`.
 
-use crate::activation::{Candidate, Expected, Planner, Variant};
-use crate::association::{Detection, associate, births};
+use crate::activation::Planner;
+use crate::association::Detection;
 use crate::config::{HeadConfig, NodeInfo};
-use crate::eif::Eif;
-use crate::ml;
 use crate::stats::{Counters, StepStats};
 use crate::step::{Offer, StepWindow};
 use crate::track::Track;
-use nalgebra::{Matrix2, Matrix6, Vector2, Vector3};
-use proto::models::{
-    Info, State, camera_contribution, information_contribution, mat6_from_wire, mat6_to_wire,
-    pinhole_previous, rssi_contribution, vec6_from_wire, vec6_to_wire,
-};
-use proto::msg::{Command, Contribution, Handover, Measurement, Prior, TrackReport};
+use nalgebra::{Matrix2, Matrix6, Vector2};
+use proto::models::{State, mat6_from_wire, mat6_to_wire, vec6_from_wire, vec6_to_wire};
+use proto::msg::{Contribution, Handover, Measurement, Prior};
 use proto::node::Outgoing;
 use proto::scenario::{Activation, Fusion};
 use proto::{ClusterTime, Envelope, Message, Mode, NodeId, TargetId};
@@ -174,18 +169,7 @@ impl HeadNode {
                 None => self.reject(src, "node_status"),
             },
             Message::Handover(h) if from_server => self.on_handover(now, h),
-            Message::Liveness(l) if from_server => {
-                if let Some(&slot) = self.slots.get(&l.node) {
-                    self.nodes[slot].up = l.up;
-                    if !l.up {
-                        info!(node = %l.node, "node down; not waiting for it");
-                        self.window.release(slot);
-                        if self.window.complete() {
-                            self.close_step(now, &mut out);
-                        }
-                    }
-                }
-            }
+            Message::Liveness(l) if from_server => out = self.node_liveness(now, l.node, l.up),
             Message::Assignment(a) if from_server => {
                 if let Some(&slot) = self.slots.get(&a.node) {
                     let mine = a.head == self.cfg.id;
@@ -206,12 +190,41 @@ impl HeadNode {
         out
     }
 
+    /// A node went down or came back (from the server's `Liveness`, or from the runtime when
+    /// its link drops). A node down is not waited for and draws no power.
+    pub fn node_liveness(&mut self, now: ClusterTime, node: NodeId, up: bool) -> Vec<Outgoing> {
+        let mut out = Vec::new();
+        if let Some(&slot) = self.slots.get(&node) {
+            if self.nodes[slot].up != up {
+                info!(node = %node, up, "node liveness changed");
+            }
+            self.nodes[slot].up = up;
+            if !up {
+                self.window.release(slot);
+                if self.window.complete() {
+                    self.close_step(now, &mut out);
+                }
+            }
+        }
+        out
+    }
+
     fn reject(&mut self, src: NodeId, kind: &'static str) {
         self.counters.rejected += 1;
         warn!(node = %src, kind, "message from a node not allowed to send it; ignored");
     }
 
     fn on_contribution(&mut self, now: ClusterTime, slot: usize, c: Contribution, out: &mut Vec<Outgoing>) {
+        if c.info_matrix
+            .iter()
+            .flatten()
+            .chain(&c.info_vector)
+            .any(|x| !x.is_finite())
+        {
+            self.counters.rejected += 1;
+            warn!(node = %self.nodes[slot].info.id, "contribution with non-finite numbers; ignored");
+            return;
+        }
         let Some(t) = self.tracks.iter().position(|tr| tr.local == c.target) else {
             self.counters.unknown_target += 1;
             debug!(node = %self.nodes[slot].info.id, target = %c.target, "contribution for an unknown track");
@@ -230,7 +243,7 @@ impl HeadNode {
                     track.last_seen = now;
                 }
                 if let Some(dbm) = rssi {
-                    track.rssi.push((slot, dbm));
+                    track.hear(slot, dbm);
                 }
                 if c.camera || rssi.is_some() {
                     track.contributors.push(proto::msg::Contributor {
@@ -389,345 +402,8 @@ impl HeadNode {
             }
         }
     }
-
-    fn close_step(&mut self, now: ClusterTime, out: &mut Vec<Outgoing>) {
-        let complete = self.window.complete();
-        self.window.close();
-        let counts = self.window.counts();
-        let fusion = self.cfg.method.fusion;
-        // Associate detections; leftovers may start tracks.
-        let dets = std::mem::take(&mut self.detections);
-        let priors: Vec<(State, Matrix6<f64>)> = self
-            .tracks
-            .iter()
-            .map(|t| (*t.filter.mean(), *t.filter.cov()))
-            .collect();
-        let assigned = associate(&priors, &dets, &self.cameras, self.cfg.method.gate_chi2);
-        let mut free = Vec::new();
-        for (d, a) in dets.into_iter().zip(assigned) {
-            match a {
-                Some(t) if fusion != Fusion::DistributedEif => {
-                    self.tracks[t].last_seen = now;
-                    self.tracks[t].detections.push(d);
-                }
-                Some(_) => {}
-                None => free.push(d),
-            }
-        }
-        let mut stats = StepStats {
-            step: self.step,
-            time: self.step_time,
-            tracks: self.tracks.len(),
-            applied: counts.applied,
-            late: counts.late,
-            duplicate: counts.duplicate,
-            complete,
-            ..StepStats::default()
-        };
-        let mut rssi_nodes = vec![false; self.nodes.len()];
-        for t in 0..self.tracks.len() {
-            self.fuse_track(t, now, &mut stats, &mut rssi_nodes);
-        }
-        stats.rssi_nodes = rssi_nodes.iter().filter(|&&b| b).count();
-        for t in &self.tracks {
-            if let Some(server) = self.cfg.server {
-                out.push(Outgoing::new(
-                    server,
-                    Message::TrackReport(TrackReport {
-                        target: t.local,
-                        global: t.global,
-                        step: self.step,
-                        time: t.time,
-                        mean: vec6_to_wire(t.filter.mean()),
-                        cov: mat6_to_wire(t.filter.cov()),
-                        contributors: t.contributors.clone(),
-                        power_mw: self.power_mw(),
-                        late: self.counters.late,
-                    }),
-                ));
-            }
-        }
-        self.birth(&free, now);
-        stats.decision = self.activate(out);
-        stats.power_mw = self.power_mw();
-        for n in self.nodes.iter().filter(|n| n.member && n.up) {
-            stats.active_cameras += usize::from(n.mode == Mode::Active);
-            stats.camera_off += usize::from(n.mode == Mode::CameraOff);
-        }
-        let c = &mut self.counters;
-        c.steps += 1;
-        c.sum_active_cameras += stats.active_cameras as u64;
-        c.sum_rssi_nodes += stats.rssi_nodes as u64;
-        c.sum_power_mw += stats.power_mw;
-        self.last = stats;
-        if self.keep_history {
-            self.history.push(stats);
-        }
-    }
-
-    /// Apply one track's step: sums (or measurements), RSSI, update, training.
-    fn fuse_track(&mut self, t: usize, now: ClusterTime, stats: &mut StepStats, rssi_nodes: &mut [bool]) {
-        let uses_rssi = self.uses_rssi();
-        let method = &self.cfg.method;
-        let track = &mut self.tracks[t];
-        let mean_bar = *track.filter.mean();
-        // Centralized and ML: the head linearizes.
-        let dets = std::mem::take(&mut track.detections);
-        let mut ml_points = Vec::new();
-        for d in &dets {
-            let node = &self.nodes[d.slot].info;
-            let cam = &node.camera;
-            match method.fusion {
-                Fusion::CentralizedEif => {
-                    if let Some((o, x)) = camera_contribution(cam, &d.point, &d.cov, &mean_bar) {
-                        track.acc.add(&o, &x);
-                        track.aux_acc.add(&o, &x);
-                    }
-                    if method.previous_point
-                        && let Some(prev) = d.prev_point
-                        && let Some((h, jac)) = pinhole_previous(cam, &mean_bar, 1.0 / node.fps)
-                        && let Some((o, x)) = information_contribution(&prev, &h, &jac, &d.cov, &mean_bar)
-                    {
-                        track.acc.add(&o, &x);
-                        track.aux_acc.add(&o, &x);
-                    }
-                }
-                Fusion::Ml => {
-                    if let Some(p) = ml::lift(cam, &d.point, &d.cov, self.cfg.ml_depth) {
-                        ml_points.push(p);
-                    }
-                }
-                Fusion::DistributedEif => {}
-            }
-            if let Some(r) = d.rssi.filter(|_| node.rssi) {
-                track.rssi.push((d.slot, r.dbm));
-            }
-            track.note(node.id, true, d.rssi.is_some() && node.rssi);
-        }
-        stats.applied += if method.fusion == Fusion::DistributedEif {
-            0
-        } else {
-            dets.len() as u64
-        };
-        // RSSI, linearized here with the node's current model.
-        if uses_rssi && method.fusion != Fusion::Ml {
-            for &(slot, dbm) in &track.rssi {
-                let node = &self.nodes[slot].info;
-                let model = track.trainers[slot].model();
-                if let Some((o, x)) = rssi_contribution(&model, &node.position, dbm, &mean_bar) {
-                    track.acc.add(&o, &x);
-                    rssi_nodes[slot] = true;
-                    track.last_seen = now;
-                }
-            }
-        }
-        if method.fusion == Fusion::Ml {
-            if let Some((p, c)) = ml::fuse(&ml_points) {
-                let dt_prev = track.ml_prev.map(|(_, t0)| now.secs_since(t0));
-                let mut mean = State::zeros();
-                mean.fixed_rows_mut::<3>(0).copy_from(&p);
-                let mut cov = Matrix6::identity() * crate::init::INIT_VELOCITY_SIGMA.powi(2);
-                cov.fixed_view_mut::<3, 3>(0, 0).copy_from(&c);
-                if let (Some((p0, _)), Some(dt)) = (track.ml_prev, dt_prev)
-                    && dt > 0.0
-                {
-                    mean.fixed_rows_mut::<3>(3).copy_from(&((p - p0) / dt));
-                    cov.fixed_view_mut::<3, 3>(3, 3)
-                        .copy_from(&(c * (2.0 / (dt * dt))));
-                }
-                match Eif::from_gaussian(mean, cov) {
-                    Ok(f) => {
-                        track.filter = f;
-                        track.ml_prev = Some((p, now));
-                    }
-                    Err(_) => self.counters.numeric_failures += 1,
-                }
-            } else {
-                stats.prediction_only += 1;
-            }
-        } else {
-            if track.acc.count == 0 {
-                stats.prediction_only += 1;
-            }
-            if let Err(e) = track.filter.update(&track.acc) {
-                self.counters.numeric_failures += 1;
-                warn!(target = %track.local, error = %e, "update failed; prediction only");
-            }
-        }
-        let trained_from_cameras = track.aux_acc.count > 0;
-        if track.aux.update(&track.aux_acc).is_err() {
-            self.counters.numeric_failures += 1;
-        }
-        // Algorithm 1: pairs (distance from the camera-only filter, RSSI).
-        if trained_from_cameras {
-            let aux_pos: Vector3<f64> = track.aux.mean().fixed_rows::<3>(0).into_owned();
-            let aux_cov = track.aux.cov().fixed_view::<3, 3>(0, 0).into_owned();
-            for &(slot, dbm) in &track.rssi {
-                let diff = aux_pos - self.nodes[slot].info.position;
-                let d = diff.norm();
-                if d > 1e-6 {
-                    let u = diff / d;
-                    track.trainers[slot].push(d, dbm, u.dot(&(aux_cov * u)));
-                }
-            }
-        }
-        track.detections = dets;
-        track.detections.clear();
-    }
-
-    fn birth(&mut self, free: &[Detection], now: ClusterTime) {
-        if free.is_empty() {
-            return;
-        }
-        let found = births(
-            free,
-            &self.cameras,
-            self.cfg.method.gate_chi2,
-            self.cfg.birth_min_cameras,
-            self.cfg.target_plane_z,
-            self.cfg.bounds,
-        );
-        for b in found {
-            let local = self.alloc_local();
-            match self.new_track(local, None, b.mean, b.cov, now) {
-                Ok(t) => {
-                    info!(target = %local, cameras = b.members.len(), "new track");
-                    self.counters.births += 1;
-                    self.tracks.push(t);
-                }
-                Err(e) => {
-                    self.counters.numeric_failures += 1;
-                    warn!(error = %e, "birth with an unusable covariance");
-                }
-            }
-        }
-    }
-
-    /// The cluster's power with the current modes (nodes down draw nothing we can count).
-    pub fn power_mw(&self) -> f64 {
-        self.nodes
-            .iter()
-            .filter(|n| n.member && n.up)
-            .map(|n| n.info.power.in_mode(n.mode))
-            .sum()
-    }
-
-    fn command(&mut self, slot: usize, mode: Mode, out: &mut Vec<Outgoing>) {
-        let id = self.nodes[slot].info.id;
-        self.nodes[slot].mode = mode;
-        self.counters.commands += 1;
-        out.push(Outgoing::new(id, Message::Command(Command { node: id, mode })));
-    }
-
-    /// Algorithm 2 (or all-on). Returns the greedy decision taken, if any.
-    fn activate(&mut self, out: &mut Vec<Outgoing>) -> Option<crate::activation::Decision> {
-        let variant = match self.cfg.method.activation {
-            Activation::AllOn => None,
-            Activation::CameraEntropy => Some(Variant::CameraOnly),
-            Activation::FullNode => Some(Variant::FullNode),
-            Activation::ThreeMode => Some(Variant::ThreeMode),
-        };
-        // All on, or no track to look for: wake every member (search).
-        if variant.is_none() || self.tracks.is_empty() {
-            for s in 0..self.nodes.len() {
-                let n = &self.nodes[s];
-                if n.member && n.up && n.mode != Mode::Active {
-                    self.command(s, Mode::Active, out);
-                }
-            }
-            return None;
-        }
-        let variant = variant?;
-        let dt = self.cfg.method.step_ms as f64 * 1e-3;
-        let motion = self.cfg.method.motion;
-        let mut predicted: Vec<Info> = Vec::with_capacity(self.tracks.len());
-        let mut means: Vec<State> = Vec::with_capacity(self.tracks.len());
-        for t in &self.tracks {
-            let p = t.filter.predicted(&motion, dt).ok()?;
-            predicted.push(*p.omega());
-            means.push(*p.mean());
-        }
-        let slots: Vec<usize> = (0..self.nodes.len())
-            .filter(|&s| self.nodes[s].member && self.nodes[s].up)
-            .collect();
-        let candidates: Vec<Candidate> = slots
-            .iter()
-            .map(|&s| Candidate {
-                node: self.nodes[s].info.id,
-                mode: self.nodes[s].mode,
-                power: self.nodes[s].info.power,
-                cost_factor: self.nodes[s].info.cost_factor,
-            })
-            .collect();
-        let sigma = self.cfg.method.pixel_sigma;
-        let (nodes, tracks) = (&self.nodes, &self.tracks);
-        let decision = self.planner.decide(
-            variant,
-            self.cfg.method.energy_weight,
-            &candidates,
-            &predicted,
-            |n, t| {
-                let node = &nodes[slots[n]].info;
-                let model = tracks[t].trainers[slots[n]].model();
-                let rssi = node.rssi.then_some((&model, &node.position));
-                Expected::at(Some(&node.camera), sigma, rssi, &means[t])
-            },
-        )?;
-        let slot = self.slots[&decision.node];
-        info!(node = %decision.node, from = ?decision.from, to = ?decision.to, reward = decision.reward, cost = decision.cost, "activation");
-        self.command(slot, decision.to, out);
-        Some(decision)
-    }
 }
 
+mod close;
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use proto::scenario::Scenario;
-
-    fn env(source: u32, body: Message) -> Envelope {
-        Envelope {
-            source: NodeId(source),
-            seq: 0,
-            time: ClusterTime::ZERO,
-            body,
-        }
-    }
-
-    #[test]
-    fn a_step_without_tracks_sends_nothing_and_strangers_are_rejected() {
-        let s = Scenario::default_scenario();
-        let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
-        let out = h.tick(ClusterTime::ZERO);
-        assert!(out.is_empty(), "{out:?}");
-        assert!(h.step_open());
-        // Node 13 belongs to head 3.
-        let c = Contribution {
-            target: TargetId(1),
-            step: 1,
-            info_matrix: [[0.0; 6]; 6],
-            info_vector: [0.0; 6],
-            camera: false,
-            captured: ClusterTime::ZERO,
-            mode: Mode::Active,
-            rssi: None,
-        };
-        h.on_message(ClusterTime::ZERO, env(13, Message::Contribution(c.clone())));
-        assert_eq!(h.counters().rejected, 1);
-        h.on_message(ClusterTime::ZERO, env(10, Message::Contribution(c)));
-        assert_eq!(h.counters().unknown_target, 1);
-        // Liveness only from the server.
-        h.on_message(
-            ClusterTime::ZERO,
-            env(
-                10,
-                Message::Liveness(proto::msg::Liveness {
-                    node: NodeId(11),
-                    up: false,
-                }),
-            ),
-        );
-        assert_eq!(h.counters().rejected, 2);
-        assert_eq!(h.mode_of(NodeId(11)), Some(Mode::Active));
-    }
-}
+mod tests;

@@ -1,7 +1,7 @@
 //! The cluster head: fuses its cluster's sensors with a distributed Extended Information Filter
 //! and decides which of them stay on (paper 000 §4–5, paper 002 §III–V).
 //!
-//! A sans-IO core ([`head::HeadNode`]) plus its process. The filter math lives in its own
+//! A sans-IO core ([`head::HeadNode`]) plus its process ([`process::run`]). The filter math lives in its own
 //! modules, each tested alone: [`eif`] (information form), [`ekf`] (covariance-form cross-check),
 //! [`init`] (triangulation), [`ml`] (maximum likelihood), [`rssi_training`] (Algorithm 1),
 //! [`activation`] (Algorithm 2), [`association`] (several targets) and [`step`] (the distributed
@@ -15,6 +15,7 @@ pub mod ekf;
 pub mod head;
 pub mod init;
 pub mod ml;
+pub mod process;
 pub mod rssi_training;
 pub mod stats;
 pub mod step;

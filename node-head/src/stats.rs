@@ -50,6 +50,8 @@ pub struct Counters {
     pub overflow: u64,
     pub births: u64,
     pub deaths: u64,
+    /// Tracks dropped as duplicates of another on the same target.
+    pub merges: u64,
     pub handovers: u64,
     pub commands: u64,
     /// Filter updates that failed numerically and fell back to prediction only.

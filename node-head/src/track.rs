@@ -26,6 +26,9 @@ pub struct Track {
     pub contributors: Vec<Contributor>,
     /// One trainer per node slot.
     pub trainers: Vec<RssiTrainer>,
+    /// Per node slot: whether it ever read this target's tag (activation expects RSSI only
+    /// from those).
+    pub rssi_heard: Vec<bool>,
     /// Time of the filter's state.
     pub time: ClusterTime,
     /// Last time a measurement carried information about it.
@@ -65,6 +68,7 @@ impl Track {
             trainers: (0..nodes)
                 .map(|_| RssiTrainer::new(rssi_default, window, epsilon))
                 .collect(),
+            rssi_heard: vec![false; nodes],
             time: now,
             last_seen: now,
             ml_prev: None,
@@ -94,6 +98,14 @@ impl Track {
 
     pub fn position(&self) -> Vector3<f64> {
         self.filter.mean().fixed_rows::<3>(0).into_owned()
+    }
+
+    /// Queue an RSSI reading of node `slot` for this step.
+    pub fn hear(&mut self, slot: usize, dbm: f64) {
+        self.rssi.push((slot, dbm));
+        if let Some(h) = self.rssi_heard.get_mut(slot) {
+            *h = true;
+        }
     }
 
     /// Record one node's share in the report.

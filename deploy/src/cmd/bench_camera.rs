@@ -2,7 +2,7 @@
 //! undistortion + contribution, per pipeline, at 640×480 and 352×288, on one core.
 //!
 //! Frames are rendered by the synthetic world (camera 10 of the default scenario, three
-//! targets walking, the intrinsics scaled for 640×480); rendering is not timed. Each frame
+//! targets walking, the intrinsics scaled for 640×480); rendering is timed apart. Each frame
 //! goes through `CameraNode::on_frame` (segmentation, undistortion, gating) and one
 //! `on_message(Prior)` per target (linearization into Ω_i, ξ_i). The process pins itself to
 //! one CPU and runs single-threaded. Prints JSON.
@@ -12,7 +12,7 @@ use node_camera::config::CameraConfig;
 use node_camera::core::CameraNode;
 use node_camera::frame::Frame;
 use node_camera::render::Renderer;
-use node_camera::segment::{SegmentParams, recommended_step};
+use node_camera::segment::{SegmentParams, Segmenter, recommended_step};
 use proto::msg::{Message, Prior};
 use proto::scenario::{Fusion, Scenario, Segmentation, TargetSpec, Trajectory};
 use proto::{ClusterTime, Envelope, NodeId, TargetId, models};
@@ -91,7 +91,9 @@ fn bench_scenario(width: u32, height: u32) -> Result<Scenario> {
 }
 
 struct Outcome {
+    render_median_ms: f64,
     median_ms: f64,
+    segment_median_ms: f64,
     p90_ms: f64,
     detections_per_frame: f64,
     camera_contributions: f64,
@@ -109,6 +111,11 @@ fn run_one(s: &Scenario, kind: Segmentation, step: u32, frames: usize) -> Result
     cfg.segment.paper000.min_pixels = min;
     cfg.segment.paper004.min_pixels = min;
     let renderer = Renderer::for_node(s, 10, 11)?;
+    // The same pipeline alone, to split segmentation from the rest.
+    let mut alone = Segmenter::new(&cfg.segment);
+    let mut dets = Vec::new();
+    let mut seg_times = Vec::with_capacity(frames);
+    let mut render_times = Vec::with_capacity(frames);
     let mut node = CameraNode::new(cfg, ClusterTime::ZERO);
     let mut frame = Frame::new(0, 0, ClusterTime::ZERO);
     let mut times = Vec::with_capacity(frames);
@@ -117,7 +124,9 @@ fn run_one(s: &Scenario, kind: Segmentation, step: u32, frames: usize) -> Result
     for k in 0..warmup + frames {
         let t = k as f64 * 0.2;
         let now = ClusterTime::from_secs_f64(t);
+        let start = Instant::now();
         renderer.render(&s.targets, t, now, &mut frame);
+        let render_elapsed = start.elapsed().as_secs_f64() * 1e3;
         let priors: Vec<Envelope> = s
             .targets
             .iter()
@@ -140,7 +149,12 @@ fn run_one(s: &Scenario, kind: Segmentation, step: u32, frames: usize) -> Result
             out.extend(node.on_message(now, p));
         }
         let elapsed = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
+        alone.process(&frame, &mut dets)?;
+        let seg_elapsed = start.elapsed().as_secs_f64() * 1e3;
         if k >= warmup {
+            seg_times.push(seg_elapsed);
+            render_times.push(render_elapsed);
             times.push(elapsed);
             contributions += out
                 .iter()
@@ -150,9 +164,13 @@ fn run_one(s: &Scenario, kind: Segmentation, step: u32, frames: usize) -> Result
         std::hint::black_box(out);
     }
     times.sort_by(f64::total_cmp);
+    seg_times.sort_by(f64::total_cmp);
+    render_times.sort_by(f64::total_cmp);
     let c = node.counters();
     Ok(Outcome {
         median_ms: times[times.len() / 2],
+        segment_median_ms: seg_times[seg_times.len() / 2],
+        render_median_ms: render_times[render_times.len() / 2],
         p90_ms: times[times.len() * 9 / 10],
         detections_per_frame: c.detections as f64 / c.frames.max(1) as f64,
         camera_contributions: contributions as f64 / frames as f64,
@@ -185,6 +203,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
                     "step": step,
                     "recommended": step == rec,
                     "median_ms": o.median_ms,
+                    "segmentation_only_median_ms": o.segment_median_ms,
+                    "synthetic_render_median_ms": o.render_median_ms,
                     "p90_ms": o.p90_ms,
                     "detections_per_frame": o.detections_per_frame,
                     "camera_contributions_per_frame": o.camera_contributions,

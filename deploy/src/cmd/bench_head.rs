@@ -6,7 +6,10 @@
 //! - `activation_us[N]`: one Algorithm 2 decision over N candidate nodes (three modes, expected
 //!   camera and RSSI measurements of every node at the predicted mean);
 //! - `ekf_update_us[N]`: the covariance-form EKF's stacked update on the same measurements, for
-//!   comparison (N ≤ 100; its cost grows with the cube of the measurement size).
+//!   comparison (N ≤ 100; its cost grows with the cube of the measurement size);
+//! - `head_step_us[N]`: one whole step of the sans-IO `HeadNode` with N member cameras and one
+//!   track — open (predict, N priors), N `Contribution` envelopes through `on_message` (step
+//!   accounting), close (update, report) — with all-on activation so the population is stable.
 //!
 //! Contributions are real ones: a ring of N cameras looking at the room centre, each linearized
 //! with `proto::models::camera_contribution`. The timed loops allocate nothing.
@@ -14,14 +17,19 @@
 use anyhow::{Context, Result};
 use nalgebra::{DMatrix, DVector, Matrix6, Vector2, Vector3, Vector6};
 use node_head::activation::{Candidate, Expected, Planner, Variant};
+use node_head::config::NodeInfo;
 use node_head::eif::{Accumulator, Eif};
 use node_head::ekf::{Block, Ekf};
+use node_head::{HeadConfig, HeadNode};
 use proto::camera::{CameraModel, Distortion, Intrinsics, Pose};
 use proto::models::{
     MotionModel, RssiModel, State, camera_contribution, mat6_to_wire, pinhole, vec6_to_wire,
 };
+use proto::msg::{Contribution, Handover};
 use proto::msg::{Mat6, Vec6};
 use proto::scenario::PowerFigures;
+use proto::scenario::{Activation, Method};
+use proto::{ClusterTime, Envelope, Message, TargetId};
 use proto::{Mode, NodeId};
 use serde_json::json;
 use std::hint::black_box;
@@ -166,6 +174,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
             ekf_update.insert(n.to_string(), json!(us));
         }
     }
+    let mut head_step = serde_json::Map::new();
+    for n in SIZES {
+        let us = head_step_us(n, args.scale)?;
+        head_step.insert(n.to_string(), json!(us));
+    }
     let out = json!({
         "bench": "head",
         "profile": if cfg!(debug_assertions) { "debug" } else { "release" },
@@ -173,8 +186,110 @@ pub fn run(args: Args) -> Result<ExitCode> {
         "update_ns_per_contribution": per_contribution,
         "activation_us": activation,
         "ekf_update_us": ekf_update,
+        "head_step_us": head_step,
         "note": "medians; update = predict + sum of N wire contributions + update; activation = one Algorithm 2 decision over N nodes (three modes)",
     });
     println!("{}", serde_json::to_string_pretty(&out)?);
     Ok(ExitCode::SUCCESS)
+}
+
+/// Median time of one whole `HeadNode` step with `n` cameras answering one track.
+fn head_step_us(n: usize, scale: f64) -> Result<f64> {
+    let cams = ring(n);
+    let server = NodeId(1);
+    let method = Method {
+        activation: Activation::AllOn,
+        ..Method::default()
+    };
+    let nodes = cams
+        .iter()
+        .enumerate()
+        .map(|(i, c)| NodeInfo {
+            id: NodeId(10 + i as u32),
+            camera: *c,
+            position: c.pose.centre(),
+            rssi: false,
+            power: PowerFigures::default(),
+            cost_factor: 1.0,
+            fps: 5.0,
+            member: true,
+        })
+        .collect();
+    let cfg = HeadConfig {
+        id: NodeId(2),
+        server: Some(server),
+        method,
+        nodes,
+        bounds: ([0.0, 0.0, 0.0], [12.0, 8.0, 3.0]),
+        birth_min_cameras: 2,
+        target_plane_z: 0.3,
+        ml_depth: node_head::ml::DepthHandling::default(),
+    };
+    let mut head = HeadNode::new(cfg);
+    let truth = State::new(6.2, 3.9, 0.3, 0.0, 0.0, 0.0);
+    let cov = Matrix6::from_diagonal(&Vector6::new(0.05, 0.05, 0.02, 0.1, 0.1, 0.01));
+    head.on_message(
+        ClusterTime::ZERO,
+        Envelope {
+            source: server,
+            seq: 0,
+            time: ClusterTime::ZERO,
+            body: Message::Handover(Handover {
+                global: TargetId(1),
+                to_head: NodeId(2),
+                from_head: None,
+                time: ClusterTime::ZERO,
+                mean: vec6_to_wire(&truth),
+                cov: mat6_to_wire(&cov),
+            }),
+        },
+    );
+    let target = head.tracks().first().context("handover made no track")?.local;
+    // Contributions linearized at the truth (close to every prior): realistic numbers.
+    let envs: Vec<Envelope> = cams
+        .iter()
+        .enumerate()
+        .map(|(i, cam)| {
+            let (p, _) = cam.normalized(&truth.fixed_rows::<3>(0).into_owned());
+            let c = cam.normalized_covariance(&p, 18.0);
+            let (o, x) = camera_contribution(cam, &p, &c, &truth).context("contribution")?;
+            Ok(Envelope {
+                source: NodeId(10 + i as u32),
+                seq: 0,
+                time: ClusterTime::ZERO,
+                body: Message::Contribution(Contribution {
+                    target,
+                    step: 0,
+                    info_matrix: mat6_to_wire(&o),
+                    info_vector: vec6_to_wire(&x),
+                    camera: true,
+                    captured: ClusterTime::ZERO,
+                    mode: Mode::Active,
+                    rssi: None,
+                }),
+            })
+        })
+        .collect::<Result<_>>()?;
+    let mut k: i64 = 0;
+    let mut step: u64 = 0;
+    let reps = (reps_for(n, scale) / 20).max(11);
+    let us = median_us(reps, || {
+        k += 1;
+        step += 1;
+        let now = ClusterTime::from_millis(k * 200);
+        black_box(head.tick(now));
+        for e in &envs {
+            let mut e = e.clone();
+            if let Message::Contribution(c) = &mut e.body {
+                c.step = step;
+            }
+            black_box(head.on_message(now, e));
+        }
+    });
+    let c = head.counters();
+    anyhow::ensure!(
+        c.applied as usize >= n * reps && c.late == 0 && c.duplicate == 0,
+        "bench steps did not apply every contribution: {c:?}"
+    );
+    Ok(us)
 }

@@ -100,6 +100,9 @@ struct Timebase {
     seq: BTreeMap<NodeId, u64>,
     /// True time of the last transport heartbeat to the server.
     last_heartbeat: Option<i64>,
+    /// Latest delivery time scheduled on each outgoing link: links are FIFO (TCP and iceoryx2
+    /// both keep order), so jitter delays but never reorders.
+    link_tail: BTreeMap<NodeId, i64>,
 }
 
 impl Timebase {
@@ -173,6 +176,7 @@ impl Sim {
                     sync: SyncEstimator::new(SYNC_WINDOW),
                     seq: BTreeMap::new(),
                     last_heartbeat: None,
+                    link_tail: BTreeMap::new(),
                 },
             );
             let now = sim.time[&id].now(0);
@@ -336,7 +340,17 @@ impl Sim {
             }
         };
         match self.net.fate(t, from, o.to) {
-            Fate::Deliver(lat) => self.queue.push(t + lat, Event::Deliver { to: o.to, frame }),
+            Fate::Deliver(lat) => {
+                let tail = self.time.get_mut(&from).map(|tb| tb.link_tail.entry(o.to).or_insert(0));
+                let at = match tail {
+                    Some(tail) => {
+                        *tail = (*tail).max(t + lat);
+                        *tail
+                    }
+                    None => t + lat,
+                };
+                self.queue.push(at, Event::Deliver { to: o.to, frame });
+            }
             Fate::Lost => self.counters.lost += 1,
             Fate::Partitioned => self.counters.partitioned += 1,
         }

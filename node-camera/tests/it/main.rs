@@ -1,4 +1,5 @@
 //! Integration tests of the camera node: real datasets and whole-pipeline runs.
 
 mod multiviewx;
+mod process;
 mod synthetic;

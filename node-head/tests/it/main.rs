@@ -2,6 +2,8 @@
 
 mod activation;
 mod filter;
+mod fusion;
+mod process;
 mod rssi;
 mod sim;
 mod step;

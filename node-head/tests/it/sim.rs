@@ -138,6 +138,10 @@ pub struct Sim {
     pub step_ms: i64,
     pub deadline_ms: i64,
     pub k: i64,
+    /// Centralized or ML fusion: cameras send every detection as a `Measurement`.
+    pub centralized: bool,
+    /// Include p_{i,t−1} (one frame earlier) in measurements.
+    pub previous_point: bool,
     pub reports: Vec<TrackReport>,
     seq: u64,
 }
@@ -166,6 +170,8 @@ impl Sim {
             step_ms: scenario.method.step_ms as i64,
             deadline_ms: scenario.method.deadline_ms as i64,
             k: 0,
+            centralized: scenario.method.fusion != proto::scenario::Fusion::DistributedEif,
+            previous_point: scenario.method.previous_point,
             reports: Vec::new(),
             seq: 0,
         }
@@ -230,9 +236,10 @@ impl Sim {
         let mut inbox = Vec::new();
         for c in 0..self.cams.len() {
             let id = self.cams[c].id;
+            let centralized = self.centralized;
             let priors: Vec<Prior> = out
                 .iter()
-                .filter(|o| o.to == id)
+                .filter(|o| o.to == id && !centralized)
                 .filter_map(|o| match &o.body {
                     Message::Prior(p) => Some(p.clone()),
                     _ => None,
@@ -310,15 +317,22 @@ impl Sim {
                     inbox.push(env);
                 }
             }
-            for (j, (_, (pt, cv))) in dets.iter().enumerate() {
+            for (j, &(i, (pt, cv))) in dets.iter().enumerate() {
                 if used[j] {
                     continue;
                 }
+                // One frame (0.2 s) earlier, for paper 000's p_{i,t−1}.
+                let prev_point = if self.previous_point {
+                    self.detect(c, i, now + -200_000_000).map(|(p, _)| [p.x, p.y])
+                } else {
+                    None
+                };
+                let rssi = if centralized { self.rssi(c, i, now) } else { None };
                 let m = Measurement {
                     target: None,
                     step: 0,
                     point: [pt.x, pt.y],
-                    prev_point: None,
+                    prev_point,
                     cov: [cv[(0, 0)], cv[(0, 1)], cv[(1, 1)]],
                     pixel_box: PixelBox {
                         xmin: 0.0,
@@ -335,7 +349,7 @@ impl Sim {
                     pose: self.cams[c].model.pose.to_wire(),
                     captured: now,
                     mode,
-                    rssi: None,
+                    rssi,
                 };
                 // Measurements first: they must reach the head before the step closes.
                 let env = self.envelope(id, answer_at, Message::Measurement(m));

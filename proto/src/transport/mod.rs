@@ -42,7 +42,7 @@ use tokio_util::task::TaskTracker;
 
 pub use backoff::Backoff;
 pub use inproc::InProcessHub;
-pub use ipc::{IpcConfig, IpcLimits};
+pub use ipc::{IpcConfig, IpcLimits, file_prefix};
 pub use stats::{StatsSnapshot, TransportStats};
 pub use tcp::TcpConfig;
 

@@ -1,0 +1,205 @@
+//! `ocelli launch`: every node of a scenario on this host, each its own OS process, supervised.
+//!
+//! The launch writes the effective scenario (a domain of its own, free TCP ports) to a run
+//! directory, starts the server, the heads and the cameras as `ocelli server|head|camera`
+//! children, shows live progress read from the server's recording (an append-only file whose
+//! torn tail is skipped, so reading it while it grows is safe), and stops in order on Ctrl-C or
+//! after the duration. Whatever happened to the children, it reaps them all and removes the
+//! domain's iceoryx2 files from `/dev/shm`.
+
+use crate::supervisor::Supervisor;
+use anyhow::{Context, Result};
+use node_server::export::track_rows;
+use node_server::replay::Loaded;
+use node_server::{recording, report};
+use proto::ClusterTime;
+use proto::scenario::{NodeRole, Scenario, TransportKind};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+/// What to launch and how.
+#[derive(Clone, Debug)]
+pub struct LaunchOptions {
+    pub transport: TransportKind,
+    pub duration: Option<Duration>,
+    pub run_dir: PathBuf,
+    pub record: PathBuf,
+    /// Print live progress lines on standard error.
+    pub progress: bool,
+}
+
+/// A free loopback port (bound then released; the child binds it right after).
+fn free_port() -> Result<u16> {
+    Ok(std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
+}
+
+/// The scenario as this launch runs it: its own iceoryx2 domain and, over TCP, free ports.
+pub fn effective_scenario(mut s: Scenario, transport: TransportKind) -> Result<Scenario> {
+    s.network.transport = transport;
+    s.network.domain = format!("ocelli-{}", std::process::id());
+    if transport == TransportKind::Tcp {
+        for n in &mut s.nodes {
+            if matches!(n.role, NodeRole::Head | NodeRole::Server) {
+                n.listen = Some(format!("127.0.0.1:{}", free_port()?));
+            }
+        }
+    }
+    Ok(s)
+}
+
+fn spawn_node(
+    sup: &mut Supervisor,
+    exe: &Path,
+    role: &str,
+    id: u32,
+    scenario_path: &Path,
+    opts: &LaunchOptions,
+) -> Result<()> {
+    let mut cmd = Command::new(exe);
+    cmd.arg(role)
+        .arg("--scenario")
+        .arg(scenario_path)
+        .arg("--id")
+        .arg(id.to_string());
+    cmd.arg("--transport").arg(match opts.transport {
+        TransportKind::Ipc => "ipc",
+        TransportKind::Tcp => "tcp",
+    });
+    if role == "server" {
+        cmd.arg("--record").arg(&opts.record);
+    }
+    let log = std::fs::File::create(opts.run_dir.join(format!("{role}-{id}.log")))?;
+    cmd.stdout(Stdio::null()).stderr(log);
+    sup.spawn(format!("{role}-{id}"), cmd)?;
+    Ok(())
+}
+
+/// One progress line per global track: position, σ, sensors and, with truth, error.
+fn progress_lines(record: &Path, scenario: &Scenario) -> Vec<String> {
+    let Ok(back) = recording::read_all(record) else {
+        return Vec::new();
+    };
+    let loaded = Loaded {
+        scenario: scenario.clone(),
+        records: back.records,
+        tail: back.tail,
+    };
+    let rows = track_rows(&loaded);
+    let mut latest: std::collections::BTreeMap<u32, &node_server::export::TrackRow> = Default::default();
+    for r in rows.iter().filter(|r| r.owner) {
+        latest.insert(r.global, r);
+    }
+    latest
+        .values()
+        .map(|r| {
+            let err = scenario
+                .targets
+                .iter()
+                .map(|t| {
+                    let x = t.truth_at(r.t);
+                    ((x[0] - r.x).powi(2) + (x[1] - r.y).powi(2) + (x[2] - r.z).powi(2)).sqrt()
+                })
+                .min_by(f64::total_cmp)
+                .map_or(String::new(), |e| format!("  error {e:.2} m"));
+            format!(
+                "t={:6.1}s  target g{:<3} ({:6.2}, {:6.2}, {:5.2}) m  σ {:.2} m  cameras {:2}  rssi {:2}  head {}{err}",
+                r.t, r.global, r.x, r.y, r.z, r.sigma_m, r.cameras, r.rssi_nodes, r.head
+            )
+        })
+        .collect()
+}
+
+/// Remove every iceoryx2 file of `domain` from `/dev/shm` (the domain is this launch's own,
+/// and every process of it has been reaped).
+fn remove_domain_files(domain: &str) -> usize {
+    let prefix = proto::transport::file_prefix(domain);
+    let Ok(dir) = std::fs::read_dir("/dev/shm") else {
+        return 0;
+    };
+    dir.flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
+        .filter(|e| std::fs::remove_file(e.path()).is_ok())
+        .count()
+}
+
+/// Run a scenario to the end; returns the final report.
+///
+/// # Errors
+/// The run directory or a child cannot be created, or the recording cannot be read at the end.
+pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report> {
+    let scenario = effective_scenario(scenario, opts.transport)?;
+    std::fs::create_dir_all(&opts.run_dir).with_context(|| format!("creating {}", opts.run_dir.display()))?;
+    let scenario_path = opts.run_dir.join("scenario.toml");
+    std::fs::write(&scenario_path, scenario.to_toml())?;
+    let exe = std::env::current_exe().context("locating the ocelli binary")?;
+    let mut sup = Supervisor::new(Duration::from_secs(5));
+    let by_role = |r: NodeRole| scenario.nodes.iter().filter(move |n| n.role == r).map(|n| n.id);
+    for (role, name) in [
+        (NodeRole::Server, "server"),
+        (NodeRole::Head, "head"),
+        (NodeRole::Camera, "camera"),
+    ] {
+        for id in by_role(role) {
+            spawn_node(&mut sup, &exe, name, id, &scenario_path, opts)?;
+        }
+    }
+    tracing::info!(
+        nodes = scenario.nodes.len(),
+        run_dir = %opts.run_dir.display(),
+        "launched; Ctrl-C stops"
+    );
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    let started = std::time::Instant::now();
+    rt.block_on(async {
+        let mut ctrl_c = std::pin::pin!(tokio::signal::ctrl_c());
+        loop {
+            tokio::select! {
+                _ = &mut ctrl_c => { tracing::info!("Ctrl-C: stopping (again to abort)"); break; }
+                () = tokio::time::sleep(Duration::from_secs(1)) => {}
+            }
+            for (name, status) in sup.reap_ended() {
+                tracing::warn!(child = %name, %status, "a node process ended");
+            }
+            if opts.progress {
+                for line in progress_lines(&opts.record, &scenario) {
+                    eprintln!("{line}");
+                }
+            }
+            if opts.duration.is_some_and(|d| started.elapsed() >= d) {
+                break;
+            }
+        }
+        // Stop in order; a second Ctrl-C kills everything at once.
+        let groups = sup.running_groups();
+        let stop = tokio::task::spawn_blocking(move || {
+            let killed = sup.stop_all();
+            (sup, killed)
+        });
+        tokio::select! {
+            r = stop => {
+                if let Ok((_, killed)) = r && !killed.is_empty() {
+                    tracing::warn!(?killed, "children ignored SIGTERM and were killed");
+                }
+            }
+            _ = tokio::signal::ctrl_c() => {
+                tracing::warn!("second Ctrl-C: aborting");
+                crate::supervisor::kill_groups(&groups);
+            }
+        }
+    });
+    let removed = remove_domain_files(&scenario.network.domain);
+    if removed > 0 {
+        tracing::info!(files = removed, "removed iceoryx2 files left by crashed nodes");
+    }
+    let loaded = node_server::replay::load(&opts.record, Some(scenario.clone()))
+        .with_context(|| format!("reading the recording {}", opts.record.display()))?;
+    Ok(report::compute(&loaded, first_time(&loaded)))
+}
+
+/// Cluster time at which the scenario started: the first record's stamp.
+fn first_time(loaded: &Loaded) -> ClusterTime {
+    loaded.records.first().map_or(ClusterTime::ZERO, |r| r.at)
+}

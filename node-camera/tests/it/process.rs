@@ -1,0 +1,110 @@
+//! The camera process over the in-process transport: it runs with its head away (counting
+//! what it cannot deliver), answers a head that appears, and stops cleanly when told.
+
+use node_camera::detect::ReferencePoint;
+use node_camera::process::{ProcessConfig, SourceSpec, run};
+use proto::msg::{Message, Prior};
+use proto::node::Outgoing;
+use proto::scenario::Scenario;
+use proto::transport::{Clock, Event, InProcessHub, TransportConfig, open};
+use proto::{ClusterTime, NodeId, Role, TargetId, models};
+use std::sync::Arc;
+use std::time::Duration;
+use tokio_util::sync::CancellationToken;
+
+#[allow(clippy::disallowed_methods)] // a runtime's clock: tests are runtimes
+fn wall_clock() -> Clock {
+    let start = std::time::Instant::now();
+    Arc::new(move || ClusterTime(start.elapsed().as_nanos() as i64))
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
+    let scenario = Scenario::default_scenario();
+    let hub = InProcessHub::new();
+    let clock = wall_clock();
+    let cfg = ProcessConfig {
+        scenario: scenario.clone(),
+        id: 10,
+        transport: TransportConfig::InProcess {
+            hub: hub.clone(),
+            me: NodeId(10),
+            role: Role::Camera,
+            queue_len: 64,
+        },
+        source: SourceSpec::Synthetic,
+        seed: 1,
+        epoch: ClusterTime::ZERO,
+        clock: clock.clone(),
+        tick: Duration::from_millis(100),
+        reference: ReferencePoint::Centre,
+    };
+    let stop = CancellationToken::new();
+    // The camera's future is driven on this task: `proto::transport::open`'s future holds a
+    // `&ShutdownHandle` (not `Sync`) across an await, so `run` cannot be `tokio::spawn`ed.
+    // The driver plays the absent, then present,
+    // head alongside it.
+    let camera = run(cfg, stop.clone());
+    let driver = async {
+        // Head (node 2) and server (node 1) away for a while: the camera keeps going.
+        tokio::time::sleep(Duration::from_millis(1500)).await;
+        let (head, mut inbox, _stats, handle) = open(TransportConfig::InProcess {
+            hub: hub.clone(),
+            me: NodeId(2),
+            role: Role::Head,
+            queue_len: 256,
+        })
+        .await
+        .unwrap();
+        let prior = Prior {
+            target: TargetId(1),
+            step: 77,
+            mean: models::vec6_to_wire(&scenario.targets[0].truth_at(0.0)),
+            cov: models::mat6_to_wire(&(nalgebra::Matrix6::identity() * 0.04)),
+            deadline: ClusterTime::ZERO,
+        };
+        let mut answered = false;
+        for _ in 0..30 {
+            head.send(Outgoing::new(NodeId(10), Message::Prior(prior.clone())), clock())
+                .await
+                .unwrap();
+            let wait = tokio::time::sleep(Duration::from_millis(300));
+            tokio::pin!(wait);
+            loop {
+                tokio::select! {
+                    _ = &mut wait => break,
+                    ev = inbox.recv() => match ev {
+                        Some(Event::Message(m)) => {
+                            if let Message::Contribution(c) = m.env.body {
+                                assert_eq!(m.from, NodeId(10));
+                                assert_eq!((c.target, c.step), (TargetId(1), 77));
+                                answered = true;
+                                break;
+                            }
+                        }
+                        Some(_) => {}
+                        None => break,
+                    },
+                }
+            }
+            if answered {
+                break;
+            }
+        }
+        stop.cancel();
+        (answered, handle)
+    };
+    let (summary, (answered, handle)) =
+        tokio::time::timeout(Duration::from_secs(30), async { tokio::join!(camera, driver) })
+            .await
+            .expect("the camera answers and stops when told");
+    assert!(answered, "no contribution from the camera");
+    let summary = summary.unwrap();
+    assert!(summary.counters.frames > 0, "{summary:?}");
+    assert!(
+        summary.counters.dropped > 0,
+        "messages to the absent head and server were counted: {summary:?}"
+    );
+    assert!(summary.counters.contributions >= 1);
+    handle.shutdown().await;
+}

@@ -1,0 +1,349 @@
+//! Closing a step: association, fusion of each track (distributed sums, centralized
+//! linearization or ML), RSSI linearization and training, reports, births, activation.
+
+use super::HeadNode;
+use crate::activation::{Candidate, Expected, Variant};
+use crate::association::{Detection, associate, births};
+use crate::eif::Eif;
+use crate::ml;
+use crate::stats::StepStats;
+use nalgebra::{Matrix6, Vector3};
+use proto::models::{
+    Info, State, camera_contribution, information_contribution, mat6_to_wire, pinhole_previous,
+    rssi_contribution, vec6_to_wire,
+};
+use proto::msg::{Command, TrackReport};
+use proto::node::Outgoing;
+use proto::scenario::{Activation, Fusion};
+use proto::{ClusterTime, Message, Mode};
+use tracing::{info, warn};
+
+impl HeadNode {
+    pub(super) fn close_step(&mut self, now: ClusterTime, out: &mut Vec<Outgoing>) {
+        let complete = self.window.complete();
+        self.window.close();
+        let counts = self.window.counts();
+        let fusion = self.cfg.method.fusion;
+        // Associate detections; leftovers may start tracks.
+        let dets = std::mem::take(&mut self.detections);
+        let priors: Vec<(State, Matrix6<f64>)> = self
+            .tracks
+            .iter()
+            .map(|t| (*t.filter.mean(), *t.filter.cov()))
+            .collect();
+        let assigned = associate(&priors, &dets, &self.cameras, self.cfg.method.gate_chi2);
+        let mut free = Vec::new();
+        for (d, a) in dets.into_iter().zip(assigned) {
+            match a {
+                Some(t) if fusion != Fusion::DistributedEif => {
+                    self.tracks[t].last_seen = now;
+                    self.tracks[t].detections.push(d);
+                }
+                Some(_) => {}
+                None => free.push(d),
+            }
+        }
+        let mut stats = StepStats {
+            step: self.step,
+            time: self.step_time,
+            tracks: self.tracks.len(),
+            applied: counts.applied,
+            late: counts.late,
+            duplicate: counts.duplicate,
+            complete,
+            ..StepStats::default()
+        };
+        let mut rssi_nodes = vec![false; self.nodes.len()];
+        for t in 0..self.tracks.len() {
+            self.fuse_track(t, now, &mut stats, &mut rssi_nodes);
+        }
+        stats.rssi_nodes = rssi_nodes.iter().filter(|&&b| b).count();
+        self.merge_duplicates();
+        stats.tracks = self.tracks.len();
+        for t in &self.tracks {
+            if let Some(server) = self.cfg.server {
+                out.push(Outgoing::new(
+                    server,
+                    Message::TrackReport(TrackReport {
+                        target: t.local,
+                        global: t.global,
+                        step: self.step,
+                        time: t.time,
+                        mean: vec6_to_wire(t.filter.mean()),
+                        cov: mat6_to_wire(t.filter.cov()),
+                        contributors: t.contributors.clone(),
+                        power_mw: self.power_mw(),
+                        late: self.counters.late,
+                    }),
+                ));
+            }
+        }
+        self.birth(&free, now);
+        stats.decision = self.activate(out);
+        stats.power_mw = self.power_mw();
+        for n in self.nodes.iter().filter(|n| n.member && n.up) {
+            stats.active_cameras += usize::from(n.mode == Mode::Active);
+            stats.camera_off += usize::from(n.mode == Mode::CameraOff);
+        }
+        let c = &mut self.counters;
+        c.steps += 1;
+        c.sum_active_cameras += stats.active_cameras as u64;
+        c.sum_rssi_nodes += stats.rssi_nodes as u64;
+        c.sum_power_mw += stats.power_mw;
+        self.last = stats;
+        if self.keep_history {
+            self.history.push(stats);
+        }
+    }
+
+    /// Apply one track's step: sums (or measurements), RSSI, update, training.
+    fn fuse_track(&mut self, t: usize, now: ClusterTime, stats: &mut StepStats, rssi_nodes: &mut [bool]) {
+        let uses_rssi = self.uses_rssi();
+        let method = &self.cfg.method;
+        let track = &mut self.tracks[t];
+        let mean_bar = *track.filter.mean();
+        // Centralized and ML: the head linearizes.
+        let dets = std::mem::take(&mut track.detections);
+        let mut ml_points = Vec::new();
+        for d in &dets {
+            let node = &self.nodes[d.slot].info;
+            let cam = &node.camera;
+            match method.fusion {
+                Fusion::CentralizedEif => {
+                    if let Some((o, x)) = camera_contribution(cam, &d.point, &d.cov, &mean_bar) {
+                        track.acc.add(&o, &x);
+                        track.aux_acc.add(&o, &x);
+                    }
+                    if method.previous_point
+                        && let Some(prev) = d.prev_point
+                        && let Some((h, jac)) = pinhole_previous(cam, &mean_bar, 1.0 / node.fps)
+                        && let Some((o, x)) = information_contribution(&prev, &h, &jac, &d.cov, &mean_bar)
+                    {
+                        track.acc.add(&o, &x);
+                        track.aux_acc.add(&o, &x);
+                    }
+                }
+                Fusion::Ml => {
+                    if let Some(p) = ml::lift(cam, &d.point, &d.cov, self.cfg.ml_depth) {
+                        ml_points.push(p);
+                    }
+                }
+                Fusion::DistributedEif => {}
+            }
+            if let Some(r) = d.rssi.filter(|_| node.rssi) {
+                track.hear(d.slot, r.dbm);
+            }
+            track.note(node.id, true, d.rssi.is_some() && node.rssi);
+        }
+        stats.applied += if method.fusion == Fusion::DistributedEif {
+            0
+        } else {
+            dets.len() as u64
+        };
+        // RSSI, linearized here with the node's current model.
+        if uses_rssi && method.fusion != Fusion::Ml {
+            for &(slot, dbm) in &track.rssi {
+                let node = &self.nodes[slot].info;
+                let model = track.trainers[slot].model();
+                if let Some((o, x)) = rssi_contribution(&model, &node.position, dbm, &mean_bar) {
+                    track.acc.add(&o, &x);
+                    rssi_nodes[slot] = true;
+                    track.last_seen = now;
+                }
+            }
+        }
+        if method.fusion == Fusion::Ml {
+            if let Some((p, c)) = ml::fuse(&ml_points) {
+                let dt_prev = track.ml_prev.map(|(_, t0)| now.secs_since(t0));
+                let mut mean = State::zeros();
+                mean.fixed_rows_mut::<3>(0).copy_from(&p);
+                let mut cov = Matrix6::identity() * crate::init::INIT_VELOCITY_SIGMA.powi(2);
+                cov.fixed_view_mut::<3, 3>(0, 0).copy_from(&c);
+                if let (Some((p0, _)), Some(dt)) = (track.ml_prev, dt_prev)
+                    && dt > 0.0
+                {
+                    mean.fixed_rows_mut::<3>(3).copy_from(&((p - p0) / dt));
+                    cov.fixed_view_mut::<3, 3>(3, 3)
+                        .copy_from(&(c * (2.0 / (dt * dt))));
+                }
+                match Eif::from_gaussian(mean, cov) {
+                    Ok(f) => {
+                        track.filter = f;
+                        track.ml_prev = Some((p, now));
+                    }
+                    Err(_) => self.counters.numeric_failures += 1,
+                }
+            } else {
+                stats.prediction_only += 1;
+            }
+        } else {
+            if track.acc.count == 0 {
+                stats.prediction_only += 1;
+            }
+            if let Err(e) = track.filter.update(&track.acc) {
+                self.counters.numeric_failures += 1;
+                warn!(target = %track.local, error = %e, "update failed; prediction only");
+            }
+        }
+        let trained_from_cameras = track.aux_acc.count > 0;
+        if track.aux.update(&track.aux_acc).is_err() {
+            self.counters.numeric_failures += 1;
+        }
+        // Algorithm 1: pairs (distance from the camera-only filter, RSSI).
+        if trained_from_cameras {
+            let aux_pos: Vector3<f64> = track.aux.mean().fixed_rows::<3>(0).into_owned();
+            let aux_cov = track.aux.cov().fixed_view::<3, 3>(0, 0).into_owned();
+            for &(slot, dbm) in &track.rssi {
+                let diff = aux_pos - self.nodes[slot].info.position;
+                let d = diff.norm();
+                if d > 1e-6 {
+                    let u = diff / d;
+                    track.trainers[slot].push(d, dbm, u.dot(&(aux_cov * u)));
+                }
+            }
+        }
+        track.detections = dets;
+        track.detections.clear();
+    }
+
+    fn birth(&mut self, free: &[Detection], now: ClusterTime) {
+        if free.is_empty() {
+            return;
+        }
+        let found = births(
+            free,
+            &self.cameras,
+            self.cfg.method.gate_chi2,
+            self.cfg.birth_min_cameras,
+            self.cfg.target_plane_z,
+            self.cfg.bounds,
+        );
+        for b in found {
+            let local = self.alloc_local();
+            match self.new_track(local, None, b.mean, b.cov, now) {
+                Ok(t) => {
+                    info!(target = %local, cameras = b.members.len(), x = b.mean[0], y = b.mean[1], z = b.mean[2], "new track");
+                    self.counters.births += 1;
+                    self.tracks.push(t);
+                }
+                Err(e) => {
+                    self.counters.numeric_failures += 1;
+                    warn!(error = %e, "birth with an unusable covariance");
+                }
+            }
+        }
+    }
+
+    /// The cluster's power with the current modes (nodes down draw nothing we can count).
+    pub fn power_mw(&self) -> f64 {
+        self.nodes
+            .iter()
+            .filter(|n| n.member && n.up)
+            .map(|n| n.info.power.in_mode(n.mode))
+            .sum()
+    }
+
+    /// Two tracks on one target (a track born next to another, or two converging on the same
+    /// detections, which cameras may gate to both priors) would be updated together forever.
+    /// When their states (position and velocity) agree within the gate (Mahalanobis with the
+    /// summed covariances), keep the one with a global id, else the older, and drop the other.
+    fn merge_duplicates(&mut self) {
+        let gate = self.cfg.method.gate_chi2;
+        let mut i = 0;
+        'outer: while i < self.tracks.len() {
+            let mut j = i + 1;
+            while j < self.tracks.len() {
+                let (a, b) = (&self.tracks[i], &self.tracks[j]);
+                // Position and velocity: two targets crossing are near but move apart.
+                let d = a.filter.mean() - b.filter.mean();
+                let s = a.filter.cov() + b.filter.cov();
+                if s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate) {
+                    // Prefer the track the server knows, then the older (lower index).
+                    let gone = if b.global.is_some() && a.global.is_none() {
+                        i
+                    } else {
+                        j
+                    };
+                    let kept = if gone == i { j } else { i };
+                    info!(kept = %self.tracks[kept].local, dropped = %self.tracks[gone].local, "duplicate tracks merged");
+                    self.counters.merges += 1;
+                    self.tracks.remove(gone);
+                    if gone == i {
+                        continue 'outer;
+                    }
+                } else {
+                    j += 1;
+                }
+            }
+            i += 1;
+        }
+    }
+
+    pub(super) fn command(&mut self, slot: usize, mode: Mode, out: &mut Vec<Outgoing>) {
+        let id = self.nodes[slot].info.id;
+        self.nodes[slot].mode = mode;
+        self.counters.commands += 1;
+        out.push(Outgoing::new(id, Message::Command(Command { node: id, mode })));
+    }
+
+    /// Algorithm 2 (or all-on). Returns the greedy decision taken, if any.
+    fn activate(&mut self, out: &mut Vec<Outgoing>) -> Option<crate::activation::Decision> {
+        let variant = match self.cfg.method.activation {
+            Activation::AllOn => None,
+            Activation::CameraEntropy => Some(Variant::CameraOnly),
+            Activation::FullNode => Some(Variant::FullNode),
+            Activation::ThreeMode => Some(Variant::ThreeMode),
+        };
+        // All on, or no track to look for: wake every member (search).
+        if variant.is_none() || self.tracks.is_empty() {
+            for s in 0..self.nodes.len() {
+                let n = &self.nodes[s];
+                if n.member && n.up && n.mode != Mode::Active {
+                    self.command(s, Mode::Active, out);
+                }
+            }
+            return None;
+        }
+        let variant = variant?;
+        let dt = self.cfg.method.step_ms as f64 * 1e-3;
+        let motion = self.cfg.method.motion;
+        let mut predicted: Vec<Info> = Vec::with_capacity(self.tracks.len());
+        let mut means: Vec<State> = Vec::with_capacity(self.tracks.len());
+        for t in &self.tracks {
+            let p = t.filter.predicted(&motion, dt).ok()?;
+            predicted.push(*p.omega());
+            means.push(*p.mean());
+        }
+        let slots: Vec<usize> = (0..self.nodes.len())
+            .filter(|&s| self.nodes[s].member && self.nodes[s].up)
+            .collect();
+        let candidates: Vec<Candidate> = slots
+            .iter()
+            .map(|&s| Candidate {
+                node: self.nodes[s].info.id,
+                mode: self.nodes[s].mode,
+                power: self.nodes[s].info.power,
+                cost_factor: self.nodes[s].info.cost_factor,
+            })
+            .collect();
+        let sigma = self.cfg.method.pixel_sigma;
+        let (nodes, tracks) = (&self.nodes, &self.tracks);
+        let decision = self.planner.decide(
+            variant,
+            self.cfg.method.energy_weight,
+            &candidates,
+            &predicted,
+            |n, t| {
+                let node = &nodes[slots[n]].info;
+                let model = tracks[t].trainers[slots[n]].model();
+                let heard = node.rssi && tracks[t].rssi_heard[slots[n]];
+                let rssi = heard.then_some((&model, &node.position));
+                Expected::at(Some(&node.camera), sigma, rssi, &means[t])
+            },
+        )?;
+        let slot = self.slots[&decision.node];
+        info!(node = %decision.node, from = ?decision.from, to = ?decision.to, reward = decision.reward, cost = decision.cost, "activation");
+        self.command(slot, decision.to, out);
+        Some(decision)
+    }
+}

@@ -1,0 +1,186 @@
+//! The head process on the in-process transport: it tracks, and keeps stepping and counting
+//! when its cameras and then the server vanish.
+
+use crate::sim::{ONE_TARGET, ring_scenario};
+use nalgebra::{Matrix6, Vector3};
+use node_head::HeadConfig;
+use node_head::process::{Clock, run_on};
+use proto::models::{State, camera_contribution, mat6_to_wire, vec6_to_wire};
+use proto::msg::{Contribution, Handover, Message, Mode, TrackReport};
+use proto::node::Outgoing;
+use proto::transport::{Event, InProcessHub, Inbox, TransportConfig, open};
+use proto::{NodeId, Role, TargetId};
+use std::sync::Arc;
+use std::time::Duration;
+use tokio_util::sync::CancellationToken;
+
+const WAIT: Duration = Duration::from_secs(20);
+
+fn inproc(hub: &InProcessHub, id: u32, role: Role) -> TransportConfig {
+    TransportConfig::InProcess {
+        hub: hub.clone(),
+        me: NodeId(id),
+        role,
+        queue_len: 4096,
+    }
+}
+
+async fn next_report(inbox: &mut Inbox) -> TrackReport {
+    loop {
+        let ev = tokio::time::timeout(WAIT, inbox.recv())
+            .await
+            .expect("no report in time");
+        if let Some(Event::Message(m)) = ev
+            && let Message::TrackReport(r) = m.env.body
+        {
+            return r;
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn head_process_tracks_and_survives_cameras_and_server_vanishing() {
+    let mut scenario = ring_scenario(4, "distributed-eif", "all-on", 0.0, ONE_TARGET);
+    scenario.method.step_ms = 50;
+    scenario.method.deadline_ms = 25;
+    scenario.method.track_timeout_ms = 60_000;
+    let cfg = HeadConfig::from_scenario(&scenario, 2).unwrap();
+    let cams: Vec<_> = cfg.nodes.iter().map(|n| (n.id, n.camera)).collect();
+    let hub = InProcessHub::new();
+    let token = CancellationToken::new();
+    let clock = Arc::new(Clock::default());
+    // `transport::open`'s future is not `Send`: the head gets its own thread and runtime, as
+    // in the `ocelli head` process.
+    let head = {
+        let (hub, clock, token) = (hub.clone(), clock.clone(), token.clone());
+        std::thread::spawn(move || {
+            let rt = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .unwrap();
+            rt.block_on(run_on(cfg, inproc(&hub, 2, Role::Head), clock, token))
+        })
+    };
+    let (server, mut server_in, _, server_handle) = open(inproc(&hub, 1, Role::Server)).await.unwrap();
+    // Wait for the head to be on the hub.
+    loop {
+        match tokio::time::timeout(WAIT, server_in.recv())
+            .await
+            .expect("head never came up")
+        {
+            Some(Event::PeerUp(NodeId(2))) => break,
+            Some(_) => {}
+            None => panic!("server inbox closed"),
+        }
+    }
+    // Cameras answer every prior with an exact, static target.
+    let truth = Vector3::new(4.0, 4.0, 0.2);
+    let mut cam_handles = Vec::new();
+    for (id, model) in cams {
+        let (ep, mut inbox, _, handle) = open(inproc(&hub, id.0, Role::Camera)).await.unwrap();
+        let clock = clock.clone();
+        tokio::spawn(async move {
+            while let Some(ev) = inbox.recv().await {
+                let Event::Message(m) = ev else { continue };
+                let Message::Prior(p) = m.env.body else { continue };
+                let mean = proto::models::vec6_from_wire(&p.mean);
+                let point = model.normalized(&truth).0;
+                let cov = model.normalized_covariance(&point, 2.0);
+                let (o, x) = camera_contribution(&model, &point, &cov, &mean).unwrap();
+                let c = Contribution {
+                    target: p.target,
+                    step: p.step,
+                    info_matrix: mat6_to_wire(&o),
+                    info_vector: vec6_to_wire(&x),
+                    camera: true,
+                    captured: clock.now(),
+                    mode: Mode::Active,
+                    rssi: None,
+                };
+                if ep
+                    .send(Outgoing::new(m.from, Message::Contribution(c)), clock.now())
+                    .await
+                    .is_err()
+                {
+                    break;
+                }
+            }
+        });
+        cam_handles.push(handle);
+    }
+    let start = State::new(4.3, 3.8, 0.2, 0.0, 0.0, 0.0);
+    let handover = Handover {
+        global: TargetId(5),
+        to_head: NodeId(2),
+        from_head: None,
+        time: clock.now(),
+        mean: vec6_to_wire(&start),
+        cov: mat6_to_wire(&(Matrix6::identity() * 0.25)),
+    };
+    server
+        .send(Outgoing::new(NodeId(2), Message::Handover(handover)), clock.now())
+        .await
+        .unwrap();
+    // Tracking: reports converge on the target.
+    let mut last = next_report(&mut server_in).await;
+    for _ in 0..15 {
+        last = next_report(&mut server_in).await;
+    }
+    assert_eq!(last.global, Some(TargetId(5)));
+    let err = (Vector3::new(last.mean[0], last.mean[1], last.mean[2]) - truth).norm();
+    assert!(err < 0.05, "error {err}");
+    assert!(!last.contributors.is_empty());
+    // The cameras vanish: the head keeps reporting, prediction only, uncertainty growing.
+    for h in cam_handles {
+        h.shutdown().await;
+    }
+    let mut r = next_report(&mut server_in).await;
+    while !r.contributors.is_empty() {
+        r = next_report(&mut server_in).await;
+    }
+    let mut trace = r.cov[0][0] + r.cov[1][1];
+    for _ in 0..5 {
+        let r = next_report(&mut server_in).await;
+        assert!(r.contributors.is_empty());
+        let t = r.cov[0][0] + r.cov[1][1];
+        assert!(t > trace, "uncertainty did not grow");
+        trace = t;
+    }
+    // The server vanishes too; a camera coming back still gets priors: the head steps on.
+    server_handle.shutdown().await;
+    drop(server);
+    let (_ep, mut cam_in, _, cam_handle) = open(inproc(&hub, 10, Role::Camera)).await.unwrap();
+    let priors = tokio::time::timeout(WAIT, async {
+        let mut n = 0;
+        while let Some(ev) = cam_in.recv().await {
+            if let Event::Message(m) = ev
+                && matches!(m.env.body, Message::Prior(_))
+            {
+                n += 1;
+                if n == 3 {
+                    break;
+                }
+            }
+        }
+        n
+    })
+    .await
+    .expect("no priors after the server left");
+    assert_eq!(priors, 3);
+    token.cancel();
+    let joined = tokio::task::spawn_blocking(move || head.join());
+    let summary = tokio::time::timeout(WAIT, joined)
+        .await
+        .expect("head did not stop")
+        .unwrap()
+        .unwrap()
+        .unwrap();
+    cam_handle.shutdown().await;
+    assert!(summary.counters.steps > 20);
+    assert!(summary.counters.applied > 0);
+    assert!(summary.peers_down >= 4, "{summary:?}");
+    assert!(
+        summary.send_failures > 0,
+        "reports to the vanished server should fail: {summary:?}"
+    );
+}
