@@ -23,6 +23,8 @@ pub struct Cli {
 pub enum Command {
     /// Print or check scenarios.
     Scenario(cmd::scenario::Args),
+    /// Run the server: membership, handover, global ids, time leader, recording.
+    Server(cmd::server::Args),
     /// Run one camera node (until SIGINT/SIGTERM).
     Camera(cmd::camera::Args),
     /// Undistort CSV rows (OpenCV test-vector format) from stdin: one `x,y` line per row.
@@ -53,6 +55,8 @@ pub enum Bench {
     Head(cmd::bench_head::Args),
     /// Camera node: segmentation + undistortion + contribution per frame.
     Camera(cmd::bench_camera::Args),
+    /// Server core (track reports, ticks), recording appends and restore.
+    Server(cmd::bench_server::Args),
     /// One-way latency over iceoryx2 and TCP, encode/decode cost per message kind.
     Transport(cmd::bench_transport::Args),
 }
@@ -76,6 +80,7 @@ pub fn main() -> ExitCode {
     init_tracing(cli.log_json);
     let result = match cli.command {
         Command::Scenario(args) => cmd::scenario::run(args),
+        Command::Server(args) => cmd::server::run(args),
         Command::Camera(args) => cmd::camera::run_cmd(args),
         Command::Undistort(args) => cmd::undistort::run(args),
         Command::Report(args) => cmd::report::run(args),
@@ -85,6 +90,7 @@ pub fn main() -> ExitCode {
         Command::Head(args) => cmd::head::run(args),
         Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
         Command::Bench(Bench::Camera(args)) => cmd::bench_camera::run(args),
+        Command::Bench(Bench::Server(args)) => cmd::bench_server::run(args),
         Command::Bench(Bench::Transport(args)) => cmd::bench_transport::run(args),
         Command::Peer(args) => cmd::peer::run(args),
     };

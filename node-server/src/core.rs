@@ -14,7 +14,10 @@
 //! Handover messages: a [`Handover`] with `to_head` = the new head is sent to the new head (start
 //! from this posterior) *and* to the old head if it is up (stop tracking it; its later reports of
 //! that target are treated as a second opinion and merged or split like any other). Assignments
-//! are likewise sent to the camera, its new head and its previous head.
+//! are likewise sent to the camera, its new head and its previous head. When a head's track
+//! gets a global id (new or merged) and its report carried none, the head is told with a
+//! *naming* handover: `to_head` = that head, `from_head` = `None`, the report's own posterior —
+//! the head adopts the id for the matching track.
 
 use crate::decision::Decision;
 use crate::membership::Membership;
@@ -141,6 +144,11 @@ impl ServerNode {
         &self.status
     }
 
+    /// Each node's visible sync error (the residual it last reported), ns.
+    pub fn sync_errors(&self) -> Vec<(NodeId, i64)> {
+        self.status.iter().map(|(n, s)| (*n, s.sync_error_ns)).collect()
+    }
+
     /// Records made since the last call, in order.
     pub fn take_records(&mut self) -> Vec<Stamped> {
         std::mem::take(&mut self.journal)
@@ -231,6 +239,24 @@ impl ServerNode {
                     self.decide(now, d, &mut out);
                 }
                 for d in self.tracks.observe(now, src, &r, &self.members) {
+                    // Tell a head the global id of its track (it adopts it, so that a later
+                    // handover away from it names a track it knows). Not after a split: the
+                    // head already labels that track with the old id.
+                    if let Decision::NewGlobal { global, .. } | Decision::Merged { global, .. } = d
+                        && r.global.is_none()
+                    {
+                        out.push(Outgoing::new(
+                            src,
+                            Message::Handover(Handover {
+                                global,
+                                to_head: src,
+                                from_head: None,
+                                time: r.time,
+                                mean: r.mean,
+                                cov: r.cov,
+                            }),
+                        ));
+                    }
                     self.decide(now, d, &mut out);
                 }
                 return out;

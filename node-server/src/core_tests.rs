@@ -163,8 +163,16 @@ fn a_silent_camera_is_reported_down_to_its_head_and_readmitted() {
 #[test]
 fn first_report_gets_a_global_id() {
     let mut s = started();
-    s.on_message(ms(100), report(H2, 5, None, ms(100), 2.0, 2.0));
+    let out = s.on_message(ms(100), report(H2, 5, None, ms(100), 2.0, 2.0));
     let g = s.global_of(H2, TargetId(5)).unwrap();
+    // The head is told the id by a naming handover to itself.
+    let named = handovers(&out);
+    assert_eq!(named.len(), 1);
+    assert_eq!(
+        (named[0].0, named[0].1.to_head, named[0].1.from_head),
+        (H2, H2, None)
+    );
+    assert_eq!(named[0].1.global, g);
     assert_eq!(
         decisions(&mut s),
         vec![Decision::NewGlobal {
@@ -175,6 +183,10 @@ fn first_report_gets_a_global_id() {
     );
     let (_, gt) = s.globals().next().unwrap();
     assert_eq!(gt.owner, H2);
+    // A report that already carries an (unknown) id gets a new one but is not named again.
+    let out = s.on_message(ms(300), report(H2, 6, Some(77), ms(300), 2.0, 6.0));
+    assert!(handovers(&out).is_empty());
+    assert!(s.global_of(H2, TargetId(6)).is_some_and(|x| x != g));
 }
 
 #[test]
@@ -185,7 +197,10 @@ fn leaving_a_region_hands_the_track_over_with_the_last_posterior() {
     let out = s.on_message(ms(200), report(H2, 5, None, ms(200), 6.2, 4.0));
     assert!(handovers(&out).is_empty());
     let out = s.on_message(ms(400), report(H2, 5, None, ms(400), 6.4, 4.1));
-    let h = handovers(&out);
+    let h: Vec<_> = handovers(&out)
+        .into_iter()
+        .filter(|(_, m)| m.from_head.is_some())
+        .collect();
     assert_eq!(h.len(), 2, "sent to the new and the old head: {out:?}");
     assert!(h.iter().any(|(to, _)| *to == H3) && h.iter().any(|(to, _)| *to == H2));
     let g = s.global_of(H2, TargetId(5)).unwrap();
@@ -315,7 +330,8 @@ fn a_crossing_target_keeps_one_global_id() {
     let mut s = started();
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let mut owner = H2;
-    let mut carried: Option<u32> = None;
+    // The global id each simulated head labels its track with (learned from handovers).
+    let mut label: std::collections::BTreeMap<NodeId, u32> = Default::default();
     let mut ids = std::collections::BTreeSet::new();
     let mut handed = 0;
     for k in 0..50i64 {
@@ -329,12 +345,17 @@ fn a_crossing_target_keeps_one_global_id() {
                 continue;
             }
             let local = if head == H2 { 5 } else { 9 };
-            let global = if head == owner { carried } else { None };
+            let global = label.get(&head).copied();
             let out = s.on_message(t, report(head, local, global, t, x + noise(&mut rng), 4.0));
             for (to, h) in handovers(&out) {
                 if to == h.to_head {
+                    label.insert(to, h.global.0);
+                }
+                if let Some(from) = h.from_head
+                    && to == h.to_head
+                    && from != to
+                {
                     owner = to;
-                    carried = Some(h.global.0);
                     handed += 1;
                 }
             }
@@ -395,6 +416,7 @@ fn restore_rebuilds_the_same_state_and_reproduces_decisions() {
     let mb: Vec<_> = r.membership().members().map(|(i, m)| (i, m.clone())).collect();
     assert_eq!(ma, mb);
     assert_eq!(s.statuses(), r.statuses());
+    assert_eq!(r.sync_errors(), vec![(CAM, 1000)]);
 }
 
 #[test]
@@ -437,4 +459,108 @@ fn a_closed_link_marks_a_head_down_at_once_and_replays() {
     let (r, stats) = ServerNode::restore(cfg, &records);
     assert_eq!(stats.decisions_mismatched, 0);
     assert_eq!(r.globals().next().unwrap().1.owner, H3);
+}
+
+#[test]
+fn a_head_restarting_its_track_of_a_target_keeps_the_global_id() {
+    let mut s = started();
+    // The target moves at 1 m/s in x (the reports' velocity).
+    let x = |k: i64| 1.0 + 0.2 * k as f64;
+    for k in 0..5i64 {
+        s.on_message(ms(k * 200), report(H2, 5, None, ms(k * 200), x(k), 4.0));
+    }
+    let g = s.global_of(H2, TargetId(5)).unwrap();
+    // Track 5 falls silent; a second later the head starts track 6 at the same place.
+    for k in 10..14i64 {
+        s.on_message(ms(k * 200), report(H2, 6, None, ms(k * 200), x(k) + 0.05, 4.0));
+    }
+    assert_eq!(s.global_of(H2, TargetId(6)), Some(g));
+    assert_eq!(s.globals().count(), 1);
+    // While track 5 is still live, a second track of the same head is a different target.
+    s.on_message(ms(2800), report(H2, 7, None, ms(2800), x(14), 4.0));
+    assert_ne!(s.global_of(H2, TargetId(7)), Some(g));
+}
+
+#[test]
+fn a_track_that_leaves_its_global_for_another_joins_that_one() {
+    let mut s = started();
+    // Head 2 tracks two targets, 3 m apart and still (velocity 1 m/s in the reports is matched
+    // by moving them along x).
+    let x = |k: i64| 1.0 + 0.2 * k as f64;
+    let mut g = Vec::new();
+    for k in 0..4i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H2, 1, None, t, x(k), 2.0));
+        s.on_message(t, report(H2, 2, None, t, x(k), 5.0));
+        // Head 3 sees the first one.
+        s.on_message(t, report(H3, 9, None, t, x(k) + 0.1, 2.0));
+    }
+    g.push(s.global_of(H2, TargetId(1)).unwrap());
+    g.push(s.global_of(H2, TargetId(2)).unwrap());
+    assert_eq!(s.global_of(H3, TargetId(9)), Some(g[0]));
+    // Head 3's track jumps onto the second target (an association swap in its cameras).
+    for k in 4..8i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H2, 1, None, t, x(k), 2.0));
+        s.on_message(t, report(H2, 2, None, t, x(k), 5.0));
+        s.on_message(t, report(H3, 9, None, t, x(k) + 0.1, 5.0));
+    }
+    assert_eq!(s.global_of(H3, TargetId(9)), Some(g[1]));
+    assert_eq!(s.globals().count(), 2, "no new id for a known target");
+}
+
+#[test]
+fn two_globals_that_stay_together_become_one() {
+    let mut s = started();
+    let x = |k: i64| 1.0 + 0.2 * k as f64;
+    // Head 2 starts a second track 1.5 m off (beyond the gate): a separate global at first…
+    s.on_message(ms(0), report(H2, 1, None, ms(0), x(0), 2.0));
+    s.on_message(ms(0), report(H2, 2, None, ms(0), x(0), 3.5));
+    let (a, b) = (
+        s.global_of(H2, TargetId(1)).unwrap(),
+        s.global_of(H2, TargetId(2)).unwrap(),
+    );
+    assert_ne!(a, b);
+    // …then both converge on the same target: after the hysteresis the younger is absorbed.
+    for k in 1..6i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H2, 1, None, t, x(k), 2.0));
+        s.on_message(t, report(H2, 2, None, t, x(k), 2.1));
+        if k < 3 {
+            assert_eq!(s.globals().count(), 2, "not before the hysteresis (step {k})");
+        }
+    }
+    assert_eq!(s.globals().count(), 1);
+    assert_eq!(s.global_of(H2, TargetId(2)), Some(a));
+    assert!(decisions(&mut s).contains(&Decision::Absorbed { global: b, into: a }));
+}
+
+#[test]
+fn a_track_started_in_another_clusters_area_is_not_pushed_onto_that_head() {
+    let mut s = started();
+    // Head 3's cameras see a target deep in head 2's area: head 3 keeps it.
+    let out = s.on_message(ms(0), report(H3, 9, None, ms(0), 3.0, 4.0));
+    assert!(handovers(&out).iter().all(|(_, h)| h.from_head.is_none()));
+    assert_eq!(s.globals().next().unwrap().1.owner, H3);
+}
+
+#[test]
+fn the_head_covering_a_target_it_already_tracks_takes_it_over() {
+    let mut s = started();
+    let x = |k: i64| 1.0 + 0.2 * k as f64;
+    // Head 3 started the track in head 2's area and keeps it; head 2's own track joins it.
+    s.on_message(ms(0), report(H3, 9, None, ms(0), x(0), 4.0));
+    let g = s.global_of(H3, TargetId(9)).unwrap();
+    for k in 1..5i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H3, 9, Some(g.0), t, x(k), 4.0));
+        s.on_message(t, report(H2, 1, None, t, x(k) + 0.1, 4.0));
+    }
+    assert_eq!(s.global_of(H2, TargetId(1)), Some(g));
+    assert_eq!(s.globals().next().unwrap().1.owner, H2);
+    assert!(decisions(&mut s).contains(&Decision::OwnerChanged {
+        global: g,
+        from: H3,
+        to: H2
+    }));
 }

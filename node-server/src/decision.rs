@@ -75,13 +75,16 @@ pub enum Decision {
         to: NodeId,
         reason: HandoverReason,
     },
-    /// The owner stopped reporting a global track that another head still reports; that head
-    /// owns it now (it already tracks it, so no handover message is sent).
+    /// The owner stopped reporting a global track that another head still reports, or that head
+    /// reports it inside its own region while it is outside the owner's; that head owns it now
+    /// (it already tracks it, so no handover message is sent).
     OwnerChanged {
         global: TargetId,
         from: NodeId,
         to: NodeId,
     },
+    /// Two global tracks stayed together: `global` is absorbed into the older `into`.
+    Absorbed { global: TargetId, into: TargetId },
     /// No head reported a global track for the track timeout; it is dropped.
     Lost { global: TargetId },
     /// A head's local track fell silent and its mapping was forgotten.

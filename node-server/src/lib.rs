@@ -12,10 +12,13 @@ mod core_tests;
 pub mod decision;
 pub mod export;
 pub mod membership;
+pub mod process;
 pub mod record;
 pub mod recording;
 pub mod replay;
 pub mod report;
+#[cfg(test)]
+mod report_tests;
 #[cfg(test)]
 pub(crate) mod testkit;
 pub mod tracks;

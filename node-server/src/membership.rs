@@ -3,12 +3,13 @@
 //! Nodes are admitted by the handshake (`Hello`) if the scenario declares them with that role;
 //! tools are admitted by handshake without being declared. Any accepted message counts as a
 //! sign of life. A node silent for `liveness_timeout_ms` is marked down on the next tick; a down
-//! node that speaks again is re-admitted. Cameras start on their scenario head; while that head
+//! node that speaks again is re-admitted. Cameras start on their scenario head (a camera with
+//! none goes to the head whose region covers the floor point it looks at); while that head
 //! is down they are moved to the live head whose region is nearest (paper 002's clusters keep
 //! tracking while a head is away), and they move back when it returns.
 
 use crate::decision::Decision;
-use proto::scenario::{NodeRole, Scenario};
+use proto::scenario::{NodeRole, PoseSpec, Scenario};
 use proto::{ClusterTime, NodeId, Role};
 use std::collections::BTreeMap;
 
@@ -55,6 +56,22 @@ pub fn inside_region(r: &[f64; 4], x: f64, y: f64, margin: f64) -> bool {
     x >= r[0] + margin && x <= r[2] - margin && y >= r[1] + margin && y <= r[3] - margin
 }
 
+/// Where a camera's optical axis meets the floor (z = 0); its position if it looks up or level.
+fn floor_point(pose: &PoseSpec) -> Option<(f64, f64)> {
+    if let PoseSpec::LookAt { look_at, .. } = pose {
+        return Some((look_at[0], look_at[1]));
+    }
+    let p = pose.to_pose()?;
+    let c = p.centre();
+    let axis = p.rotation.inverse() * nalgebra::Vector3::z();
+    if axis.z < -1e-9 && c.z > 0.0 {
+        let s = -c.z / axis.z;
+        Some((c.x + s * axis.x, c.y + s * axis.y))
+    } else {
+        Some((c.x, c.y))
+    }
+}
+
 fn centre(r: &[f64; 4]) -> (f64, f64) {
     (0.5 * (r[0] + r[2]), 0.5 * (r[1] + r[3]))
 }
@@ -72,10 +89,24 @@ impl Membership {
                 home.insert(c, head);
             }
         }
-        let regions = scenario
+        let regions: BTreeMap<NodeId, [f64; 4]> = scenario
             .heads()
             .filter_map(|h| h.region.map(|r| (NodeId(h.id), r)))
             .collect();
+        // A camera the scenario gives no head goes to the head whose region covers the floor
+        // point it looks at (nearest region if none covers it).
+        for c in scenario.cameras().filter(|c| c.head.is_none()) {
+            let Some((x, y)) = c.camera.as_ref().and_then(|cam| floor_point(cam.pose.as_ref()?)) else {
+                continue;
+            };
+            if let Some((h, _)) = regions
+                .iter()
+                .map(|(h, r)| (*h, distance_to_region(r, x, y)))
+                .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+            {
+                home.insert(NodeId(c.id), h);
+            }
+        }
         Membership {
             declared,
             assigned: home.clone(),
@@ -229,13 +260,16 @@ impl Membership {
         }
     }
 
-    /// Where each camera should report given which heads are up: its scenario head if up, else
-    /// the live head whose region is nearest to that head's region centre. Returns the changes.
+    /// Where each camera should report given which heads are up: its scenario head unless that
+    /// head went down, else the live head whose region is nearest to that head's region centre. Returns the changes.
     pub fn rebalance(&mut self) -> Vec<Decision> {
         let mut out = Vec::new();
         let homes: Vec<(NodeId, NodeId)> = self.home.iter().map(|(c, h)| (*c, *h)).collect();
         for (cam, home) in homes {
-            let want = if self.is_up(home) || self.live_heads().is_empty() {
+            // Only a head that was seen and went down loses its cameras; one not seen yet (at
+            // start-up) keeps them.
+            let down = self.members.get(&home).is_some_and(|m| !m.up);
+            let want = if !down || self.live_heads().is_empty() {
                 home
             } else {
                 let (x, y) = self.regions.get(&home).map_or((0.0, 0.0), centre);
@@ -304,6 +338,24 @@ mod tests {
         m.seen(ms(1600), NodeId(2));
         assert_eq!(m.rebalance().len(), mine.len());
         assert_eq!(m.cameras_of(NodeId(2)), mine);
+    }
+
+    #[test]
+    fn a_camera_without_a_head_joins_the_head_covering_what_it_sees() {
+        let mut s = crate::testkit::scenario();
+        let mut cam = s.node(11).unwrap().clone();
+        cam.id = 12;
+        cam.head = None;
+        // Looks straight down from (9, 4): head 3's region (the scenario default would be the
+        // first head, 2).
+        cam.camera.as_mut().unwrap().pose = Some(PoseSpec::Rodrigues {
+            rvec: [std::f64::consts::PI, 0.0, 0.0],
+            tvec: [-9.0, 4.0, 3.0],
+        });
+        s.nodes.push(cam);
+        let m = Membership::new(&s);
+        assert_eq!(m.head_of(NodeId(12)), Some(NodeId(3)));
+        assert_eq!(m.head_of(NodeId(10)), Some(NodeId(2)));
     }
 
     #[test]

@@ -320,6 +320,9 @@ impl Recorder {
             }
             other => other?,
         };
+        if back.name != scenario_name {
+            tracing::warn!(path = %path.display(), recorded = %back.name, now = %scenario_name, "resuming a recording made with another scenario");
+        }
         let mut file = OpenOptions::new().write(true).open(path).map_err(io(path))?;
         if back.tail.is_some() {
             tracing::warn!(path = %path.display(), tail = ?back.tail, "recording has a torn tail; truncating it");

@@ -5,7 +5,10 @@
 //! - **Error**: per owner track sample (see [`crate::export`]), the 3-D distance between the
 //!   estimated position and the true position of the target the global track is associated with
 //!   at the report's time (`t − t0`). A global track is associated with the true target it is
-//!   nearest to on average over its samples. Ground truth is only read here, never by a filter.
+//!   nearest to on average over its samples, if that mean distance is within
+//!   [`ASSOCIATION_GATE_M`]; otherwise it is a *false track* (clutter, a ghost), counted in
+//!   `false_tracks` / `false_track_samples` and not in the error. Ground truth is only read
+//!   here, never by a filter.
 //! - **Active cameras / RSSI nodes per step**: contributors with a camera measurement / with an
 //!   RSSI reading, per owner track report.
 //! - **Energy per node**: from the latest `NodeStatus.time_in_mode_ns` with the node's power
@@ -17,6 +20,7 @@
 //!   `rejected` = inputs the server refused.
 //! - **Sync error**: the `sync_error_ns` each node reports (its regression residual).
 
+use crate::core::{ServerConfig, ServerNode};
 use crate::decision::Decision;
 use crate::export::track_rows;
 use crate::record::Record;
@@ -26,6 +30,9 @@ use proto::{ClusterTime, Mode, NodeId};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
+
+/// A global track whose mean distance to every true target exceeds this is a false track, m.
+pub const ASSOCIATION_GATE_M: f64 = 2.0;
 
 /// Error statistics of one true target.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -78,6 +85,9 @@ pub struct Report {
     pub error_std_m: Option<f64>,
     pub rmse_m: Option<f64>,
     pub targets: Vec<TargetError>,
+    /// Global tracks associated with no true target, and their owner samples.
+    pub false_tracks: u64,
+    pub false_track_samples: u64,
     pub active_cameras_mean: f64,
     pub rssi_nodes_mean: f64,
     pub power_mw_mean: f64,
@@ -114,8 +124,14 @@ fn status_energy(s: &NodeStatus, power: &proto::scenario::PowerFigures) -> (f64,
     (energy_mj * 1e-3, secs)
 }
 
-/// Compute the report; `t0` is the cluster time at which the scenario's trajectories start.
+/// Compute the report with the default association gate; `t0` is the cluster time at which
+/// the scenario's trajectories start.
 pub fn compute(loaded: &Loaded, t0: ClusterTime) -> Report {
+    compute_with(loaded, t0, ASSOCIATION_GATE_M)
+}
+
+/// Compute the report with an association gate (m).
+pub fn compute_with(loaded: &Loaded, t0: ClusterTime, gate_m: f64) -> Report {
     let sc = &loaded.scenario;
     let rows: Vec<_> = track_rows(loaded).into_iter().filter(|r| r.owner).collect();
     let truth = !sc.targets.is_empty();
@@ -132,6 +148,7 @@ pub fn compute(loaded: &Loaded, t0: ClusterTime) -> Report {
         by_global.entry(r.global).or_default().push(r);
     }
     let mut per_target: BTreeMap<usize, (Vec<f64>, Vec<u32>)> = BTreeMap::new();
+    let (mut false_tracks, mut false_samples) = (0u64, 0u64);
     if truth {
         for (g, rs) in &by_global {
             let best = (0..sc.targets.len())
@@ -140,7 +157,12 @@ pub fn compute(loaded: &Loaded, t0: ClusterTime) -> Report {
                     (k, d / rs.len() as f64)
                 })
                 .min_by(|a, b| a.1.total_cmp(&b.1));
-            if let Some((k, _)) = best {
+            if let Some((k, mean_d)) = best {
+                if mean_d > gate_m {
+                    false_tracks += 1;
+                    false_samples += rs.len() as u64;
+                    continue;
+                }
                 let e = per_target.entry(k).or_default();
                 e.0.extend(rs.iter().map(|r| d3(true_pos(k, r.t), r)));
                 e.1.push(*g);
@@ -197,13 +219,24 @@ pub fn compute(loaded: &Loaded, t0: ClusterTime) -> Report {
                 }
             }
             Record::Sent { .. } => msgs.sent += 1,
-            Record::Decision(d) => match d {
-                Decision::Rejected { .. } | Decision::Refused { .. } => msgs.rejected += 1,
-                Decision::Handover { .. } => handovers += 1,
-                Decision::NewGlobal { .. } | Decision::Split { .. } => globals += 1,
-                _ => {}
-            },
             _ => {}
+        }
+    }
+    // Decisions as this build's server makes them from the recorded inputs (the same replay
+    // the track rows come from; for a recording made by this build they equal the recorded
+    // ones).
+    let mut node = ServerNode::new(ServerConfig::from_scenario(sc.clone(), loaded.server_id()));
+    for s in &loaded.records {
+        node.feed(s);
+        for r in node.take_records() {
+            if let Record::Decision(d) = r.record {
+                match d {
+                    Decision::Rejected { .. } | Decision::Refused { .. } => msgs.rejected += 1,
+                    Decision::Handover { .. } => handovers += 1,
+                    Decision::NewGlobal { .. } | Decision::Split { .. } => globals += 1,
+                    _ => {}
+                }
+            }
         }
     }
     for r in &rows {
@@ -238,7 +271,8 @@ pub fn compute(loaded: &Loaded, t0: ClusterTime) -> Report {
             });
         }
     }
-    let power_mw_mean = energy.iter().map(|e| e.mean_power_mw).sum();
+    // (An empty f64 sum is −0.0; add +0.0 so an idle run prints 0.)
+    let power_mw_mean = energy.iter().map(|e| e.mean_power_mw).sum::<f64>() + 0.0;
 
     let sync: Vec<NodeSync> = status
         .iter()
@@ -264,6 +298,8 @@ pub fn compute(loaded: &Loaded, t0: ClusterTime) -> Report {
         error_std_m: (!all.is_empty()).then_some(std),
         rmse_m: (!all.is_empty()).then_some(rmse),
         targets,
+        false_tracks,
+        false_track_samples: false_samples,
         active_cameras_mean: per_step(cams),
         rssi_nodes_mean: per_step(rssi),
         power_mw_mean,
@@ -293,6 +329,13 @@ impl Report {
         let _ = writeln!(s, "mean error      {}", opt(self.mean_error_m, "m"));
         let _ = writeln!(s, "error std       {}", opt(self.error_std_m, "m"));
         let _ = writeln!(s, "rmse            {}", opt(self.rmse_m, "m"));
+        if self.truth {
+            let _ = writeln!(
+                s,
+                "false tracks    {} ({} samples)",
+                self.false_tracks, self.false_track_samples
+            );
+        }
         let _ = writeln!(s, "active cameras  {:.2} per step", self.active_cameras_mean);
         let _ = writeln!(s, "rssi nodes      {:.2} per step", self.rssi_nodes_mean);
         let _ = writeln!(s, "power           {:.0} mW (mean total)", self.power_mw_mean);
@@ -342,217 +385,5 @@ impl Report {
             }
         }
         s
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::core::{ServerConfig, ServerNode};
-    use crate::export::{Format, write_rows};
-    use crate::record::Stamped;
-    use crate::recording::Recorder;
-    use crate::replay::load;
-    use proto::msg::{Contributor, Hello, TrackReport};
-    use proto::{Envelope, PROTOCOL_VERSION, Role, TargetId};
-    use std::path::PathBuf;
-
-    /// Record a 10 s run of the test scenario: the owning head reports the truth shifted 0.1 m
-    /// in x with two camera and one RSSI-only contributor; heads follow handovers.
-    fn record_run(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("ocelli-report-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("run.ocelli");
-        let sc = crate::testkit::scenario();
-        let mut rec = Recorder::create(&path, &sc.name).unwrap();
-        rec.append(&Stamped::new(ClusterTime::ZERO, Record::Scenario(sc.to_toml())))
-            .unwrap();
-        let mut server = ServerNode::new(ServerConfig::from_scenario(sc.clone(), NodeId(1)));
-        let mut seq: BTreeMap<NodeId, u64> = BTreeMap::new();
-        let mut send = |server: &mut ServerNode,
-                        rec: &mut Recorder,
-                        t: ClusterTime,
-                        src: NodeId,
-                        body: Message,
-                        skip: u64| {
-            let s = seq.entry(src).or_insert(0);
-            *s += skip;
-            let env = Envelope {
-                source: src,
-                seq: *s,
-                time: t,
-                body,
-            };
-            *s += 1;
-            let out = server.on_message(t, env);
-            for r in server.take_records() {
-                rec.append(&r).unwrap();
-            }
-            for (i, o) in out.iter().enumerate() {
-                let env = Envelope {
-                    source: NodeId(1),
-                    seq: i as u64,
-                    time: t,
-                    body: o.body.clone(),
-                };
-                rec.append(&Stamped::new(t, Record::Sent { to: o.to, env }))
-                    .unwrap();
-            }
-            out
-        };
-        for (n, role) in [(2, Role::Head), (3, Role::Head), (10, Role::Camera)] {
-            let hello = Message::Hello(Hello {
-                version: PROTOCOL_VERSION,
-                role,
-                node: NodeId(n),
-            });
-            send(&mut server, &mut rec, ClusterTime::ZERO, NodeId(n), hello, 0);
-        }
-        let mut owner = NodeId(2);
-        let mut carried = None;
-        for k in 0..50i64 {
-            let t = ClusterTime::from_millis(k * 200);
-            let truth = sc.targets[0].truth_at(t.as_secs_f64());
-            let mut cov = [[0.0; 6]; 6];
-            for (i, row) in cov.iter_mut().enumerate() {
-                row[i] = 0.01;
-            }
-            let c = |n, camera| Contributor {
-                node: NodeId(n),
-                camera,
-                rssi: true,
-            };
-            let r = TrackReport {
-                target: TargetId(if owner == NodeId(2) { 5 } else { 9 }),
-                global: carried,
-                step: k as u64,
-                time: t,
-                mean: [truth[0] + 0.1, truth[1], truth[2], truth[3], truth[4], truth[5]],
-                cov,
-                contributors: vec![c(10, true), c(11, true), c(12, false)],
-                power_mw: 1500.0,
-                late: k as u64 / 10,
-            };
-            let out = send(&mut server, &mut rec, t, owner, Message::TrackReport(r), 0);
-            for o in out {
-                if let Message::Handover(h) = o.body
-                    && o.to == h.to_head
-                {
-                    owner = h.to_head;
-                    carried = Some(h.global);
-                }
-            }
-            let hb = Message::Heartbeat;
-            send(&mut server, &mut rec, t, NodeId(2), hb.clone(), 0);
-            send(&mut server, &mut rec, t, NodeId(3), hb, 0);
-            server.tick(t);
-            for r in server.take_records() {
-                rec.append(&r).unwrap();
-            }
-        }
-        let status = NodeStatus {
-            mode: Mode::Active,
-            time_in_mode_ns: [8_000_000_000, 2_000_000_000, 0],
-            frames: 50,
-            detections: 50,
-            dropped: 1,
-            rejected: 0,
-            sync_offset_ns: 5_000,
-            sync_error_ns: 2_000_000,
-        };
-        // Two camera frames were lost on the way: a sequence gap of 2.
-        send(
-            &mut server,
-            &mut rec,
-            ClusterTime::from_millis(10_000),
-            NodeId(10),
-            Message::NodeStatus(status),
-            2,
-        );
-        path
-    }
-
-    #[test]
-    fn report_from_a_recorded_run() {
-        let path = record_run("report");
-        let loaded = load(&path, None).unwrap();
-        let r = compute(&loaded, ClusterTime::ZERO);
-        assert!(r.truth);
-        assert_eq!(r.steps, 50);
-        assert!(
-            (r.mean_error_m.unwrap() - 0.1).abs() < 1e-9,
-            "{:?}",
-            r.mean_error_m
-        );
-        assert!(r.error_std_m.unwrap() < 1e-9);
-        assert_eq!(r.targets.len(), 1);
-        assert_eq!(r.targets[0].globals.len(), 1, "one global id for the target");
-        assert_eq!(r.handovers, 1);
-        assert!((r.active_cameras_mean - 2.0).abs() < 1e-12);
-        assert!((r.rssi_nodes_mean - 3.0).abs() < 1e-12);
-        // 8 s Active (650 + 69 mW) + 2 s CameraOff (69 mW) = 5.89 J over 10 s.
-        assert_eq!(r.energy.len(), 1);
-        assert!((r.energy[0].energy_j - 5.89).abs() < 1e-9);
-        assert!((r.power_mw_mean - 589.0).abs() < 1e-9);
-        assert_eq!(r.messages.dropped, 3);
-        // Cumulative per head: head 2 last said 2 (handover at step 21), head 3 says 4.
-        assert_eq!(r.messages.late, 6);
-        assert!(r.messages.sent > 150);
-        assert_eq!(r.sync_error_ms_max, Some(2.0));
-        let json = serde_json::to_value(&r).unwrap();
-        for key in [
-            "mean_error_m",
-            "error_std_m",
-            "active_cameras_mean",
-            "rssi_nodes_mean",
-            "power_mw_mean",
-        ] {
-            assert!(json[key].is_number(), "{key}");
-        }
-        for key in ["sent", "dropped", "late"] {
-            assert!(json["messages"][key].is_number(), "messages.{key}");
-        }
-        assert!(r.to_table().contains("mean error      0.100 m"));
-    }
-
-    #[test]
-    fn without_truth_errors_are_absent_and_power_falls_back_to_reports() {
-        let path = record_run("notruth");
-        let mut sc = crate::testkit::scenario();
-        sc.targets.clear();
-        let mut loaded = load(&path, Some(sc)).unwrap();
-        loaded.records.retain(
-            |s| !matches!(&s.record, Record::Received(e) if matches!(e.body, Message::NodeStatus(_))),
-        );
-        let r = compute(&loaded, ClusterTime::ZERO);
-        assert!(!r.truth);
-        assert_eq!(r.mean_error_m, None);
-        assert!(r.energy.iter().all(|e| e.source == "track_report"));
-        assert!((r.power_mw_mean - 3000.0).abs() < 1e-9, "two heads at 1500 mW");
-    }
-
-    #[test]
-    fn export_writes_csv_and_json_lines() {
-        let path = record_run("export");
-        let loaded = load(&path, None).unwrap();
-        let rows = crate::export::track_rows(&loaded);
-        assert_eq!(rows.len(), 50);
-        assert!(rows.iter().all(|r| r.global == rows[0].global));
-        assert!(rows.iter().any(|r| r.head == 3) && rows.iter().any(|r| r.head == 2));
-        let mut csv = Vec::new();
-        write_rows(&rows, Format::Csv, &mut csv).unwrap();
-        let csv = String::from_utf8(csv).unwrap();
-        assert_eq!(csv.lines().count(), 51);
-        assert!(csv.starts_with("t,global,head,local,step,x,y,z,vx,vy,vz,sigma_m,owner"));
-        let mut jl = Vec::new();
-        write_rows(&rows, Format::JsonLines, &mut jl).unwrap();
-        let lines: Vec<serde_json::Value> = String::from_utf8(jl)
-            .unwrap()
-            .lines()
-            .map(|l| serde_json::from_str(l).unwrap())
-            .collect();
-        assert_eq!(lines.len(), 50);
-        assert!((lines[0]["sigma_m"].as_f64().unwrap() - 0.03f64.sqrt()).abs() < 1e-12);
     }
 }

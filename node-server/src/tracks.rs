@@ -10,11 +10,18 @@
 //!   so an id never appears only to vanish again.
 //! - A track far from everything gets a new global id at once (`NewGlobal`), owned by its head.
 //! - A merged track that disagrees with its global's owner for `hysteresis` consecutive reports
-//!   is split off with a new global id (`Split`).
+//!   joins another global it now lies on (`Merged`), or else is split off with a new global id
+//!   (`Split`).
+//! - Two global tracks whose owners keep reporting them within the gate of each other for
+//!   `hysteresis` reports are one target: the younger is absorbed into the older (`Absorbed`)
+//!   and its local tracks rebound to it (`Merged`).
 //! - When the owner's estimate leaves the owner's region by more than the handover margin and
 //!   lies in a live head's region, the track is handed over to that head (`Handover`, reason
 //!   `Region`); the margin is the hysteresis band that stops a target on a border from
-//!   bouncing between heads.
+//!   bouncing between heads. Only a track that was inside its owner's region can leave it (see
+//!   [`GlobalTrack::entered`]).
+//! - A member head that reports the track inside its own region while it is outside the
+//!   owner's takes ownership without a handover (`OwnerChanged`): it already tracks it.
 //! - When the owner is down, on the next tick the track goes to the live head covering its last
 //!   position, else the nearest one (`Handover`, reason `Failover`).
 //! - A global no head reported for the track timeout is dropped (`Lost`); a silent local track
@@ -56,6 +63,11 @@ pub struct GlobalTrack {
     pub last_report: ClusterTime,
     /// Server time of the owner's last report (or of the handover to it).
     pub owner_report: ClusterTime,
+    /// Whether the owner's estimate has been inside the owner's region since it took the
+    /// track. Only a track that was inside can *leave*: a head that starts a track of a target
+    /// in another cluster's area keeps it (that cluster's own track will be merged with it)
+    /// instead of pushing a posterior from distant cameras onto the other head.
+    pub entered: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -79,6 +91,8 @@ pub struct Tracks {
     next_global: u32,
     globals: BTreeMap<TargetId, GlobalTrack>,
     locals: BTreeMap<(NodeId, TargetId), LocalTrack>,
+    /// Consecutive owner reports of the younger global found within the gate of the older one.
+    close: BTreeMap<(TargetId, TargetId), u32>,
 }
 
 impl GlobalTrack {
@@ -104,6 +118,7 @@ impl Tracks {
             next_global: 1,
             globals: BTreeMap::new(),
             locals: BTreeMap::new(),
+            close: BTreeMap::new(),
         }
     }
 
@@ -145,17 +160,20 @@ impl Tracks {
                 cov: r.cov,
                 last_report: now,
                 owner_report: now,
+                entered: false,
             },
         );
         g
     }
 
-    /// The nearest live global within the gate that `head` does not feed yet.
+    /// The nearest live global within the gate that `head` does not feed yet. A global whose
+    /// only track from `head` fell silent (for the owner staleness) is a candidate again: the
+    /// head dropped and restarted its track of that target.
     fn candidate(&self, now: ClusterTime, head: NodeId, r: &TrackReport) -> Option<TargetId> {
         let fed: Vec<TargetId> = self
             .locals
             .iter()
-            .filter(|((h, _), _)| *h == head)
+            .filter(|((h, _), l)| *h == head && now - l.last <= self.params.owner_stale_ns)
             .map(|(_, l)| match l.binding {
                 Binding::Bound(g) | Binding::Pending(g) => g,
             })
@@ -260,6 +278,20 @@ impl Tracks {
                     .globals
                     .get(&g)
                     .is_some_and(|gt| now - gt.owner_report > self.params.owner_stale_ns);
+                // A member head whose own region covers the target, while the owner's does not,
+                // takes the track over: it is the cluster responsible for that area and already
+                // tracks it, so no posterior needs to move.
+                let home = agrees
+                    && self.globals.get(&g).is_some_and(|gt| {
+                        let (x, y) = (gt.mean[0], gt.mean[1]);
+                        let outside_owner = members
+                            .region(gt.owner)
+                            .is_some_and(|reg| distance_to_region(reg, x, y) > self.params.handover_margin_m);
+                        let inside_me = members
+                            .region(head)
+                            .is_some_and(|reg| distance_to_region(reg, x, y) == 0.0);
+                        outside_owner && inside_me
+                    });
                 let l = self.locals.get_mut(&key).expect("present");
                 l.last = now;
                 match owner {
@@ -275,10 +307,11 @@ impl Tracks {
                         Binding::Bound(g)
                     }
                     Some(o) if o == head => Binding::Bound(g),
-                    Some(o) if stale => {
+                    Some(o) if stale || home => {
                         l.disagree = 0;
                         let gt = self.globals.get_mut(&g).expect("present");
                         gt.owner = head;
+                        gt.entered = home;
                         out.push(Decision::OwnerChanged {
                             global: g,
                             from: o,
@@ -293,16 +326,30 @@ impl Tracks {
                         } else {
                             l.disagree += 1;
                             if l.disagree >= n {
-                                let ng = self.new_global(now, head, r);
-                                *self.locals.get_mut(&key).expect("present") =
-                                    LocalTrack::new(Binding::Bound(ng), now);
-                                out.push(Decision::Split {
-                                    head,
-                                    local,
-                                    from: g,
-                                    global: ng,
-                                });
-                                Binding::Bound(ng)
+                                // It left g for good. If it now sits on another global, it joins
+                                // that one (it disagreed with g n times: hysteresis enough);
+                                // only a track near nothing gets a new id.
+                                if let Some(c) = self.candidate(now, head, r) {
+                                    *self.locals.get_mut(&key).expect("present") =
+                                        LocalTrack::new(Binding::Bound(c), now);
+                                    out.push(Decision::Merged {
+                                        head,
+                                        local,
+                                        global: c,
+                                    });
+                                    Binding::Bound(c)
+                                } else {
+                                    let ng = self.new_global(now, head, r);
+                                    *self.locals.get_mut(&key).expect("present") =
+                                        LocalTrack::new(Binding::Bound(ng), now);
+                                    out.push(Decision::Split {
+                                        head,
+                                        local,
+                                        from: g,
+                                        global: ng,
+                                    });
+                                    Binding::Bound(ng)
+                                }
                             } else {
                                 Binding::Bound(g)
                             }
@@ -325,8 +372,64 @@ impl Tracks {
                 if let Some(d) = self.region_handover(g, members) {
                     out.push(d);
                 }
+                out.extend(self.merge_globals(now, g));
             }
         }
+        out
+    }
+
+    /// Two global tracks that stay together are one target (paper 004 §3.3.3): after the
+    /// younger one's owner reported it within the gate of an older live global for
+    /// `hysteresis` consecutive reports, it is absorbed into the older one and its local tracks
+    /// rebound to it.
+    fn merge_globals(&mut self, now: ClusterTime, g: TargetId) -> Vec<Decision> {
+        let Some(gt) = self.globals.get(&g) else {
+            return Vec::new();
+        };
+        let p = [gt.mean[0], gt.mean[1], gt.mean[2]];
+        let t = gt.time;
+        let near = self
+            .globals
+            .range(..g)
+            .filter(|(_, o)| now - o.last_report <= self.params.owner_stale_ns)
+            .map(|(id, o)| {
+                let q = o.position_at(t);
+                (
+                    *id,
+                    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt(),
+                )
+            })
+            .filter(|(_, d)| *d <= self.params.merge_gate_m)
+            .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+            .map(|(id, _)| id);
+        self.close.retain(|(a, b), _| *b != g || Some(*a) == near);
+        let Some(keep) = near else {
+            return Vec::new();
+        };
+        let count = self.close.entry((keep, g)).or_insert(0);
+        *count += 1;
+        if *count < self.params.hysteresis.max(1) {
+            return Vec::new();
+        }
+        let mut out = Vec::new();
+        for ((head, local), l) in &mut self.locals {
+            if matches!(l.binding, Binding::Bound(x) | Binding::Pending(x) if x == g) {
+                l.binding = Binding::Bound(keep);
+                l.agree = 0;
+                l.disagree = 0;
+                out.push(Decision::Merged {
+                    head: *head,
+                    local: *local,
+                    global: keep,
+                });
+            }
+        }
+        self.globals.remove(&g);
+        self.close.retain(|(a, b), _| *a != g && *b != g);
+        out.push(Decision::Absorbed {
+            global: g,
+            into: keep,
+        });
         out
     }
 
@@ -336,11 +439,16 @@ impl Tracks {
         let region = members.region(gt.owner)?;
         let (x, y) = (gt.mean[0], gt.mean[1]);
         if distance_to_region(region, x, y) <= self.params.handover_margin_m {
+            gt.entered = true;
+            return None;
+        }
+        if !gt.entered {
             return None;
         }
         let to = members.live_head_covering(x, y, 0.0, gt.owner)?;
         let from = gt.owner;
         gt.owner = to;
+        gt.entered = true; // `to` covers the estimate
         Some(Decision::Handover {
             global: g,
             from: Some(from),
@@ -361,6 +469,7 @@ impl Tracks {
             .collect();
         for g in lost {
             self.globals.remove(&g);
+            self.close.retain(|(a, b), _| *a != g && *b != g);
             self.locals
                 .retain(|_, l| !matches!(l.binding, Binding::Bound(x) | Binding::Pending(x) if x == g));
             out.push(Decision::Lost { global: g });
@@ -391,6 +500,8 @@ impl Tracks {
                     reason: HandoverReason::Failover,
                 });
                 gt.owner = to;
+                // A stand-in owner hands the track back as soon as a live head covers it.
+                gt.entered = true;
                 gt.owner_report = now;
                 gt.last_report = now;
             }

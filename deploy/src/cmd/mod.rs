@@ -2,6 +2,7 @@
 
 pub mod bench_camera;
 pub mod bench_head;
+pub mod bench_server;
 pub mod bench_transport;
 pub mod camera;
 pub mod export;
@@ -10,5 +11,6 @@ pub mod launch;
 pub mod peer;
 pub mod report;
 pub mod scenario;
+pub mod server;
 pub mod sim;
 pub mod undistort;

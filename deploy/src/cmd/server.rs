@@ -1,0 +1,107 @@
+//! `ocelli server`: run the server process (membership, handover, global ids, time leader,
+//! recording) from a scenario, over iceoryx2 or TCP. Restarting it on the same recording resumes.
+
+use anyhow::{Context, Result};
+use node_server::process::{ProcessConfig, run as run_server, transport_for};
+use proto::NodeId;
+use proto::scenario::{Scenario, TransportKind};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+use tokio_util::sync::CancellationToken;
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum TransportArg {
+    Ipc,
+    Tcp,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scenario file (default: the embedded default scenario).
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// This server's node id (default: the scenario's server).
+    #[arg(long)]
+    pub id: Option<u32>,
+    /// Transport (default: the scenario's `network.transport`).
+    #[arg(long, value_enum)]
+    pub transport: Option<TransportArg>,
+    /// Recording file; resumed if it exists.
+    #[arg(long)]
+    pub record: PathBuf,
+    /// Tick period, ms.
+    #[arg(long, default_value_t = 50)]
+    pub tick_ms: u64,
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    let scenario = match &args.scenario {
+        Some(p) => Scenario::load(p)?,
+        None => Scenario::default_scenario(),
+    };
+    let id = match args.id {
+        Some(i) => i,
+        None => {
+            scenario
+                .server()
+                .context("the scenario declares no server; pass --id")?
+                .id
+        }
+    };
+    let kind = match args.transport {
+        Some(TransportArg::Ipc) => TransportKind::Ipc,
+        Some(TransportArg::Tcp) => TransportKind::Tcp,
+        None => scenario.network.transport,
+    };
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
+    rt.block_on(async move {
+        let transport = transport_for(&scenario, NodeId(id), kind)?;
+        let cfg = ProcessConfig {
+            scenario,
+            id: NodeId(id),
+            transport,
+            record: args.record,
+            tick: Duration::from_millis(args.tick_ms.max(1)),
+            sync_every: Duration::from_millis(500),
+        };
+        let shutdown = CancellationToken::new();
+        let token = shutdown.clone();
+        tokio::spawn(async move {
+            stop_signal().await;
+            tracing::info!("stopping (signal again to abort)");
+            token.cancel();
+            stop_signal().await;
+            std::process::exit(130);
+        });
+        let summary = run_server(cfg, shutdown).await?;
+        tracing::info!(?summary, "server exited");
+        anyhow::Ok(ExitCode::SUCCESS)
+    })
+}
+
+/// Ctrl-C or SIGTERM (the launcher's supervisor stops children with SIGTERM).
+async fn stop_signal() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        match signal(SignalKind::terminate()) {
+            Ok(mut term) => {
+                tokio::select! {
+                    _ = tokio::signal::ctrl_c() => {}
+                    _ = term.recv() => {}
+                }
+            }
+            Err(_) => {
+                let _ = tokio::signal::ctrl_c().await;
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = tokio::signal::ctrl_c().await;
+    }
+}
