@@ -33,7 +33,9 @@ pub struct LaunchOptions {
 /// without sync, and the server's beacons correct what differs across hosts.
 #[allow(clippy::disallowed_methods)] // the launcher is a runtime: it owns the clock
 fn wall_clock() -> ClusterTime {
-    let ns = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+    let ns = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
     ClusterTime(i64::try_from(ns).unwrap_or(i64::MAX))
 }
 
@@ -152,7 +154,12 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
     let exe = std::env::current_exe().context("locating the ocelli binary")?;
     let mut sup = Supervisor::new(Duration::from_secs(5));
     let epoch = wall_clock();
-    let how = Spawn { exe: &exe, scenario_path: &scenario_path, epoch, opts };
+    let how = Spawn {
+        exe: &exe,
+        scenario_path: &scenario_path,
+        epoch,
+        opts,
+    };
     let by_role = |r: NodeRole| scenario.nodes.iter().filter(move |n| n.role == r).map(|n| n.id);
     for (role, name) in [
         (NodeRole::Server, "server"),
@@ -164,7 +171,11 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
         }
     }
     // Who runs where, for operators and tests that need to stop one node on purpose.
-    let pids: String = sup.children_mut().iter().map(|c| format!("{} {}\n", c.name, c.pid())).collect();
+    let pids: String = sup
+        .children_mut()
+        .iter()
+        .map(|c| format!("{} {}\n", c.name, c.pid()))
+        .collect();
     std::fs::write(opts.run_dir.join("pids"), pids)?;
     tracing::info!(
         nodes = scenario.nodes.len(),
@@ -174,6 +185,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()?;
+    #[allow(clippy::disallowed_methods)] // the launcher is a runtime: it owns the clock
     let started = std::time::Instant::now();
     rt.block_on(async {
         let mut ctrl_c = std::pin::pin!(tokio::signal::ctrl_c());

@@ -341,7 +341,10 @@ impl Sim {
         };
         match self.net.fate(t, from, o.to) {
             Fate::Deliver(lat) => {
-                let tail = self.time.get_mut(&from).map(|tb| tb.link_tail.entry(o.to).or_insert(0));
+                let tail = self
+                    .time
+                    .get_mut(&from)
+                    .map(|tb| tb.link_tail.entry(o.to).or_insert(0));
                 let at = match tail {
                     Some(tail) => {
                         *tail = (*tail).max(t + lat);

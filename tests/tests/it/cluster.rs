@@ -58,19 +58,30 @@ impl Launch {
         if let Some(s) = scenario {
             cmd.arg(s);
         }
-        cmd.args(["--transport", transport, "--duration", &seconds.to_string(), "--json", "--quiet"])
-            .arg("--run-dir")
-            .arg(dir.join("run"))
-            .arg("--record")
-            .arg(dir.join("rec.ocrec"))
-            .env("RUST_LOG", "info")
-            .env("NO_COLOR", "1")
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(std::fs::File::create(dir.join("launch.log")).expect("log"));
+        cmd.args([
+            "--transport",
+            transport,
+            "--duration",
+            &seconds.to_string(),
+            "--json",
+            "--quiet",
+        ])
+        .arg("--run-dir")
+        .arg(dir.join("run"))
+        .arg("--record")
+        .arg(dir.join("rec.ocrec"))
+        .env("RUST_LOG", "info")
+        .env("NO_COLOR", "1")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(std::fs::File::create(dir.join("launch.log")).expect("log"));
         let child = cmd.spawn().expect("spawning ocelli launch");
         let domain = format!("ocelli-{}", child.id());
-        Launch { child: Some(child), dir, domain }
+        Launch {
+            child: Some(child),
+            dir,
+            domain,
+        }
     }
 
     fn record(&self) -> PathBuf {
@@ -122,16 +133,32 @@ impl Launch {
             if now() >= deadline {
                 let _ = child.kill();
                 let _ = child.wait();
-                panic!("launch did not finish within {within:?}; log:\n{}", self.launch_log());
+                panic!(
+                    "launch did not finish within {within:?}; log:\n{}",
+                    self.launch_log()
+                );
             }
             std::thread::sleep(Duration::from_millis(200));
         };
         let mut out = String::new();
         use std::io::Read;
-        child.stdout.take().expect("stdout").read_to_string(&mut out).expect("stdout");
-        assert!(status.success(), "launch failed ({status}); log:\n{}", self.launch_log());
-        let report: Value = serde_json::from_str(&out)
-            .unwrap_or_else(|e| panic!("launch printed no JSON report ({e}):\n{out}\n{}", self.launch_log()));
+        child
+            .stdout
+            .take()
+            .expect("stdout")
+            .read_to_string(&mut out)
+            .expect("stdout");
+        assert!(
+            status.success(),
+            "launch failed ({status}); log:\n{}",
+            self.launch_log()
+        );
+        let report: Value = serde_json::from_str(&out).unwrap_or_else(|e| {
+            panic!(
+                "launch printed no JSON report ({e}):\n{out}\n{}",
+                self.launch_log()
+            )
+        });
         (report, self)
     }
 
@@ -180,7 +207,11 @@ fn track_rows(record: &Path) -> Vec<Value> {
         .env("RUST_LOG", "error")
         .output()
         .expect("ocelli export");
-    assert!(out.status.success(), "export failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "export failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     String::from_utf8_lossy(&out.stdout)
         .lines()
         .map(|l| serde_json::from_str::<Value>(l).expect("export JSON line"))
@@ -189,15 +220,23 @@ fn track_rows(record: &Path) -> Vec<Value> {
 }
 
 fn f(v: &Value, key: &str) -> f64 {
-    v[key].as_f64().unwrap_or_else(|| panic!("report has no number {key}: {v}"))
+    v[key]
+        .as_f64()
+        .unwrap_or_else(|| panic!("report has no number {key}: {v}"))
 }
 
 fn assert_tracked(report: &Value) {
     let targets = report["targets"].as_array().expect("targets");
     assert_eq!(targets.len(), 1, "one robot in the default scenario: {report}");
-    assert!(f(&targets[0], "samples") >= 30.0, "too few track samples: {report}");
+    assert!(
+        f(&targets[0], "samples") >= 30.0,
+        "too few track samples: {report}"
+    );
     let err = f(report, "mean_error_m");
-    assert!(err < MEAN_ERROR_BOUND_M, "mean error {err} m ≥ {MEAN_ERROR_BOUND_M} m: {report}");
+    assert!(
+        err < MEAN_ERROR_BOUND_M,
+        "mean error {err} m ≥ {MEAN_ERROR_BOUND_M} m: {report}"
+    );
 }
 
 fn cluster_tracks(transport: &str) {
@@ -222,8 +261,13 @@ fn tcp_cluster_tracks_the_default_scenario() {
 fn killing_a_camera_mid_run_leaves_tracking_running() {
     // Every camera on, so the head expects the victim in every step.
     let scenario_dir = scratch("kill-camera-scenario");
-    let text = proto::scenario::DEFAULT_SCENARIO_TOML.replace("activation = \"three-mode\"", "activation = \"all-on\"");
-    assert_ne!(text, proto::scenario::DEFAULT_SCENARIO_TOML, "default scenario layout changed");
+    let text = proto::scenario::DEFAULT_SCENARIO_TOML
+        .replace("activation = \"three-mode\"", "activation = \"all-on\"");
+    assert_ne!(
+        text,
+        proto::scenario::DEFAULT_SCENARIO_TOML,
+        "default scenario layout changed"
+    );
     let path = scenario_dir.join("all-on.toml");
     std::fs::write(&path, text).unwrap();
     let run = Launch::start("kill-camera", "ipc", 20.0, Some(&path));
@@ -235,7 +279,9 @@ fn killing_a_camera_mid_run_leaves_tracking_running() {
     assert_tracked(&report);
     let head_log = run.log("head-2");
     assert!(
-        head_log.lines().any(|l| l.contains("not waiting for it") && l.contains("n12")),
+        head_log
+            .lines()
+            .any(|l| l.contains("not waiting for it") && l.contains("n12")),
         "head 2 never stopped waiting for camera 12:\n{head_log}"
     );
     run.assert_clean();
@@ -253,14 +299,25 @@ fn killing_the_owning_head_fails_over_and_keeps_the_global_id() {
         if let Some(last) = rows.last()
             && rows.len() >= 10
         {
-            break (last["global"].as_u64().unwrap(), last["head"].as_u64().unwrap(), f(last, "t"));
+            break (
+                last["global"].as_u64().unwrap(),
+                last["head"].as_u64().unwrap(),
+                f(last, "t"),
+            );
         }
-        assert!(now() < deadline, "the robot was never tracked; launch log:\n{}", run.launch_log());
+        assert!(
+            now() < deadline,
+            "the robot was never tracked; launch log:\n{}",
+            run.launch_log()
+        );
         std::thread::sleep(Duration::from_millis(500));
     };
     signal(run.pid_of(&format!("head-{owner}")), libc::SIGKILL);
     let (_report, run) = run.finish(Duration::from_secs(90));
-    let after: Vec<Value> = track_rows(&run.record()).into_iter().filter(|r| f(r, "t") > t_kill + 0.5).collect();
+    let after: Vec<Value> = track_rows(&run.record())
+        .into_iter()
+        .filter(|r| f(r, "t") > t_kill + 0.5)
+        .collect();
     assert!(!after.is_empty(), "no track after the head {owner} died");
     assert!(
         after.iter().all(|r| r["head"].as_u64() != Some(owner)),
@@ -300,11 +357,22 @@ fn killing_and_restarting_the_server_loses_no_recorded_data() {
     signal(restarted.id(), libc::SIGTERM);
     let _ = restarted.wait();
     let after = track_rows(&run.record());
-    assert!(after.len() > before.len(), "no tracking recorded after the restart");
-    assert_eq!(&after[..before.len()], &before[..], "records from before the crash changed");
-    let globals_before: std::collections::BTreeSet<u64> = before.iter().filter_map(|r| r["global"].as_u64()).collect();
+    assert!(
+        after.len() > before.len(),
+        "no tracking recorded after the restart"
+    );
+    assert_eq!(
+        &after[..before.len()],
+        &before[..],
+        "records from before the crash changed"
+    );
+    let globals_before: std::collections::BTreeSet<u64> =
+        before.iter().filter_map(|r| r["global"].as_u64()).collect();
     let last_global = after.last().and_then(|r| r["global"].as_u64()).unwrap();
-    assert!(globals_before.contains(&last_global), "the robot got a new global id after the restart");
+    assert!(
+        globals_before.contains(&last_global),
+        "the robot got a new global id after the restart"
+    );
     // The launch removed the domain's files; the restarted server was ours to stop.
     run.assert_clean();
 }
