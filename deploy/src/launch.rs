@@ -109,8 +109,11 @@ fn progress_lines(record: &Path, scenario: &Scenario, epoch: ClusterTime) -> Vec
     for r in rows.iter().filter(|r| r.owner) {
         latest.insert(r.global, r);
     }
+    // Only tracks reported in the last two seconds are alive.
+    let newest = latest.values().map(|r| r.t).fold(f64::NEG_INFINITY, f64::max);
     latest
         .values()
+        .filter(|r| r.t >= newest - 2.0)
         .map(|r| {
             let err = scenario
                 .targets
@@ -149,6 +152,13 @@ fn remove_domain_files(domain: &str) -> usize {
 pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report> {
     let scenario = effective_scenario(scenario, opts.transport)?;
     std::fs::create_dir_all(&opts.run_dir).with_context(|| format!("creating {}", opts.run_dir.display()))?;
+    // A recording left by an earlier launch would be resumed by the server: keep it aside.
+    if opts.record.exists() {
+        let aside = opts.record.with_extension("previous.ocrec");
+        std::fs::rename(&opts.record, &aside)
+            .with_context(|| format!("moving the earlier recording {} aside", opts.record.display()))?;
+        tracing::info!(to = %aside.display(), "an earlier recording was moved aside");
+    }
     let scenario_path = opts.run_dir.join("scenario.toml");
     std::fs::write(&scenario_path, scenario.to_toml())?;
     let exe = std::env::current_exe().context("locating the ocelli binary")?;
