@@ -114,6 +114,7 @@ pub fn transport_config(
         TransportKind::Ipc => {
             let mut c = IpcConfig::new(net.domain.clone(), me, Role::Camera, scenario.nodes.len());
             c.queue_len = net.queue_len.max(1);
+            c.heartbeat = Some((Duration::from_millis(net.heartbeat_ms.max(1)), clock));
             TransportConfig::Ipc(c)
         }
         TransportKind::Tcp => {

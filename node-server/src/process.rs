@@ -96,6 +96,7 @@ pub fn transport_for(
         TransportKind::Ipc => {
             let mut c = IpcConfig::new(net.domain.clone(), id, Role::Server, scenario.nodes.len());
             c.queue_len = net.queue_len;
+            c.heartbeat = Some((Duration::from_millis(net.heartbeat_ms.max(1)), Arc::new(wall_now)));
             TransportConfig::Ipc(c)
         }
     })

@@ -69,7 +69,7 @@ impl IpcLimits {
 }
 
 /// Settings of an iceoryx2 endpoint.
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct IpcConfig {
     /// Service-name and file prefix: `[A-Za-z0-9_-]`, at most 64 characters.
     pub domain: String,
@@ -78,6 +78,23 @@ pub struct IpcConfig {
     pub limits: IpcLimits,
     /// Outgoing frames queued before the sender thread, and events queued in the inbox.
     pub queue_len: usize,
+    /// Send a `Heartbeat` to every node this endpoint has sent to, this often, stamped with
+    /// the clock. Shared memory has no connection whose loss tells a peer we are gone, so
+    /// liveness on the same host rests on these (as it rests on TCP's own heartbeats).
+    pub heartbeat: Option<(std::time::Duration, super::Clock)>,
+}
+
+impl std::fmt::Debug for IpcConfig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("IpcConfig")
+            .field("domain", &self.domain)
+            .field("me", &self.me)
+            .field("role", &self.role)
+            .field("limits", &self.limits)
+            .field("queue_len", &self.queue_len)
+            .field("heartbeat", &self.heartbeat.as_ref().map(|(p, _)| *p))
+            .finish()
+    }
 }
 
 impl IpcConfig {
@@ -89,6 +106,7 @@ impl IpcConfig {
             role,
             limits: IpcLimits::for_nodes(nodes, queue_len),
             queue_len,
+            heartbeat: None,
         }
     }
 }

@@ -26,7 +26,7 @@ pub mod stats;
 mod tcp;
 
 use crate::ids::{NodeId, Role};
-use crate::msg::Envelope;
+use crate::msg::{Envelope, Message};
 use crate::node::Outgoing;
 use crate::time::ClusterTime;
 use crate::wire::{WireError, encode};
@@ -157,6 +157,14 @@ impl std::fmt::Debug for TransportConfig {
 pub(crate) struct Seqs(Mutex<HashMap<NodeId, u64>>);
 
 impl Seqs {
+    /// Every node a frame was sent to.
+    pub(crate) fn peers(&self) -> Vec<NodeId> {
+        let m = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        let mut peers: Vec<NodeId> = m.keys().copied().collect();
+        peers.sort();
+        peers
+    }
+
     pub(crate) fn next(&self, to: NodeId) -> u64 {
         let mut m = self.0.lock().unwrap_or_else(|p| p.into_inner());
         let s = m.entry(to).or_insert(0);
@@ -368,6 +376,7 @@ pub async fn open(cfg: TransportConfig) -> Result<Opened, TransportError> {
     let stats = Arc::new(TransportStats::default());
     let seqs = Arc::new(Seqs::default());
     let mut handle = ShutdownHandle::new();
+    let mut heartbeat = None;
     let (me, link, inbox, local_addr) = match cfg {
         TransportConfig::InProcess {
             hub,
@@ -387,7 +396,8 @@ pub async fn open(cfg: TransportConfig) -> Result<Opened, TransportError> {
             let (router, addr) = tcp::start(c, tx, stats.clone(), seqs.clone(), &handle).await?;
             (me, Link::Tcp(router), rx, addr)
         }
-        TransportConfig::Ipc(c) => {
+        TransportConfig::Ipc(mut c) => {
+            heartbeat = c.heartbeat.take();
             let me = c.me;
             let (tx, rx) = mpsc::channel(c.queue_len.max(1));
             let sender = ipc::start(c, tx, stats.clone(), &mut handle)?;
@@ -403,7 +413,29 @@ pub async fn open(cfg: TransportConfig) -> Result<Opened, TransportError> {
             local_addr,
         }),
     };
+    if let Some((period, clock)) = heartbeat {
+        spawn_heartbeats(&handle, endpoint.clone(), period, clock);
+    }
     Ok((endpoint, Inbox(inbox), stats, handle))
+}
+
+/// Heartbeat every peer this endpoint has sent to, until shutdown.
+fn spawn_heartbeats(handle: &ShutdownHandle, endpoint: Endpoint, period: Duration, clock: Clock) {
+    let token = handle.token();
+    handle.tracker.spawn(async move {
+        let mut every = tokio::time::interval(period);
+        every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        loop {
+            tokio::select! {
+                () = token.cancelled() => break,
+                _ = every.tick() => {
+                    for peer in endpoint.inner.seqs.peers() {
+                        let _ = endpoint.send(Outgoing::new(peer, Message::Heartbeat), clock()).await;
+                    }
+                }
+            }
+        }
+    });
 }
 
 /// Peers to dial, by id.

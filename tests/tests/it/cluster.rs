@@ -201,6 +201,9 @@ impl Drop for Launch {
 
 /// The recording's owner track rows (`ocelli export --format jsonl`).
 fn track_rows(record: &Path) -> Vec<Value> {
+    if !record.exists() {
+        return Vec::new();
+    }
     let out = Command::new(EXE)
         .args(["export", "--format", "jsonl"])
         .arg(record)
