@@ -104,7 +104,10 @@ fn transport_config(cfg: &ProcessConfig, clock: Arc<Clock>) -> Result<TransportC
         TransportKind::Ipc => {
             let mut c = IpcConfig::new(s.network.domain.clone(), me, Role::Head, s.nodes.len());
             c.queue_len = s.network.queue_len.max(1);
-            c.heartbeat = Some((Duration::from_millis(s.network.heartbeat_ms.max(1)), Arc::new(move || clock.now())));
+            c.heartbeat = Some((
+                Duration::from_millis(s.network.heartbeat_ms.max(1)),
+                Arc::new(move || clock.now()),
+            ));
             TransportConfig::Ipc(c)
         }
         TransportKind::Tcp => {
