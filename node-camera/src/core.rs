@@ -235,19 +235,49 @@ impl CameraNode {
             return out;
         }
         self.counters.frames += 1;
-        self.counters.detections += self.scratch.len() as u64;
+        let detections = std::mem::take(&mut self.scratch);
+        self.apply_detections(now, frame.captured, &detections, &mut out);
+        self.scratch = detections;
+        out
+    }
+
+    /// Detections made elsewhere (the measurement-level simulation projects the truth and adds
+    /// noise instead of rendering and segmenting). Handled exactly as a segmented frame's.
+    pub fn on_detections(
+        &mut self,
+        now: ClusterTime,
+        captured: ClusterTime,
+        detections: &[Detection],
+    ) -> Vec<Outgoing> {
+        let mut out = Vec::new();
+        if !self.mode.camera_on() {
+            self.counters.frames_skipped += 1;
+            return out;
+        }
+        self.counters.frames += 1;
+        self.apply_detections(now, captured, detections, &mut out);
+        out
+    }
+
+    fn apply_detections(
+        &mut self,
+        now: ClusterTime,
+        captured: ClusterTime,
+        detections: &[Detection],
+        out: &mut Vec<Outgoing>,
+    ) {
+        self.counters.detections += detections.len() as u64;
         std::mem::swap(&mut self.previous, &mut self.measured);
         self.measured.clear();
-        for d in &self.scratch {
+        for d in detections {
             match measure::measure(&self.cfg.camera, d, self.cfg.reference, self.cfg.pixel_sigma) {
                 Ok(m) => self.measured.push(m),
                 Err(_) => self.counters.undistort_failures += 1,
             }
         }
-        self.captured = Some(frame.captured);
+        self.captured = Some(captured);
         self.forget_stale(now);
-        self.send_measurements(now, frame.captured, &mut out);
-        out
+        self.send_measurements(now, captured, out);
     }
 
     /// Gate the newest detections against the known priors and send what the mode asks for.

@@ -20,5 +20,6 @@ pub mod seg000;
 pub mod seg004;
 pub mod segment;
 pub mod source;
+pub mod synthetic;
 #[cfg(feature = "v4l2")]
 pub mod v4l2;

@@ -6,7 +6,7 @@
 //! (scenario, node, target position, t, seed).
 
 use nalgebra::{Vector2, Vector3};
-use proto::scenario::{RadioWorld, World};
+use proto::scenario::{RadioWorld, Wall, World};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -53,24 +53,28 @@ impl MultipathField {
 
 /// Total attenuation of the walls the straight path crosses, dB.
 pub fn wall_loss(world: &World, a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
-    let mut loss = 0.0;
-    for w in &world.walls {
-        let p = Vector2::new(w.from[0], w.from[1]);
-        let e = Vector2::new(w.to[0] - w.from[0], w.to[1] - w.from[1]);
-        let d = Vector2::new(b.x - a.x, b.y - a.y);
-        let denom = d.x * e.y - d.y * e.x;
-        if denom.abs() < 1e-12 {
-            continue;
-        }
-        let ap = p - Vector2::new(a.x, a.y);
-        let s = (ap.x * e.y - ap.y * e.x) / denom;
-        let u = (ap.x * d.y - ap.y * d.x) / denom;
-        let z = a.z + (b.z - a.z) * s;
-        if (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&u) && z <= w.height {
-            loss += w.attenuation_db;
-        }
+    world
+        .walls
+        .iter()
+        .filter(|w| crosses(w, a, b))
+        .map(|w| w.attenuation_db)
+        .sum()
+}
+
+/// Whether the segment `a → b` passes through `wall` below its top.
+pub fn crosses(wall: &Wall, a: &Vector3<f64>, b: &Vector3<f64>) -> bool {
+    let p = Vector2::new(wall.from[0], wall.from[1]);
+    let e = Vector2::new(wall.to[0] - wall.from[0], wall.to[1] - wall.from[1]);
+    let d = Vector2::new(b.x - a.x, b.y - a.y);
+    let denom = d.x * e.y - d.y * e.x;
+    if denom.abs() < 1e-12 {
+        return false;
     }
-    loss
+    let ap = p - Vector2::new(a.x, a.y);
+    let s = (ap.x * e.y - ap.y * e.x) / denom;
+    let u = (ap.x * d.y - ap.y * d.x) / denom;
+    let z = a.z + (b.z - a.z) * s;
+    (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&u) && z <= wall.height
 }
 
 /// The noiseless mean RSSI at `node` of a tag at `tag`, dBm.
