@@ -159,7 +159,7 @@ impl Sim {
             counters: NetCounters::default(),
             records: Vec::new(),
             frames_rendered: 0,
-            noise: rand::SeedableRng::seed_from_u64(opts.seed ^ 0x6d65_6173_7572_65),
+            noise: rand::SeedableRng::seed_from_u64(opts.seed ^ 0x006d_6561_7375_7265),
             net,
             scenario,
             opts,
