@@ -63,6 +63,30 @@ impl Default for Paper004Params {
     }
 }
 
+/// Frame rate the paper's frame counts were chosen at (its §3.2.1 runs at 20 fps).
+pub const PAPER_FPS: f64 = 20.0;
+
+impl Paper004Params {
+    /// The paper's `history` and `τ` are frame counts that stand for times ("τ represents a
+    /// number of frames and thus directly relates to time", §3.2.1): 20 frames (1 s) of history
+    /// and 30 frames (1.5 s) before a still region joins the background, at [`PAPER_FPS`].
+    /// Keep those times at `fps`: at 5 fps the unscaled counts would keep a region that stopped
+    /// moving (or the ghost an object in the first frame leaves behind) detected for 10 s
+    /// instead of 2.5 s. Counts never drop below 2; a non-finite or non-positive `fps` leaves
+    /// the parameters as they are.
+    pub fn scaled_to_fps(self, fps: f64) -> Paper004Params {
+        if !(fps.is_finite() && fps > 0.0) {
+            return self;
+        }
+        let scale = |frames: f64| (frames * fps / PAPER_FPS).round().max(2.0);
+        Paper004Params {
+            history: scale(self.history as f64) as usize,
+            tau: scale(self.tau as f64).min(u8::MAX as f64) as u8,
+            ..self
+        }
+    }
+}
+
 /// The paper 004 segmenter's state.
 #[derive(Debug)]
 pub struct Paper004 {
@@ -347,6 +371,58 @@ mod tests {
         }
         assert_eq!(seen[0], 1, "the new object is moving at first");
         assert_eq!(*seen.last().unwrap(), 0, "and parked later: {seen:?}");
+    }
+
+    #[test]
+    fn frame_counts_keep_the_papers_times_at_other_rates() {
+        let p = Paper004Params::default();
+        assert_eq!(p.clone().scaled_to_fps(PAPER_FPS), p);
+        let at5 = p.clone().scaled_to_fps(5.0);
+        assert_eq!((at5.history, at5.tau), (5, 8));
+        let at1 = p.clone().scaled_to_fps(1.0);
+        assert_eq!((at1.history, at1.tau), (2, 2));
+        assert_eq!(p.clone().scaled_to_fps(f64::NAN), p);
+    }
+
+    /// Frames (of `total`) on which something is still detected where an object stood in the
+    /// first frame and left on the second.
+    fn ghost_frames(params: Paper004Params, total: usize) -> usize {
+        let mut seg = Paper004::new(params);
+        let mut out = Vec::new();
+        seg.process(&scene(0, Some(20)), &mut out).unwrap();
+        (1..total)
+            .filter(|&t| {
+                seg.process(&scene(t, None), &mut out).unwrap();
+                out.iter().any(|d| (d.centre[0] - 25.5).abs() < 6.0)
+            })
+            .count()
+    }
+
+    #[test]
+    fn the_first_frames_ghost_lasts_the_papers_time_at_5_fps() {
+        // At 5 fps, 3 s is 15 frames: the scaled model (1 s history + 1.5 s) absorbs the ghost
+        // within them; the paper's frame counts taken literally would keep it for 10 s.
+        let fps = 5.0;
+        let scaled = ghost_frames(Paper004Params::default().scaled_to_fps(fps), 25);
+        assert!(scaled > 0 && scaled <= 15, "scaled: {scaled} frames");
+        let literal = ghost_frames(Paper004Params::default(), 25);
+        assert_eq!(literal, 24, "literal counts keep the ghost for the whole 5 s");
+    }
+
+    #[test]
+    fn an_object_moving_at_5_fps_stays_detected_with_scaled_counts() {
+        let mut seg = Paper004::new(Paper004Params::default().scaled_to_fps(5.0));
+        let mut out = Vec::new();
+        for t in 0..5 {
+            seg.process(&scene(t, None), &mut out).unwrap();
+        }
+        // 4 px per frame across a 12 px wide object: each pixel is covered for 3 frames.
+        for t in 5..30 {
+            let x = 4 + (t - 5) * 4;
+            seg.process(&scene(t, Some(x)), &mut out).unwrap();
+            assert_eq!(out.len(), 1, "frame {t}: {out:?}");
+            assert!((out[0].centre[0] - (x as f32 + 5.5)).abs() < 1.5, "frame {t}: {:?}", out[0]);
+        }
     }
 
     #[test]
