@@ -438,3 +438,54 @@ fn a_closed_link_marks_a_head_down_at_once_and_replays() {
     assert_eq!(stats.decisions_mismatched, 0);
     assert_eq!(r.globals().next().unwrap().1.owner, H3);
 }
+
+/// Head 2 tracks the target in its own region; head 3 sees it from afar, badly.
+#[test]
+fn a_far_heads_poor_estimate_never_founds_a_second_global() {
+    let mut s = started();
+    s.on_message(ms(0), report(H2, 5, None, ms(0), 3.0, 4.0));
+    let g = s.global_of(H2, TargetId(5)).unwrap();
+    // Head 3's track sits 1.5 m off, inside head 2's region: it never gets an id of its own.
+    for k in 1..=10i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H2, 5, None, t, 3.0, 4.0));
+        s.on_message(t, report(H3, 9, None, t, 1.5, 4.0));
+        assert_eq!(s.global_of(H3, TargetId(9)), None, "step {k}");
+    }
+    // Once it agrees it merges; when it drifts off again it loses the id instead of splitting.
+    for k in 11..=13i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H2, 5, None, t, 3.0, 4.0));
+        s.on_message(t, report(H3, 9, None, t, 3.2, 4.0));
+    }
+    assert_eq!(s.global_of(H3, TargetId(9)), Some(g));
+    for k in 14..=20i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H2, 5, None, t, 3.0, 4.0));
+        s.on_message(t, report(H3, 9, None, t, 1.2, 4.0));
+    }
+    assert_eq!(s.global_of(H3, TargetId(9)), None);
+    assert_eq!(s.globals().count(), 1);
+    assert!(!decisions(&mut s).iter().any(|d| matches!(
+        d,
+        Decision::Split { .. } | Decision::NewGlobal { head: H3, .. }
+    )));
+}
+
+/// After a handover the old head drops its track; a track it starts again on the target (still
+/// near the border) merges back into the global instead of founding a new one.
+#[test]
+fn the_old_heads_new_track_on_a_handed_over_target_merges_back() {
+    let mut s = started();
+    s.on_message(ms(0), report(H2, 5, None, ms(0), 6.0, 4.0));
+    let g = s.global_of(H2, TargetId(5)).unwrap();
+    let out = s.on_message(ms(200), report(H2, 5, None, ms(200), 6.3, 4.0));
+    assert_eq!(handovers(&out).len(), 2);
+    for k in 2..=5i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H3, 1, Some(g.0), t, 6.3, 4.0));
+        s.on_message(t, report(H2, 6, None, t, 6.2, 4.0));
+    }
+    assert_eq!(s.global_of(H2, TargetId(6)), Some(g));
+    assert_eq!(s.globals().count(), 1);
+}
