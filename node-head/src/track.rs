@@ -9,6 +9,12 @@ use proto::models::{MotionModel, RssiModel, State};
 use proto::msg::Contributor;
 use proto::{ClusterTime, TargetId};
 
+/// Steps with camera information a born track needs before it is reported (one second at the
+/// default 200 ms step). Until then it is tentative: it is filtered and may be merged, but the
+/// server never hears of it, so a short-lived duplicate (a split region, the leftover of a
+/// segmentation ghost) never becomes a global id. Handed-over tracks are confirmed at once.
+pub const CONFIRM_STEPS: u32 = 5;
+
 /// A track.
 #[derive(Clone, Debug)]
 pub struct Track {
@@ -35,6 +41,10 @@ pub struct Track {
     pub last_seen: ClusterTime,
     /// ML's previous fix, for its velocity.
     pub ml_prev: Option<(Vector3<f64>, ClusterTime)>,
+    /// Steps in which cameras measured it.
+    pub camera_steps: u32,
+    /// Reported to the server (see [`CONFIRM_STEPS`]).
+    pub confirmed: bool,
 }
 
 impl Track {
@@ -72,6 +82,8 @@ impl Track {
             time: now,
             last_seen: now,
             ml_prev: None,
+            camera_steps: 0,
+            confirmed: global.is_some(),
         })
     }
 
@@ -94,6 +106,13 @@ impl Track {
         self.detections.clear();
         self.contributors.clear();
         Ok(())
+    }
+
+    /// Count a step in which cameras measured it (`camera`); confirm it after
+    /// [`CONFIRM_STEPS`] of them.
+    pub fn end_step(&mut self, camera: bool) {
+        self.camera_steps += u32::from(camera);
+        self.confirmed |= self.camera_steps >= CONFIRM_STEPS;
     }
 
     pub fn position(&self) -> Vector3<f64> {

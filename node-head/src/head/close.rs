@@ -60,7 +60,7 @@ impl HeadNode {
         stats.rssi_nodes = rssi_nodes.iter().filter(|&&b| b).count();
         self.merge_duplicates();
         stats.tracks = self.tracks.len();
-        for t in &self.tracks {
+        for t in self.tracks.iter().filter(|t| t.confirmed) {
             if let Some(server) = self.cfg.server {
                 out.push(Outgoing::new(
                     server,
@@ -186,6 +186,7 @@ impl HeadNode {
             }
         }
         let trained_from_cameras = track.aux_acc.count > 0;
+        track.end_step(trained_from_cameras || !dets.is_empty());
         if track.aux.update(&track.aux_acc).is_err() {
             self.counters.numeric_failures += 1;
         }
@@ -258,12 +259,10 @@ impl HeadNode {
                 let d = a.filter.mean() - b.filter.mean();
                 let s = a.filter.cov() + b.filter.cov();
                 if s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate) {
-                    // Prefer the track the server knows, then the older (lower index).
-                    let gone = if b.global.is_some() && a.global.is_none() {
-                        i
-                    } else {
-                        j
-                    };
+                    // Prefer the track the server knows, then a confirmed one, then the older
+                    // (lower index).
+                    let rank = |t: &crate::track::Track| (t.global.is_some(), t.confirmed);
+                    let gone = if rank(b) > rank(a) { i } else { j };
                     let kept = if gone == i { j } else { i };
                     info!(kept = %self.tracks[kept].local, dropped = %self.tracks[gone].local, "duplicate tracks merged");
                     self.counters.merges += 1;
