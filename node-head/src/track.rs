@@ -14,6 +14,15 @@ use proto::{ClusterTime, TargetId};
 /// server never hears of it, so a short-lived duplicate (a split region, the leftover of a
 /// segmentation ghost) never becomes a global id. Handed-over tracks are confirmed at once.
 pub const CONFIRM_STEPS: u32 = 5;
+/// How far (metres) a born track must move, from where it was after its first two camera steps
+/// (by then a new track has converged on its detections), to be confirmed. Motion segmentation
+/// (paper 004) only sees what moves, so a target that does not move is a ghost: the background
+/// where a target stood when a camera's model was started (or last woken). A track born on a
+/// ghost settles there and is never reported; a target that stands still from its birth is
+/// reported once it moves.
+pub const CONFIRM_DISTANCE_M: f64 = 0.25;
+/// Camera steps after which a born track's position is taken as its anchor.
+const ANCHOR_STEPS: u32 = 2;
 
 /// A track.
 #[derive(Clone, Debug)]
@@ -43,6 +52,8 @@ pub struct Track {
     pub ml_prev: Option<(Vector3<f64>, ClusterTime)>,
     /// Steps in which cameras measured it.
     pub camera_steps: u32,
+    /// Position after [`ANCHOR_STEPS`] camera steps (tentative tracks only).
+    pub anchor: Option<Vector3<f64>>,
     /// Reported to the server (see [`CONFIRM_STEPS`]).
     pub confirmed: bool,
 }
@@ -83,6 +94,7 @@ impl Track {
             last_seen: now,
             ml_prev: None,
             camera_steps: 0,
+            anchor: None,
             confirmed: global.is_some(),
         })
     }
@@ -109,10 +121,19 @@ impl Track {
     }
 
     /// Count a step in which cameras measured it (`camera`); confirm it after
-    /// [`CONFIRM_STEPS`] of them.
+    /// [`CONFIRM_STEPS`] of them once it moved [`CONFIRM_DISTANCE_M`] from its anchor.
     pub fn end_step(&mut self, camera: bool) {
         self.camera_steps += u32::from(camera);
-        self.confirmed |= self.camera_steps >= CONFIRM_STEPS;
+        if self.confirmed || !camera {
+            return;
+        }
+        if self.camera_steps == ANCHOR_STEPS {
+            self.anchor = Some(self.position());
+        }
+        self.confirmed = self.camera_steps >= CONFIRM_STEPS
+            && self
+                .anchor
+                .is_some_and(|a| (self.position() - a).norm() >= CONFIRM_DISTANCE_M);
     }
 
     pub fn position(&self) -> Vector3<f64> {
