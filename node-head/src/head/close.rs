@@ -247,7 +247,10 @@ impl HeadNode {
     /// Two tracks on one target (a track born next to another, or two converging on the same
     /// detections, which cameras may gate to both priors) would be updated together forever.
     /// When their states (position and velocity) agree within the gate (Mahalanobis with the
-    /// summed covariances), keep the one with a global id, else the older, and drop the other.
+    /// summed covariances), keep the one with a global id, else the confirmed one, else the
+    /// older, and drop the other. A tentative track (never reported) next to a confirmed one
+    /// is dropped on position alone: its velocity is still a guess (a ghost's track swept onto
+    /// a target, or a second track born on one target), and nobody knows it yet.
     fn merge_duplicates(&mut self) {
         let gate = self.cfg.method.gate_chi2;
         let mut i = 0;
@@ -258,7 +261,13 @@ impl HeadNode {
                 // Position and velocity: two targets crossing are near but move apart.
                 let d = a.filter.mean() - b.filter.mean();
                 let s = a.filter.cov() + b.filter.cov();
-                if s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate) {
+                let same = if a.confirmed != b.confirmed {
+                    let (d, s) = (d.fixed_rows::<3>(0).into_owned(), s.fixed_view::<3, 3>(0, 0).into_owned());
+                    s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate)
+                } else {
+                    s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate)
+                };
+                if same {
                     // Prefer the track the server knows, then a confirmed one, then the older
                     // (lower index).
                     let rank = |t: &crate::track::Track| (t.global.is_some(), t.confirmed);
@@ -329,7 +338,11 @@ impl HeadNode {
         let (nodes, tracks) = (&self.nodes, &self.tracks);
         let decision = self.planner.decide(
             variant,
-            self.cfg.method.energy_weight,
+            // Paper 002 §V: the cost is the difference in *energy*, set against the information
+            // one step gains, so the power difference is held for one step:
+            // nats/(mW·s) × s. (Weighing the raw power priced a camera at 0.71 nats a step,
+            // dearer than all but the first camera's information: ~1 camera stayed on.)
+            self.cfg.method.energy_weight * dt,
             &candidates,
             &predicted,
             |n, t| {
