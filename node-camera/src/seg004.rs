@@ -40,6 +40,9 @@ pub struct Paper004Params {
     /// Smallest region kept, grid pixels.
     pub min_pixels: u32,
     pub max_regions: usize,
+    /// A gap between frames longer than this (ms) restarts the model from the next frame,
+    /// as at power-on (0: never). See [`Paper004Params::scaled_to_fps`].
+    pub restart_gap_ms: u64,
 }
 
 impl Default for Paper004Params {
@@ -59,6 +62,7 @@ impl Default for Paper004Params {
             step: 1,
             min_pixels: 12,
             max_regions: 32,
+            restart_gap_ms: 0,
         }
     }
 }
@@ -74,14 +78,22 @@ impl Paper004Params {
     /// moving (or the ghost an object in the first frame leaves behind) detected for 10 s
     /// instead of 2.5 s. Counts never drop below 2; a non-finite or non-positive `fps` leaves
     /// the parameters as they are.
+    ///
+    /// A camera that stops capturing (commanded Inactive or CameraOff) keeps a model of the
+    /// scene as it was: woken seconds later, every place a target stood when it stopped shows
+    /// up as a ghost. So a gap longer than the model's memory (history + τ frames) restarts
+    /// the model from the next frame, as at power-on: its ghost is where the target is then,
+    /// next to it, and fades in the same 2.5 s.
     pub fn scaled_to_fps(self, fps: f64) -> Paper004Params {
         if !(fps.is_finite() && fps > 0.0) {
             return self;
         }
         let scale = |frames: f64| (frames * fps / PAPER_FPS).round().max(2.0);
+        let (history, tau) = (scale(self.history as f64), scale(self.tau as f64).min(u8::MAX as f64));
         Paper004Params {
-            history: scale(self.history as f64) as usize,
-            tau: scale(self.tau as f64).min(u8::MAX as f64) as u8,
+            history: history as usize,
+            tau: tau as u8,
+            restart_gap_ms: ((history + tau) / fps * 1e3).round() as u64,
             ..self
         }
     }
@@ -101,6 +113,8 @@ pub struct Paper004 {
     mask: Vec<u8>,
     eroded: Vec<u8>,
     frames: u64,
+    last_captured: Option<proto::ClusterTime>,
+    restarts: u64,
 }
 
 impl Paper004 {
@@ -118,6 +132,8 @@ impl Paper004 {
             mask: Vec::new(),
             eroded: Vec::new(),
             frames: 0,
+            last_captured: None,
+            restarts: 0,
         }
     }
 
@@ -233,6 +249,18 @@ impl Paper004 {
     pub fn process(&mut self, frame: &Frame, out: &mut Vec<Detection>) -> Result<(), FrameError> {
         out.clear();
         let g = self.ensure(frame)?;
+        let gap = self.params.restart_gap_ms as i64 * 1_000_000;
+        if gap > 0
+            && self
+                .last_captured
+                .is_some_and(|t| frame.captured - t > gap)
+        {
+            self.fill_from(frame, &g);
+            self.confidence.fill(0);
+            self.noise.fill(self.params.noise_init);
+            self.restarts += 1;
+        }
+        self.last_captured = Some(frame.captured);
         self.frames += 1;
         self.update(frame, &g);
         erode4(&g, &self.mask, &mut self.eroded, self.params.erosion_min);
@@ -305,6 +333,11 @@ impl Paper004 {
     pub fn frames(&self) -> u64 {
         self.frames
     }
+
+    /// Times the model restarted after a gap in the frames.
+    pub fn restarts(&self) -> u64 {
+        self.restarts
+    }
 }
 
 #[cfg(test)]
@@ -376,7 +409,9 @@ mod tests {
     #[test]
     fn frame_counts_keep_the_papers_times_at_other_rates() {
         let p = Paper004Params::default();
-        assert_eq!(p.clone().scaled_to_fps(PAPER_FPS), p);
+        let at20 = p.clone().scaled_to_fps(PAPER_FPS);
+        assert_eq!((at20.history, at20.tau), (p.history, p.tau));
+        assert_eq!(at20.restart_gap_ms, 2500);
         let at5 = p.clone().scaled_to_fps(5.0);
         assert_eq!((at5.history, at5.tau), (5, 8));
         let at1 = p.clone().scaled_to_fps(1.0);
@@ -423,6 +458,28 @@ mod tests {
             assert_eq!(out.len(), 1, "frame {t}: {out:?}");
             assert!((out[0].centre[0] - (x as f32 + 5.5)).abs() < 1.5, "frame {t}: {:?}", out[0]);
         }
+    }
+
+    #[test]
+    fn a_model_woken_after_a_long_gap_restarts_instead_of_showing_old_ghosts() {
+        let params = Paper004Params::default().scaled_to_fps(5.0);
+        assert_eq!(params.restart_gap_ms, 2600);
+        let woken = |params: Paper004Params| {
+            let mut seg = Paper004::new(params);
+            let mut out = Vec::new();
+            // The object stands at x = 20 when the camera starts, and it stops capturing.
+            seg.process(&scene(0, Some(20)), &mut out).unwrap();
+            seg.process(&scene(1, Some(22)), &mut out).unwrap();
+            // Woken 10 s later: the object is gone from there.
+            seg.process(&scene(100, None), &mut out).unwrap();
+            (out.len(), seg.restarts())
+        };
+        assert_eq!(woken(params.clone()), (0, 1));
+        let never = Paper004Params {
+            restart_gap_ms: 0,
+            ..params
+        };
+        assert_eq!(woken(never), (1, 0), "without the restart the stale model shows a ghost");
     }
 
     #[test]
