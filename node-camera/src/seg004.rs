@@ -89,7 +89,10 @@ impl Paper004Params {
             return self;
         }
         let scale = |frames: f64| (frames * fps / PAPER_FPS).round().max(2.0);
-        let (history, tau) = (scale(self.history as f64), scale(self.tau as f64).min(u8::MAX as f64));
+        let (history, tau) = (
+            scale(self.history as f64),
+            scale(self.tau as f64).min(u8::MAX as f64),
+        );
         Paper004Params {
             history: history as usize,
             tau: tau as u8,
@@ -250,11 +253,7 @@ impl Paper004 {
         out.clear();
         let g = self.ensure(frame)?;
         let gap = self.params.restart_gap_ms as i64 * 1_000_000;
-        if gap > 0
-            && self
-                .last_captured
-                .is_some_and(|t| frame.captured - t > gap)
-        {
+        if gap > 0 && self.last_captured.is_some_and(|t| frame.captured - t > gap) {
             self.fill_from(frame, &g);
             self.confidence.fill(0);
             self.noise.fill(self.params.noise_init);
@@ -456,7 +455,11 @@ mod tests {
             let x = 4 + (t - 5) * 4;
             seg.process(&scene(t, Some(x)), &mut out).unwrap();
             assert_eq!(out.len(), 1, "frame {t}: {out:?}");
-            assert!((out[0].centre[0] - (x as f32 + 5.5)).abs() < 1.5, "frame {t}: {:?}", out[0]);
+            assert!(
+                (out[0].centre[0] - (x as f32 + 5.5)).abs() < 1.5,
+                "frame {t}: {:?}",
+                out[0]
+            );
         }
     }
 
@@ -479,7 +482,11 @@ mod tests {
             restart_gap_ms: 0,
             ..params
         };
-        assert_eq!(woken(never), (1, 0), "without the restart the stale model shows a ghost");
+        assert_eq!(
+            woken(never),
+            (1, 0),
+            "without the restart the stale model shows a ghost"
+        );
     }
 
     #[test]

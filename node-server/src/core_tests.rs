@@ -466,10 +466,11 @@ fn a_far_heads_poor_estimate_never_founds_a_second_global() {
     }
     assert_eq!(s.global_of(H3, TargetId(9)), None);
     assert_eq!(s.globals().count(), 1);
-    assert!(!decisions(&mut s).iter().any(|d| matches!(
-        d,
-        Decision::Split { .. } | Decision::NewGlobal { head: H3, .. }
-    )));
+    assert!(
+        !decisions(&mut s)
+            .iter()
+            .any(|d| matches!(d, Decision::Split { .. } | Decision::NewGlobal { head: H3, .. }))
+    );
 }
 
 /// After a handover the old head drops its track; a track it starts again on the target (still

@@ -262,7 +262,10 @@ impl HeadNode {
                 let d = a.filter.mean() - b.filter.mean();
                 let s = a.filter.cov() + b.filter.cov();
                 let same = if a.confirmed != b.confirmed {
-                    let (d, s) = (d.fixed_rows::<3>(0).into_owned(), s.fixed_view::<3, 3>(0, 0).into_owned());
+                    let (d, s) = (
+                        d.fixed_rows::<3>(0).into_owned(),
+                        s.fixed_view::<3, 3>(0, 0).into_owned(),
+                    );
                     s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate)
                 } else {
                     s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate)

@@ -157,7 +157,10 @@ fn activation_cost_is_the_energy_of_one_step() {
     h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, Some(3), 3.0)));
     h.tick(ClusterTime::from_millis(200));
     h.tick(ClusterTime::from_millis(281));
-    let d = h.last_step().decision.expect("a camera far from the target is switched off");
+    let d = h
+        .last_step()
+        .decision
+        .expect("a camera far from the target is switched off");
     let power = s.power_of(d.node.0);
     let step_s = s.method.step_ms as f64 * 1e-3;
     let want = s.method.energy_weight * (power.in_mode(d.to) - power.in_mode(d.from)) * step_s;
