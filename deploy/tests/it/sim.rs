@@ -12,12 +12,12 @@ use proto::scenario::{Activation, Scenario};
 
 const SEED: u64 = 1;
 const DURATION_S: f64 = 20.0;
-/// Three-mode's mean error may be at most this many times all-on's. Measured (pixel level,
-/// 20 s) three-mode over all-on, seeds 1-5: 0.357/0.114, 0.200/0.112, 0.414/0.113,
-/// 0.154/0.113, 0.312/0.114 m, i.e. 1.4-3.7 times (seed 1: 3.1); paper 002 Table I has
-/// 33.5 cm against 28.6 cm. Before the activation cost was an energy per step, three-mode
-/// kept 1.1-1.5 cameras and erred by 2.5-3.8 m.
-const THREE_MODE_FACTOR: f64 = 4.0;
+/// Three-mode's mean error may be at most this many times all-on's. Measured with these
+/// options (pixel level, 20 s, `SimOptions::default()`), three-mode over all-on, seeds 1-5:
+/// 0.405/0.114, 0.214/0.114, 0.362/0.115, 0.149/0.116, 0.441/0.117 m, i.e. 1.3-3.8 times
+/// (seed 1: 3.6); paper 002 Table I has 33.5 cm against 28.6 cm. Before the activation cost
+/// was an energy per step, three-mode kept 1.1-1.5 cameras and erred by 2.5-3.8 m.
+const THREE_MODE_FACTOR: f64 = 5.0;
 
 fn run(activation: Activation) -> Report {
     let mut scenario = Scenario::default_scenario();
@@ -46,8 +46,8 @@ fn globals_of_the_robot(r: &Report) -> usize {
 #[test]
 fn the_default_scenario_is_tracked_with_one_id_and_three_mode_saves_cameras() {
     let all_on = run(Activation::AllOn);
-    // Measured (pixel level, 20 s), all-on, seeds 1-5: mean error 0.112-0.114 m, std
-    // 0.053-0.056 m, 8.8 active cameras per step, 1 handover, 1 global id. The bound leaves
+    // Measured (same options), all-on, seeds 1-5: mean error 0.114-0.117 m, std
+    // 0.054-0.056 m, 8.8 active cameras per step, 1 handover, 1 global id. The bound leaves
     // room for rendering or segmentation changes but not for a lost or duplicated track
     // (either costs metres on a few samples, pushing the mean well past it).
     let err_all = all_on.mean_error_m.expect("the scenario has ground truth");
@@ -59,8 +59,9 @@ fn the_default_scenario_is_tracked_with_one_id_and_three_mode_saves_cameras() {
 
     let three = run(Activation::ThreeMode);
     let err_three = three.mean_error_m.expect("the scenario has ground truth");
-    // Measured, three-mode, seeds 1-5: 2.8-3.3 active cameras per step (all-on 8.8), total
-    // power 4.8-5.5 W (all-on 15.1 W with every node on).
+    // Measured, three-mode, seeds 1-5: 2.6-3.8 active cameras per step (all-on 8.8), total
+    // power 4.7-5.4 W (all-on 15.1 W with every node on). Its global ids are not asserted:
+    // 1-3 over those seeds (see the crate's report of what remains).
     assert!(
         three.active_cameras_mean < 0.6 * all_on.active_cameras_mean,
         "three-mode {} cameras vs all-on {}",
