@@ -59,11 +59,14 @@ impl CameraConfig {
         let camera = scenario.camera_model(id)?;
         let head = node.head.or_else(|| scenario.heads().next().map(|h| h.id));
         let m = &scenario.method;
+        let fps = node.camera.as_ref().map_or(5.0, |c| c.fps);
+        let mut segment = SegmentParams::for_scenario(scenario, camera.intrinsics.width);
+        segment.paper004 = segment.paper004.scaled_to_fps(fps);
         Ok(CameraConfig {
             id: NodeId(id),
             head: head.map(NodeId),
             server: scenario.server().map(|s| NodeId(s.id)),
-            segment: SegmentParams::for_scenario(scenario, camera.intrinsics.width),
+            segment,
             camera,
             fusion: m.fusion,
             pixel_sigma: m.pixel_sigma,
@@ -75,7 +78,7 @@ impl CameraConfig {
             rssi: node.rssi,
             previous_point: m.previous_point,
             initial_mode: Mode::Active,
-            fps: node.camera.as_ref().map_or(5.0, |c| c.fps),
+            fps,
         })
     }
 }

@@ -40,6 +40,9 @@ pub struct Paper004Params {
     /// Smallest region kept, grid pixels.
     pub min_pixels: u32,
     pub max_regions: usize,
+    /// A gap between frames longer than this (ms) restarts the model from the next frame,
+    /// as at power-on (0: never). See [`Paper004Params::scaled_to_fps`].
+    pub restart_gap_ms: u64,
 }
 
 impl Default for Paper004Params {
@@ -59,6 +62,42 @@ impl Default for Paper004Params {
             step: 1,
             min_pixels: 12,
             max_regions: 32,
+            restart_gap_ms: 0,
+        }
+    }
+}
+
+/// Frame rate the paper's frame counts were chosen at (its §3.2.1 runs at 20 fps).
+pub const PAPER_FPS: f64 = 20.0;
+
+impl Paper004Params {
+    /// The paper's `history` and `τ` are frame counts that stand for times ("τ represents a
+    /// number of frames and thus directly relates to time", §3.2.1): 20 frames (1 s) of history
+    /// and 30 frames (1.5 s) before a still region joins the background, at [`PAPER_FPS`].
+    /// Keep those times at `fps`: at 5 fps the unscaled counts would keep a region that stopped
+    /// moving (or the ghost an object in the first frame leaves behind) detected for 10 s
+    /// instead of 2.5 s. Counts never drop below 2; a non-finite or non-positive `fps` leaves
+    /// the parameters as they are.
+    ///
+    /// A camera that stops capturing (commanded Inactive or CameraOff) keeps a model of the
+    /// scene as it was: woken seconds later, every place a target stood when it stopped shows
+    /// up as a ghost. So a gap longer than the model's memory (history + τ frames) restarts
+    /// the model from the next frame, as at power-on: its ghost is where the target is then,
+    /// next to it, and fades in the same 2.5 s.
+    pub fn scaled_to_fps(self, fps: f64) -> Paper004Params {
+        if !(fps.is_finite() && fps > 0.0) {
+            return self;
+        }
+        let scale = |frames: f64| (frames * fps / PAPER_FPS).round().max(2.0);
+        let (history, tau) = (
+            scale(self.history as f64),
+            scale(self.tau as f64).min(u8::MAX as f64),
+        );
+        Paper004Params {
+            history: history as usize,
+            tau: tau as u8,
+            restart_gap_ms: ((history + tau) / fps * 1e3).round() as u64,
+            ..self
         }
     }
 }
@@ -77,6 +116,8 @@ pub struct Paper004 {
     mask: Vec<u8>,
     eroded: Vec<u8>,
     frames: u64,
+    last_captured: Option<proto::ClusterTime>,
+    restarts: u64,
 }
 
 impl Paper004 {
@@ -94,6 +135,8 @@ impl Paper004 {
             mask: Vec::new(),
             eroded: Vec::new(),
             frames: 0,
+            last_captured: None,
+            restarts: 0,
         }
     }
 
@@ -209,6 +252,14 @@ impl Paper004 {
     pub fn process(&mut self, frame: &Frame, out: &mut Vec<Detection>) -> Result<(), FrameError> {
         out.clear();
         let g = self.ensure(frame)?;
+        let gap = self.params.restart_gap_ms as i64 * 1_000_000;
+        if gap > 0 && self.last_captured.is_some_and(|t| frame.captured - t > gap) {
+            self.fill_from(frame, &g);
+            self.confidence.fill(0);
+            self.noise.fill(self.params.noise_init);
+            self.restarts += 1;
+        }
+        self.last_captured = Some(frame.captured);
         self.frames += 1;
         self.update(frame, &g);
         erode4(&g, &self.mask, &mut self.eroded, self.params.erosion_min);
@@ -281,6 +332,11 @@ impl Paper004 {
     pub fn frames(&self) -> u64 {
         self.frames
     }
+
+    /// Times the model restarted after a gap in the frames.
+    pub fn restarts(&self) -> u64 {
+        self.restarts
+    }
 }
 
 #[cfg(test)]
@@ -347,6 +403,90 @@ mod tests {
         }
         assert_eq!(seen[0], 1, "the new object is moving at first");
         assert_eq!(*seen.last().unwrap(), 0, "and parked later: {seen:?}");
+    }
+
+    #[test]
+    fn frame_counts_keep_the_papers_times_at_other_rates() {
+        let p = Paper004Params::default();
+        let at20 = p.clone().scaled_to_fps(PAPER_FPS);
+        assert_eq!((at20.history, at20.tau), (p.history, p.tau));
+        assert_eq!(at20.restart_gap_ms, 2500);
+        let at5 = p.clone().scaled_to_fps(5.0);
+        assert_eq!((at5.history, at5.tau), (5, 8));
+        let at1 = p.clone().scaled_to_fps(1.0);
+        assert_eq!((at1.history, at1.tau), (2, 2));
+        assert_eq!(p.clone().scaled_to_fps(f64::NAN), p);
+    }
+
+    /// Frames (of `total`) on which something is still detected where an object stood in the
+    /// first frame and left on the second.
+    fn ghost_frames(params: Paper004Params, total: usize) -> usize {
+        let mut seg = Paper004::new(params);
+        let mut out = Vec::new();
+        seg.process(&scene(0, Some(20)), &mut out).unwrap();
+        (1..total)
+            .filter(|&t| {
+                seg.process(&scene(t, None), &mut out).unwrap();
+                out.iter().any(|d| (d.centre[0] - 25.5).abs() < 6.0)
+            })
+            .count()
+    }
+
+    #[test]
+    fn the_first_frames_ghost_lasts_the_papers_time_at_5_fps() {
+        // At 5 fps, 3 s is 15 frames: the scaled model (1 s history + 1.5 s) absorbs the ghost
+        // within them; the paper's frame counts taken literally would keep it for 10 s.
+        let fps = 5.0;
+        let scaled = ghost_frames(Paper004Params::default().scaled_to_fps(fps), 25);
+        assert!(scaled > 0 && scaled <= 15, "scaled: {scaled} frames");
+        let literal = ghost_frames(Paper004Params::default(), 25);
+        assert_eq!(literal, 24, "literal counts keep the ghost for the whole 5 s");
+    }
+
+    #[test]
+    fn an_object_moving_at_5_fps_stays_detected_with_scaled_counts() {
+        let mut seg = Paper004::new(Paper004Params::default().scaled_to_fps(5.0));
+        let mut out = Vec::new();
+        for t in 0..5 {
+            seg.process(&scene(t, None), &mut out).unwrap();
+        }
+        // 4 px per frame across a 12 px wide object: each pixel is covered for 3 frames.
+        for t in 5..30 {
+            let x = 4 + (t - 5) * 4;
+            seg.process(&scene(t, Some(x)), &mut out).unwrap();
+            assert_eq!(out.len(), 1, "frame {t}: {out:?}");
+            assert!(
+                (out[0].centre[0] - (x as f32 + 5.5)).abs() < 1.5,
+                "frame {t}: {:?}",
+                out[0]
+            );
+        }
+    }
+
+    #[test]
+    fn a_model_woken_after_a_long_gap_restarts_instead_of_showing_old_ghosts() {
+        let params = Paper004Params::default().scaled_to_fps(5.0);
+        assert_eq!(params.restart_gap_ms, 2600);
+        let woken = |params: Paper004Params| {
+            let mut seg = Paper004::new(params);
+            let mut out = Vec::new();
+            // The object stands at x = 20 when the camera starts, and it stops capturing.
+            seg.process(&scene(0, Some(20)), &mut out).unwrap();
+            seg.process(&scene(1, Some(22)), &mut out).unwrap();
+            // Woken 10 s later: the object is gone from there.
+            seg.process(&scene(100, None), &mut out).unwrap();
+            (out.len(), seg.restarts())
+        };
+        assert_eq!(woken(params.clone()), (0, 1));
+        let never = Paper004Params {
+            restart_gap_ms: 0,
+            ..params
+        };
+        assert_eq!(
+            woken(never),
+            (1, 0),
+            "without the restart the stale model shows a ghost"
+        );
     }
 
     #[test]

@@ -6,7 +6,9 @@
 //! action. Adding or removing a sensor's rows H (Q their noise) changes Ω by ±HᵀQ⁻¹H, so by the
 //! matrix determinant lemma the ratio is |Q ± H Σ Hᵀ| / |Q| with Σ = Ω⁻¹: a determinant of at
 //! most 3×3 per candidate and track, which keeps the decision linear in the number of nodes.
-//! Cost: `energy_weight × cost_factor × (P(to) − P(from))` from the node's power figures, so c1
+//! Cost: `energy_weight × cost_factor × (P(to) − P(from))` from the node's power figures (the
+//! head passes the scenario's weight, nats per mJ, times the step in seconds: the cost is the
+//! energy difference over the step whose information gain is the reward), so c1
 //! is the node's active-minus-low-power draw and c2 its camera's (paper 002 Fig. 3); savings are
 //! negative costs.
 

@@ -291,7 +291,7 @@ impl HeadNode {
     fn on_handover(&mut self, now: ClusterTime, h: Handover) {
         if h.to_head != self.cfg.id {
             if h.from_head == Some(self.cfg.id) {
-                self.tracks.retain(|t| t.global != Some(h.global));
+                self.release(&h);
             }
             return;
         }
@@ -308,6 +308,7 @@ impl HeadNode {
             s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate)
         }) {
             t.global = Some(h.global);
+            t.confirmed = true;
             return;
         }
         let local = self.alloc_local();
@@ -321,6 +322,38 @@ impl HeadNode {
                 self.counters.rejected += 1;
                 warn!(global = %h.global, error = %e, "handover with an unusable posterior");
             }
+        }
+    }
+
+    /// The server handed one of our targets to another head: stop tracking it. The track is the
+    /// one carrying the global id, or, for a track we started (the server named it without
+    /// telling us), the one nearest the handed-over posterior (our own last report of it)
+    /// within the gate.
+    fn release(&mut self, h: &Handover) {
+        let before = self.tracks.len();
+        self.tracks.retain(|t| t.global != Some(h.global));
+        if self.tracks.len() == before {
+            let mean = vec6_from_wire(&h.mean);
+            let cov = mat6_from_wire(&h.cov);
+            let gate = self.cfg.method.gate_chi2;
+            let nearest = self
+                .tracks
+                .iter()
+                .enumerate()
+                .filter(|(_, t)| t.global.is_none())
+                .filter_map(|(i, t)| {
+                    let d = t.position() - mean.fixed_rows::<3>(0);
+                    let s = t.filter.cov().fixed_view::<3, 3>(0, 0) + cov.fixed_view::<3, 3>(0, 0);
+                    let d2 = d.dot(&s.cholesky()?.solve(&d));
+                    (d2 <= gate).then_some((i, d2))
+                })
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((i, _)) = nearest {
+                self.tracks.remove(i);
+            }
+        }
+        if self.tracks.len() < before {
+            info!(global = %h.global, to = %h.to_head, "track handed to another head; dropped");
         }
     }
 

@@ -9,6 +9,21 @@ use proto::models::{MotionModel, RssiModel, State};
 use proto::msg::Contributor;
 use proto::{ClusterTime, TargetId};
 
+/// Steps with camera information a born track needs before it is reported (one second at the
+/// default 200 ms step). Until then it is tentative: it is filtered and may be merged, but the
+/// server never hears of it, so a short-lived duplicate (a split region, the leftover of a
+/// segmentation ghost) never becomes a global id. Handed-over tracks are confirmed at once.
+pub const CONFIRM_STEPS: u32 = 5;
+/// How far (metres) a born track must move, from where it was after its first two camera steps
+/// (by then a new track has converged on its detections), to be confirmed. Motion segmentation
+/// (paper 004) only sees what moves, so a target that does not move is a ghost: the background
+/// where a target stood when a camera's model was started (or last woken). A track born on a
+/// ghost settles there and is never reported; a target that stands still from its birth is
+/// reported once it moves.
+pub const CONFIRM_DISTANCE_M: f64 = 0.25;
+/// Camera steps after which a born track's position is taken as its anchor.
+const ANCHOR_STEPS: u32 = 2;
+
 /// A track.
 #[derive(Clone, Debug)]
 pub struct Track {
@@ -35,6 +50,12 @@ pub struct Track {
     pub last_seen: ClusterTime,
     /// ML's previous fix, for its velocity.
     pub ml_prev: Option<(Vector3<f64>, ClusterTime)>,
+    /// Steps in which cameras measured it.
+    pub camera_steps: u32,
+    /// Position after [`ANCHOR_STEPS`] camera steps (tentative tracks only).
+    pub anchor: Option<Vector3<f64>>,
+    /// Reported to the server (see [`CONFIRM_STEPS`]).
+    pub confirmed: bool,
 }
 
 impl Track {
@@ -72,6 +93,9 @@ impl Track {
             time: now,
             last_seen: now,
             ml_prev: None,
+            camera_steps: 0,
+            anchor: None,
+            confirmed: global.is_some(),
         })
     }
 
@@ -94,6 +118,22 @@ impl Track {
         self.detections.clear();
         self.contributors.clear();
         Ok(())
+    }
+
+    /// Count a step in which cameras measured it (`camera`); confirm it after
+    /// [`CONFIRM_STEPS`] of them once it moved [`CONFIRM_DISTANCE_M`] from its anchor.
+    pub fn end_step(&mut self, camera: bool) {
+        self.camera_steps += u32::from(camera);
+        if self.confirmed || !camera {
+            return;
+        }
+        if self.camera_steps == ANCHOR_STEPS {
+            self.anchor = Some(self.position());
+        }
+        self.confirmed = self.camera_steps >= CONFIRM_STEPS
+            && self
+                .anchor
+                .is_some_and(|a| (self.position() - a).norm() >= CONFIRM_DISTANCE_M);
     }
 
     pub fn position(&self) -> Vector3<f64> {

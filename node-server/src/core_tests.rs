@@ -83,6 +83,16 @@ fn handovers(out: &[Outgoing]) -> Vec<(NodeId, proto::msg::Handover)> {
 }
 
 /// Both heads and one camera admitted at t = 0.
+/// Only head 3 (and the camera) up: nothing covers head 2's area, so head 3 may found targets
+/// there (authority follows live regions).
+fn started_without_h2() -> ServerNode {
+    let mut s = server();
+    s.on_message(ms(0), hello(H3, Role::Head));
+    s.on_message(ms(0), hello(CAM, Role::Camera));
+    s.take_records();
+    s
+}
+
 fn started() -> ServerNode {
     let mut s = server();
     s.on_message(ms(0), hello(H2, Role::Head));
@@ -537,20 +547,25 @@ fn two_globals_that_stay_together_become_one() {
 
 #[test]
 fn a_track_started_in_another_clusters_area_is_not_pushed_onto_that_head() {
-    let mut s = started();
-    // Head 3's cameras see a target deep in head 2's area: head 3 keeps it.
-    let out = s.on_message(ms(0), report(H3, 9, None, ms(0), 3.0, 4.0));
+    let mut s = started_without_h2();
+    // Head 3's cameras see a target deep in head 2's area while head 2 is down; head 2 comes
+    // up: head 3 keeps it.
+    s.on_message(ms(0), report(H3, 9, None, ms(0), 3.0, 4.0));
+    s.on_message(ms(10), hello(H2, Role::Head));
+    let out = s.on_message(ms(200), report(H3, 9, None, ms(200), 3.0, 4.0));
     assert!(handovers(&out).iter().all(|(_, h)| h.from_head.is_none()));
     assert_eq!(s.globals().next().unwrap().1.owner, H3);
 }
 
 #[test]
 fn the_head_covering_a_target_it_already_tracks_takes_it_over() {
-    let mut s = started();
+    let mut s = started_without_h2();
     let x = |k: i64| 1.0 + 0.2 * k as f64;
-    // Head 3 started the track in head 2's area and keeps it; head 2's own track joins it.
+    // Head 3 started the track in head 2's area while head 2 was down; head 2 comes up and its
+    // own track joins the global, and ownership follows the region.
     s.on_message(ms(0), report(H3, 9, None, ms(0), x(0), 4.0));
     let g = s.global_of(H3, TargetId(9)).unwrap();
+    s.on_message(ms(10), hello(H2, Role::Head));
     for k in 1..5i64 {
         let t = ms(k * 200);
         s.on_message(t, report(H3, 9, Some(g.0), t, x(k), 4.0));
@@ -563,4 +578,56 @@ fn the_head_covering_a_target_it_already_tracks_takes_it_over() {
         from: H3,
         to: H2
     }));
+}
+
+/// Head 2 tracks the target in its own region; head 3 sees it from afar, badly.
+#[test]
+fn a_far_heads_poor_estimate_never_founds_a_second_global() {
+    let mut s = started();
+    s.on_message(ms(0), report(H2, 5, None, ms(0), 3.0, 4.0));
+    let g = s.global_of(H2, TargetId(5)).unwrap();
+    // Head 3's track sits 1.5 m off, inside head 2's region: it never gets an id of its own.
+    for k in 1..=10i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H2, 5, None, t, 3.0, 4.0));
+        s.on_message(t, report(H3, 9, None, t, 1.5, 4.0));
+        assert_eq!(s.global_of(H3, TargetId(9)), None, "step {k}");
+    }
+    // Once it agrees it merges; when it drifts off again it loses the id instead of splitting.
+    for k in 11..=13i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H2, 5, None, t, 3.0, 4.0));
+        s.on_message(t, report(H3, 9, None, t, 3.2, 4.0));
+    }
+    assert_eq!(s.global_of(H3, TargetId(9)), Some(g));
+    for k in 14..=20i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H2, 5, None, t, 3.0, 4.0));
+        s.on_message(t, report(H3, 9, None, t, 1.2, 4.0));
+    }
+    assert_eq!(s.global_of(H3, TargetId(9)), None);
+    assert_eq!(s.globals().count(), 1);
+    assert!(
+        !decisions(&mut s)
+            .iter()
+            .any(|d| matches!(d, Decision::Split { .. } | Decision::NewGlobal { head: H3, .. }))
+    );
+}
+
+/// After a handover the old head drops its track; a track it starts again on the target (still
+/// near the border) merges back into the global instead of founding a new one.
+#[test]
+fn the_old_heads_new_track_on_a_handed_over_target_merges_back() {
+    let mut s = started();
+    s.on_message(ms(0), report(H2, 5, None, ms(0), 6.0, 4.0));
+    let g = s.global_of(H2, TargetId(5)).unwrap();
+    let out = s.on_message(ms(200), report(H2, 5, None, ms(200), 6.3, 4.0));
+    assert_eq!(handovers(&out).len(), 2);
+    for k in 2..=5i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H3, 1, Some(g.0), t, 6.3, 4.0));
+        s.on_message(t, report(H2, 6, None, t, 6.2, 4.0));
+    }
+    assert_eq!(s.global_of(H2, TargetId(6)), Some(g));
+    assert_eq!(s.globals().count(), 1);
 }

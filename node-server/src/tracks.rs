@@ -22,6 +22,16 @@
 //!   [`GlobalTrack::entered`]).
 //! - A member head that reports the track inside its own region while it is outside the
 //!   owner's takes ownership without a handover (`OwnerChanged`): it already tracks it.
+//! - Authority follows regions: a head's track lying outside its region by more than the
+//!   handover margin, where a live head's region covers it, is a second opinion from cameras
+//!   at the edge of their range. It never founds a global (no `NewGlobal`, no `Split`): it is
+//!   merged when it agrees with a global, otherwise it waits without an id (a disagreeing
+//!   merged one goes back to pending) while the covering head, whose cameras see the place
+//!   well, founds the target. Without this a far head's poor estimate of a target the owner
+//!   tracks well turns into a second global id.
+//! - On a handover the old head stops tracking the target, so its local tracks bound to the
+//!   global are released: a track it starts again on the target merges back into the global
+//!   instead of founding a new one (its old binding stays, so a late report of it still counts).
 //! - When the owner is down, on the next tick the track goes to the live head covering its last
 //!   position, else the nearest one (`Handover`, reason `Failover`).
 //! - A global no head reported for the track timeout is dropped (`Lost`); a silent local track
@@ -82,6 +92,9 @@ struct LocalTrack {
     last: ClusterTime,
     agree: u32,
     disagree: u32,
+    /// Its global was handed away from this head, which drops the track: it no longer counts
+    /// as the head feeding the global.
+    released: bool,
 }
 
 /// The global track table.
@@ -173,7 +186,7 @@ impl Tracks {
         let fed: Vec<TargetId> = self
             .locals
             .iter()
-            .filter(|((h, _), l)| *h == head && now - l.last <= self.params.owner_stale_ns)
+            .filter(|((h, _), l)| *h == head && now - l.last <= self.params.owner_stale_ns && !l.released)
             .map(|(_, l)| match l.binding {
                 Binding::Bound(g) | Binding::Pending(g) => g,
             })
@@ -187,6 +200,16 @@ impl Tracks {
             .map(|(g, _)| g)
     }
 
+    /// Whether `head`'s report lies outside its region by more than the handover margin, in a
+    /// region a live head covers: then the report may not found a global.
+    fn foreign(&self, head: NodeId, r: &TrackReport, members: &Membership) -> bool {
+        let (x, y) = (r.mean[0], r.mean[1]);
+        members
+            .region(head)
+            .is_some_and(|region| distance_to_region(region, x, y) > self.params.handover_margin_m)
+            && members.live_head_covering(x, y, 0.0, head).is_some()
+    }
+
     /// Take one report from `head`; returns the decisions it caused.
     pub fn observe(
         &mut self,
@@ -198,6 +221,7 @@ impl Tracks {
         let key = (head, r.target);
         let local = r.target;
         let n = self.params.hysteresis.max(1);
+        let foreign = self.foreign(head, r, members);
         let mut out = Vec::new();
         let binding = match self.locals.get(&key).map(|l| l.binding) {
             None => match r.global.filter(|g| self.globals.contains_key(g)) {
@@ -226,6 +250,9 @@ impl Tracks {
                         self.locals.insert(key, l);
                         Binding::Pending(g)
                     }
+                    // A foreign track near no global waits unbound; its next report is looked
+                    // at afresh.
+                    None if foreign => return out,
                     None => {
                         let g = self.new_global(now, head, r);
                         out.push(Decision::NewGlobal {
@@ -257,7 +284,10 @@ impl Tracks {
                         global: g,
                     });
                     Binding::Bound(g)
-                } else if !self.globals.contains_key(&g) || (!agrees && l.disagree >= n) {
+                } else if foreign && !self.globals.contains_key(&g) {
+                    self.locals.remove(&key);
+                    return out;
+                } else if !foreign && (!self.globals.contains_key(&g) || (!agrees && l.disagree >= n)) {
                     let g = self.new_global(now, head, r);
                     let l = self.locals.get_mut(&key).expect("present");
                     *l = LocalTrack::new(Binding::Bound(g), now);
@@ -327,8 +357,9 @@ impl Tracks {
                             l.disagree += 1;
                             if l.disagree >= n {
                                 // It left g for good. If it now sits on another global, it joins
-                                // that one (it disagreed with g n times: hysteresis enough);
-                                // only a track near nothing gets a new id.
+                                // that one (it disagreed with g n times: hysteresis enough); a
+                                // foreign track near nothing goes back to pending (no id while
+                                // it disagrees); only a track of its own region splits off.
                                 if let Some(c) = self.candidate(now, head, r) {
                                     *self.locals.get_mut(&key).expect("present") =
                                         LocalTrack::new(Binding::Bound(c), now);
@@ -338,6 +369,10 @@ impl Tracks {
                                         global: c,
                                     });
                                     Binding::Bound(c)
+                                } else if foreign {
+                                    *self.locals.get_mut(&key).expect("present") =
+                                        LocalTrack::new(Binding::Pending(g), now);
+                                    return out;
                                 } else {
                                     let ng = self.new_global(now, head, r);
                                     *self.locals.get_mut(&key).expect("present") =
@@ -449,6 +484,11 @@ impl Tracks {
         let from = gt.owner;
         gt.owner = to;
         gt.entered = true; // `to` covers the estimate
+        for ((h, _), l) in self.locals.iter_mut() {
+            if *h == from && l.binding == Binding::Bound(g) {
+                l.released = true;
+            }
+        }
         Some(Decision::Handover {
             global: g,
             from: Some(from),
@@ -528,6 +568,7 @@ impl LocalTrack {
             last: now,
             agree: 0,
             disagree: 0,
+            released: false,
         }
     }
 }

@@ -195,7 +195,8 @@ pub struct Method {
     pub rssi_window: usize,
     /// Guard for 1/a → ε in Algorithm 1.
     pub rssi_epsilon: f64,
-    /// Weight of energy against information in the activation reward (nats per mW).
+    /// Weight of energy against information in the activation reward: nats per mJ of energy
+    /// (a power difference in mW held for one step of `step_ms`).
     pub energy_weight: f64,
     /// Include p_{i,t−1} in centralized measurements (paper 000 eq. 13).
     pub previous_point: bool,

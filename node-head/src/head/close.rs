@@ -60,7 +60,7 @@ impl HeadNode {
         stats.rssi_nodes = rssi_nodes.iter().filter(|&&b| b).count();
         self.merge_duplicates();
         stats.tracks = self.tracks.len();
-        for t in &self.tracks {
+        for t in self.tracks.iter().filter(|t| t.confirmed) {
             if let Some(server) = self.cfg.server {
                 out.push(Outgoing::new(
                     server,
@@ -186,6 +186,7 @@ impl HeadNode {
             }
         }
         let trained_from_cameras = track.aux_acc.count > 0;
+        track.end_step(trained_from_cameras || !dets.is_empty());
         if track.aux.update(&track.aux_acc).is_err() {
             self.counters.numeric_failures += 1;
         }
@@ -246,7 +247,10 @@ impl HeadNode {
     /// Two tracks on one target (a track born next to another, or two converging on the same
     /// detections, which cameras may gate to both priors) would be updated together forever.
     /// When their states (position and velocity) agree within the gate (Mahalanobis with the
-    /// summed covariances), keep the one with a global id, else the older, and drop the other.
+    /// summed covariances), keep the one with a global id, else the confirmed one, else the
+    /// older, and drop the other. A tentative track (never reported) next to a confirmed one
+    /// is dropped on position alone: its velocity is still a guess (a ghost's track swept onto
+    /// a target, or a second track born on one target), and nobody knows it yet.
     fn merge_duplicates(&mut self) {
         let gate = self.cfg.method.gate_chi2;
         let mut i = 0;
@@ -257,13 +261,20 @@ impl HeadNode {
                 // Position and velocity: two targets crossing are near but move apart.
                 let d = a.filter.mean() - b.filter.mean();
                 let s = a.filter.cov() + b.filter.cov();
-                if s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate) {
-                    // Prefer the track the server knows, then the older (lower index).
-                    let gone = if b.global.is_some() && a.global.is_none() {
-                        i
-                    } else {
-                        j
-                    };
+                let same = if a.confirmed != b.confirmed {
+                    let (d, s) = (
+                        d.fixed_rows::<3>(0).into_owned(),
+                        s.fixed_view::<3, 3>(0, 0).into_owned(),
+                    );
+                    s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate)
+                } else {
+                    s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate)
+                };
+                if same {
+                    // Prefer the track the server knows, then a confirmed one, then the older
+                    // (lower index).
+                    let rank = |t: &crate::track::Track| (t.global.is_some(), t.confirmed);
+                    let gone = if rank(b) > rank(a) { i } else { j };
                     let kept = if gone == i { j } else { i };
                     info!(kept = %self.tracks[kept].local, dropped = %self.tracks[gone].local, "duplicate tracks merged");
                     self.counters.merges += 1;
@@ -330,7 +341,11 @@ impl HeadNode {
         let (nodes, tracks) = (&self.nodes, &self.tracks);
         let decision = self.planner.decide(
             variant,
-            self.cfg.method.energy_weight,
+            // Paper 002 §V: the cost is the difference in *energy*, set against the information
+            // one step gains, so the power difference is held for one step:
+            // nats/(mW·s) × s. (Weighing the raw power priced a camera at 0.71 nats a step,
+            // dearer than all but the first camera's information: ~1 camera stayed on.)
+            self.cfg.method.energy_weight * dt,
             &candidates,
             &predicted,
             |n, t| {

@@ -147,3 +147,22 @@ fn duplicate_tracks_on_one_target_are_merged() {
     let globals: Vec<_> = h.tracks().iter().map(|t| t.global).collect();
     assert_eq!(globals, vec![Some(TargetId(7)), Some(TargetId(9))]);
 }
+
+/// Paper 002 §V: the cost is an energy, over the step whose information the reward counts.
+#[test]
+fn activation_cost_is_the_energy_of_one_step() {
+    let s = Scenario::default_scenario();
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    h.tick(ClusterTime::ZERO);
+    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, Some(3), 3.0)));
+    h.tick(ClusterTime::from_millis(200));
+    h.tick(ClusterTime::from_millis(281));
+    let d = h
+        .last_step()
+        .decision
+        .expect("a camera far from the target is switched off");
+    let power = s.power_of(d.node.0);
+    let step_s = s.method.step_ms as f64 * 1e-3;
+    let want = s.method.energy_weight * (power.in_mode(d.to) - power.in_mode(d.from)) * step_s;
+    assert!((d.cost - want).abs() < 1e-12, "cost {} vs {want}", d.cost);
+}

@@ -1,6 +1,8 @@
 //! Several targets: association, birth only from agreeing cameras, death after silence.
 
-use crate::sim::{Sim, TWO_TARGETS, error, ring_scenario};
+use crate::sim::{HEAD, ONE_TARGET, Sim, TWO_TARGETS, error, ring_scenario};
+use proto::msg::{Handover, Message};
+use proto::{Envelope, NodeId, TargetId};
 
 #[test]
 fn two_targets_are_born_tracked_and_one_dies() {
@@ -43,4 +45,60 @@ fn a_single_camera_detection_does_not_start_a_track() {
         sim.step();
     }
     assert_eq!(sim.head.counters().births, 0);
+}
+
+#[test]
+fn a_born_track_is_reported_only_once_confirmed() {
+    let scenario = ring_scenario(8, "distributed-eif", "all-on", 0.0, ONE_TARGET);
+    let mut sim = Sim::new(&scenario, 43);
+    let mut first_track = None;
+    let mut first_report = None;
+    for k in 0..15 {
+        let reports = sim.step();
+        if first_track.is_none() && !sim.head.tracks().is_empty() {
+            first_track = Some(k);
+        }
+        if first_report.is_none() && !reports.is_empty() {
+            first_report = Some(k);
+        }
+    }
+    let (born, reported) = (first_track.unwrap(), first_report.unwrap());
+    assert!(
+        reported >= born + node_head::track::CONFIRM_STEPS as usize,
+        "born at step {born}, reported at {reported}"
+    );
+    assert!(sim.head.tracks()[0].confirmed);
+    assert!(error(&sim, sim.reports.last().unwrap(), 0) < 0.3);
+}
+
+/// The server hands a target this head started (and never named to it) to another head: the
+/// head recognises its own track by the posterior and drops it.
+#[test]
+fn a_track_started_here_is_dropped_when_handed_away() {
+    let scenario = ring_scenario(8, "distributed-eif", "all-on", 0.0, TWO_TARGETS);
+    let mut sim = Sim::new(&scenario, 44);
+    for _ in 0..12 {
+        sim.step();
+    }
+    assert_eq!(sim.head.tracks().len(), 2);
+    let last = sim.reports.last().unwrap().clone();
+    assert_eq!(last.global, None);
+    let handover = Handover {
+        global: TargetId(9),
+        to_head: NodeId(3),
+        from_head: Some(NodeId(HEAD)),
+        time: last.time,
+        mean: last.mean,
+        cov: last.cov,
+    };
+    let env = Envelope {
+        source: NodeId(1),
+        seq: 0,
+        time: sim.now(),
+        body: Message::Handover(handover),
+    };
+    sim.head.on_message(sim.now(), env);
+    let left: Vec<_> = sim.head.tracks().iter().map(|t| t.local).collect();
+    assert_eq!(left.len(), 1);
+    assert_ne!(left[0], last.target);
 }
