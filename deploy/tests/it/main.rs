@@ -1,0 +1,3 @@
+//! Integration tests of the `deploy` crate (one binary).
+
+mod replay;
