@@ -25,9 +25,7 @@ pub enum CamerasError {
     OpenCv(#[from] proto::opencv::OpenCvError),
     #[error(transparent)]
     Scenario(#[from] proto::scenario::ScenarioError),
-    #[error(
-        "{dir}: cameras {mirrored:?} are left-handed and the others are not; one world cannot hold both"
-    )]
+    #[error("{dir}: cameras {mirrored:?} are left-handed and the others are not; one world cannot hold both")]
     MixedHandedness { dir: String, mirrored: Vec<String> },
     #[error("the scenario has no camera nodes")]
     NoCameras,
@@ -46,10 +44,7 @@ impl Cameras {
         if models.is_empty() {
             return Err(CamerasError::NoCameras);
         }
-        Ok(Cameras {
-            models,
-            mirror: None,
-        })
+        Ok(Cameras { models, mirror: None })
     }
 
     /// A calibration folder laid out as MultiviewX's (`intrinsic/intr_<ID>.xml`,

@@ -96,7 +96,9 @@ pub fn track(estimates: &[Estimate], options: &TrackOptions) -> (Vec<Estimate>, 
             xi.fixed_rows_mut::<3>(POS).copy_from(&(info * z));
             let mut acc = Accumulator::default();
             acc.add(&omega, &xi);
-            let Some(mut filter) = predicted[k].clone() else { continue };
+            let Some(mut filter) = predicted[k].clone() else {
+                continue;
+            };
             if filter.update(&acc).is_err() {
                 dropped += 1;
                 continue;
@@ -113,7 +115,8 @@ pub fn track(estimates: &[Estimate], options: &TrackOptions) -> (Vec<Estimate>, 
             cov.fixed_view_mut::<3, 3>(VEL, VEL)
                 .copy_from(&Matrix3::from_diagonal_element(v));
             let mut mean = Vector6::zeros();
-            mean.fixed_rows_mut::<3>(POS).copy_from(&Vector3::new(e.x, e.y, e.z));
+            mean.fixed_rows_mut::<3>(POS)
+                .copy_from(&Vector3::new(e.x, e.y, e.z));
             match Eif::from_gaussian(mean, cov) {
                 Ok(filter) => {
                     let tr = Track {
