@@ -151,3 +151,48 @@ fn output(e: &Estimate, tr: &Track) -> Estimate {
         track: Some(tr.id),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn est(t: f64, x: f64, y: f64) -> Estimate {
+        let s2 = 0.05_f64.powi(2);
+        Estimate {
+            t,
+            x,
+            y,
+            z: 0.0,
+            cov: [[s2, 0.0, 0.0], [0.0, s2, 0.0], [0.0, 0.0, 1e-4]],
+            cameras: 2,
+            track: None,
+        }
+    }
+
+    #[test]
+    fn two_walkers_keep_their_ids_and_a_timeout_ends_a_track() {
+        // Two people 3 m apart walking parallel at 1.2 m/s, sampled every 0.5 s.
+        let mut input = Vec::new();
+        for k in 0..8 {
+            let t = f64::from(k) * 0.5;
+            input.push(est(t, 1.2 * t, 0.0));
+            input.push(est(t, 1.2 * t, 3.0));
+        }
+        let (out, dropped) = track(&input, &TrackOptions::default());
+        assert_eq!(dropped, 0);
+        assert_eq!(out.len(), input.len());
+        for e in &out {
+            let want = if e.y < 1.5 { 1 } else { 2 };
+            assert_eq!(e.track, Some(want), "{e:?}");
+        }
+        // The filter has learnt the velocity: the last estimate is close to the measurement.
+        let last = out.last().unwrap();
+        assert!((last.x - 4.2).abs() < 0.1, "{last:?}");
+        // A gap longer than the timeout starts a new track.
+        let later = [est(10.0, 12.0, 0.0)];
+        let mut all = input.clone();
+        all.extend(later);
+        let (out, _) = track(&all, &TrackOptions::default());
+        assert_eq!(out.last().unwrap().track, Some(3));
+    }
+}

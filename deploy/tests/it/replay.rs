@@ -215,9 +215,17 @@ fn binary_writes_json_lines_and_names_a_bad_line() {
         }
     }
     assert!(seen >= 2, "the scenario centre is seen by {seen} cameras");
-    let run = |input: &str| {
+    let run_with = |input: &str, method: &str| {
         let mut child = Command::new(env!("CARGO_BIN_EXE_ocelli"))
-            .args(["replay", "--detections", "-", "--method", "ml", "--plane-z", "0"])
+            .args([
+                "replay",
+                "--detections",
+                "-",
+                "--method",
+                method,
+                "--plane-z",
+                "0",
+            ])
             .arg("--scenario")
             .arg(&scenario_path)
             .stdin(Stdio::piped())
@@ -233,6 +241,7 @@ fn binary_writes_json_lines_and_names_a_bad_line() {
             .expect("write detections");
         child.wait_with_output().expect("ocelli finishes")
     };
+    let run = |input: &str| run_with(input, "ml");
     let out = run(&lines);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).expect("utf-8");
@@ -252,6 +261,19 @@ fn binary_writes_json_lines_and_names_a_bad_line() {
         assert!((p - target).norm() < 1e-6, "{p} vs {target}");
         assert!(row["cov"][0][0].as_f64().unwrap() > 0.0);
     }
+    assert!(rows.iter().all(|r| r.get("track").is_none()));
+    let out = run_with(&lines, "eif");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let tracks: Vec<u64> = String::from_utf8(out.stdout)
+        .expect("utf-8")
+        .lines()
+        .map(|l| {
+            serde_json::from_str::<serde_json::Value>(l).expect("JSON")["track"]
+                .as_u64()
+                .expect("track id")
+        })
+        .collect();
+    assert_eq!(tracks, [1, 1], "one target, one track");
     let bad = format!("{lines}{{\"t\": 1, \"camera\": \"1\", \"u\": 3}}\n");
     let out = run(&bad);
     assert!(!out.status.success());
