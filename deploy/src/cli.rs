@@ -40,6 +40,8 @@ pub enum Command {
     Sim(cmd::sim::Args),
     /// Run one cluster head as its own process.
     Head(cmd::head::Args),
+    /// Fuse external detections (JSON Lines) with a method; estimates as JSON Lines.
+    Replay(cmd::replay::Args),
     /// Measure parts of the system; prints JSON.
     #[command(subcommand)]
     Bench(Bench),
@@ -88,6 +90,7 @@ pub fn main() -> ExitCode {
         Command::Sim(args) => cmd::sim::run(args),
         Command::Launch(args) => cmd::launch::run(args),
         Command::Head(args) => cmd::head::run(args),
+        Command::Replay(args) => cmd::replay::run(args),
         Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
         Command::Bench(Bench::Camera(args)) => cmd::bench_camera::run(args),
         Command::Bench(Bench::Server(args)) => cmd::bench_server::run(args),

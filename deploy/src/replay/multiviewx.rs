@@ -37,6 +37,8 @@ pub struct Truth {
     pub person: u32,
     pub x: f64,
     pub y: f64,
+    /// Views in which the person has a usable box (= detections made of it).
+    pub views: usize,
 }
 
 #[derive(Debug, Error)]
@@ -95,17 +97,19 @@ pub fn load(dataset: &Path) -> Result<(Vec<ExternalDetection>, Vec<Truth>), Mult
         let t = frame as f64 * FRAME_PERIOD_S;
         for p in people {
             let (x, y) = ground_of(p.position_id);
+            let visible: Vec<&View> = p
+                .views
+                .iter()
+                .filter(|v| v.xmin >= 0.0 && v.xmax > v.xmin && v.ymax > v.ymin)
+                .collect();
             truth.push(Truth {
                 t,
                 person: p.person_id,
                 x,
                 y,
+                views: visible.len(),
             });
-            for v in p
-                .views
-                .iter()
-                .filter(|v| v.xmin >= 0.0 && v.xmax > v.xmin && v.ymax > v.ymin)
-            {
+            for v in visible {
                 dets.push(ExternalDetection {
                     t,
                     camera: format!("Camera{}", v.view_num + 1),

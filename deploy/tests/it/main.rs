@@ -1,2 +1,4 @@
-//! Integration tests of the `deploy` crate.
+//! Integration tests of the `deploy` crate (one binary).
+
+mod replay;
 mod sim;
