@@ -284,8 +284,7 @@ fn killing_a_camera_mid_run_leaves_tracking_running() {
     let head_log = run.log("head-2");
     let last = head_log
         .lines()
-        .filter(|l| l.contains("node=n12") && (l.contains("liveness") || l.contains("not waiting")))
-        .next_back()
+        .rfind(|l| l.contains("node=n12") && (l.contains("liveness") || l.contains("not waiting")))
         .unwrap_or_default();
     assert!(
         last.contains("up=false") || last.contains("not waiting for it"),
