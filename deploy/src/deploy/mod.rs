@@ -190,11 +190,10 @@ pub fn render(scenario: &Scenario, toml_text: &str, opts: &Options) -> Result<Pl
     let plans = by_host
         .into_iter()
         .map(|(host, nodes)| {
+            let nodes_txt = units::nodes_txt(scenario, host, &nodes, transport);
             let mut files = vec![
-                (
-                    PathBuf::from("nodes.txt"),
-                    units::nodes_txt(scenario, host, &nodes, transport),
-                ),
+                (PathBuf::from("nodes.txt"), nodes_txt.clone()),
+                (PathBuf::from("rootfs/etc/ocelli/nodes.txt"), nodes_txt),
                 (
                     PathBuf::from("rootfs/etc/ocelli/scenario.toml"),
                     toml_text.to_string(),

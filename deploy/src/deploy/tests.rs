@@ -181,5 +181,7 @@ fn written_plan_lands_under_host_directories() {
     assert!(unit.contains("--record /var/lib/ocelli/"));
     assert!(out.join("pi-20/nodes.txt").exists() || s.node(20).is_none());
     assert!(out.join("hub/rootfs/etc/ocelli/scenario.toml").exists());
+    // The units point at the installed copy of nodes.txt.
+    assert!(out.join("hub/rootfs/etc/ocelli/nodes.txt").exists());
     let _ = std::fs::remove_dir_all(&out);
 }
