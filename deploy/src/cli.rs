@@ -36,6 +36,8 @@ pub enum Command {
     /// Start every node of a scenario on this host, each its own process (default scenario
     /// when none is given).
     Launch(cmd::launch::Args),
+    /// Render per-host configuration (scenario, systemd units, system user) for real machines.
+    Deploy(cmd::deploy::Args),
     /// Run a scenario's nodes in one process on a virtual clock (deterministic for a seed).
     Sim(cmd::sim::Args),
     /// Run one cluster head as its own process.
@@ -88,6 +90,7 @@ pub fn main() -> ExitCode {
         Command::Report(args) => cmd::report::run(args),
         Command::Export(args) => cmd::export::run(args),
         Command::Sim(args) => cmd::sim::run(args),
+        Command::Deploy(args) => cmd::deploy::run(args),
         Command::Launch(args) => cmd::launch::run(args),
         Command::Head(args) => cmd::head::run(args),
         Command::Replay(args) => cmd::replay::run(args),

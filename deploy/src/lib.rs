@@ -1,6 +1,7 @@
 //! Putting Ocelli nodes together: the `ocelli` command line.
 pub mod cli;
 pub mod cmd;
+pub mod deploy;
 pub mod launch;
 pub mod replay;
 pub mod sim;

@@ -1,4 +1,5 @@
 //! End-to-end tests: real `ocelli` processes.
 
 mod cluster;
+mod netns;
 mod transport;
