@@ -79,8 +79,36 @@ fn init_tracing(json: bool) {
     };
 }
 
+/// Commands that print results to standard output end quietly when the reader goes away
+/// (`ocelli sim | head`), as Unix filters do. Rust ignores SIGPIPE, which turns a closed pipe
+/// into a panic in `println!`; node processes keep ignoring it, since a peer closing a socket
+/// must not kill them.
+fn filter_command(c: &Command) -> bool {
+    matches!(
+        c,
+        Command::Scenario(_)
+            | Command::Undistort(_)
+            | Command::Report(_)
+            | Command::Export(_)
+            | Command::Sim(_)
+            | Command::Replay(_)
+            | Command::Deploy(_)
+    )
+}
+
+fn default_sigpipe() {
+    #[allow(unsafe_code)]
+    // SAFETY: restoring the default disposition of SIGPIPE before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
+    if filter_command(&cli.command) {
+        default_sigpipe();
+    }
     init_tracing(cli.log_json);
     let result = match cli.command {
         Command::Scenario(args) => cmd::scenario::run(args),
