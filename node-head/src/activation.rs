@@ -230,22 +230,8 @@ impl Planner {
 mod tests {
     use super::*;
     use crate::eif::log_det_spd;
-    use proto::camera::{Distortion, Intrinsics, Pose};
 
-    fn cam(pos: [f64; 3], at: [f64; 3]) -> CameraModel {
-        CameraModel {
-            intrinsics: Intrinsics {
-                fx: 320.0,
-                fy: 320.0,
-                cx: 176.0,
-                cy: 144.0,
-                width: 352,
-                height: 288,
-            },
-            distortion: Distortion::default(),
-            pose: Pose::look_at(Vector3::from(pos), Vector3::from(at), Vector3::z()).unwrap(),
-        }
-    }
+    use crate::init::tests::cam;
 
     fn setup() -> (Vec<CameraModel>, State, Info) {
         let cams = vec![

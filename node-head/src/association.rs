@@ -200,22 +200,8 @@ pub fn births(
 mod tests {
     use super::*;
     use nalgebra::Vector3;
-    use proto::camera::{Distortion, Intrinsics, Pose};
 
-    fn cam(pos: [f64; 3], at: [f64; 3]) -> CameraModel {
-        CameraModel {
-            intrinsics: Intrinsics {
-                fx: 320.0,
-                fy: 320.0,
-                cx: 176.0,
-                cy: 144.0,
-                width: 352,
-                height: 288,
-            },
-            distortion: Distortion::default(),
-            pose: Pose::look_at(Vector3::from(pos), Vector3::from(at), Vector3::z()).unwrap(),
-        }
-    }
+    use crate::init::tests::cam;
 
     fn det(cams: &[CameraModel], slot: usize, p: Vector3<f64>) -> Detection {
         Detection {

@@ -91,10 +91,11 @@ pub fn single_camera_prior(obs: &RayObservation<'_>, plane_z: f64) -> (State, Ma
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use proto::camera::{Distortion, Intrinsics, Pose};
 
+    /// A 352×288 distortion-free camera at `pos` looking at `at` (shared by the head's tests).
     pub(crate) fn cam(pos: [f64; 3], at: [f64; 3]) -> CameraModel {
         CameraModel {
             intrinsics: Intrinsics {
