@@ -5,22 +5,16 @@
 //! agree without sync; the synthetic world's t = 0 is `--epoch-ns` (default: start of this
 //! process), which `launch` sets to the same value for every camera.
 
+use super::common::{TransportArg, load_scenario, transport_or_scenario};
 use anyhow::{Context, Result, bail};
 use node_camera::detect::ReferencePoint;
 use node_camera::process::{ProcessConfig, SourceSpec, run, transport_config};
 use proto::ClusterTime;
-use proto::scenario::{Scenario, TransportKind};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio_util::sync::CancellationToken;
-
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Transport {
-    Ipc,
-    Tcp,
-}
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -32,7 +26,7 @@ pub struct Args {
     pub id: u32,
     /// Transport (default: the scenario's `network.transport`).
     #[arg(long, value_enum)]
-    pub transport: Option<Transport>,
+    pub transport: Option<TransportArg>,
     /// Frame source: `synthetic`, `images:DIR`, `images:DIR:MANIFEST` or `v4l2:DEVICE`.
     #[arg(long, default_value = "synthetic")]
     pub source: String,
@@ -81,15 +75,8 @@ fn parse_source(s: &str) -> Result<SourceSpec> {
 }
 
 pub fn run_cmd(args: Args) -> Result<ExitCode> {
-    let scenario = match &args.scenario {
-        Some(p) => Scenario::load(p)?,
-        None => Scenario::default_scenario(),
-    };
-    let kind = match args.transport {
-        Some(Transport::Ipc) => TransportKind::Ipc,
-        Some(Transport::Tcp) => TransportKind::Tcp,
-        None => scenario.network.transport,
-    };
+    let scenario = load_scenario(args.scenario.as_ref())?;
+    let kind = transport_or_scenario(args.transport, &scenario);
     let source = parse_source(&args.source)?;
     let clock: proto::transport::Clock = Arc::new(wall_clock);
     let transport = transport_config(&scenario, args.id, kind, clock.clone())?;

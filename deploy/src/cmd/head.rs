@@ -2,20 +2,14 @@
 //! own process until SIGINT/SIGTERM (a second signal aborts). Prints a JSON summary of what
 //! it did on standard output when it stops.
 
+use super::common::{TransportArg, load_scenario, stop_signal, transport_or_scenario};
 use anyhow::{Context, Result};
 use node_head::process::{ProcessConfig, run as run_head};
-use proto::scenario::{Scenario, TransportKind};
 use serde_json::json;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tokio_util::sync::CancellationToken;
-
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Kind {
-    Ipc,
-    Tcp,
-}
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -27,44 +21,15 @@ pub struct Args {
     pub id: u32,
     /// Transport (the scenario's `network.transport` when omitted).
     #[arg(long, value_enum)]
-    pub transport: Option<Kind>,
+    pub transport: Option<TransportArg>,
     /// TCP: listen here instead of the scenario's address (port 0 picks one).
     #[arg(long)]
     pub listen: Option<SocketAddr>,
 }
 
-async fn signalled() {
-    #[cfg(unix)]
-    {
-        use tokio::signal::unix::{SignalKind, signal};
-        match signal(SignalKind::terminate()) {
-            Ok(mut term) => {
-                tokio::select! {
-                    _ = tokio::signal::ctrl_c() => {}
-                    _ = term.recv() => {}
-                }
-            }
-            Err(_) => {
-                let _ = tokio::signal::ctrl_c().await;
-            }
-        }
-    }
-    #[cfg(not(unix))]
-    {
-        let _ = tokio::signal::ctrl_c().await;
-    }
-}
-
 pub fn run(args: Args) -> Result<ExitCode> {
-    let scenario = match &args.scenario {
-        Some(p) => Scenario::load(p)?,
-        None => Scenario::default_scenario(),
-    };
-    let transport = match args.transport {
-        Some(Kind::Ipc) => TransportKind::Ipc,
-        Some(Kind::Tcp) => TransportKind::Tcp,
-        None => scenario.network.transport,
-    };
+    let scenario = load_scenario(args.scenario.as_ref())?;
+    let transport = transport_or_scenario(args.transport, &scenario);
     let cfg = ProcessConfig {
         scenario,
         id: args.id,
@@ -80,10 +45,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let token = CancellationToken::new();
         let stop = token.clone();
         tokio::spawn(async move {
-            signalled().await;
+            stop_signal().await;
             tracing::info!("stopping (a second signal aborts)");
             stop.cancel();
-            signalled().await;
+            stop_signal().await;
             eprintln!("second signal: aborting");
             std::process::exit(130);
         });

@@ -1,9 +1,8 @@
 //! `ocelli launch [SCENARIO]`: the one-command local cluster (see `crate::launch`).
 
-use crate::cmd::sim::load_scenario;
+use super::common::{TransportArg, load_scenario};
 use crate::launch::{LaunchOptions, launch};
 use anyhow::Result;
-use proto::scenario::TransportKind;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -32,19 +31,10 @@ pub struct Args {
     pub quiet: bool,
 }
 
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-pub enum TransportArg {
-    Ipc,
-    Tcp,
-}
-
 pub fn run(args: Args) -> Result<ExitCode> {
     let scenario = load_scenario(args.scenario.as_ref())?;
     let opts = LaunchOptions {
-        transport: match args.transport {
-            TransportArg::Ipc => TransportKind::Ipc,
-            TransportArg::Tcp => TransportKind::Tcp,
-        },
+        transport: args.transport.kind(),
         duration: args.duration.map(Duration::from_secs_f64),
         run_dir: args.run_dir,
         record: args.record,

@@ -5,6 +5,7 @@ pub mod bench_head;
 pub mod bench_server;
 pub mod bench_transport;
 pub mod camera;
+pub mod common;
 pub mod deploy;
 pub mod export;
 pub mod head;

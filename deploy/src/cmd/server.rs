@@ -1,20 +1,14 @@
 //! `ocelli server`: run the server process (membership, handover, global ids, time leader,
 //! recording) from a scenario, over iceoryx2 or TCP. Restarting it on the same recording resumes.
 
+use super::common::{TransportArg, load_scenario, stop_signal, transport_or_scenario};
 use anyhow::{Context, Result};
 use node_server::process::{ProcessConfig, run as run_server, transport_for};
 use proto::NodeId;
-use proto::scenario::{Scenario, TransportKind};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 use tokio_util::sync::CancellationToken;
-
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-pub enum TransportArg {
-    Ipc,
-    Tcp,
-}
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -36,10 +30,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
-    let scenario = match &args.scenario {
-        Some(p) => Scenario::load(p)?,
-        None => Scenario::default_scenario(),
-    };
+    let scenario = load_scenario(args.scenario.as_ref())?;
     let id = match args.id {
         Some(i) => i,
         None => {
@@ -49,11 +40,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 .id
         }
     };
-    let kind = match args.transport {
-        Some(TransportArg::Ipc) => TransportKind::Ipc,
-        Some(TransportArg::Tcp) => TransportKind::Tcp,
-        None => scenario.network.transport,
-    };
+    let kind = transport_or_scenario(args.transport, &scenario);
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -81,27 +68,4 @@ pub fn run(args: Args) -> Result<ExitCode> {
         tracing::info!(?summary, "server exited");
         anyhow::Ok(ExitCode::SUCCESS)
     })
-}
-
-/// Ctrl-C or SIGTERM (the launcher's supervisor stops children with SIGTERM).
-async fn stop_signal() {
-    #[cfg(unix)]
-    {
-        use tokio::signal::unix::{SignalKind, signal};
-        match signal(SignalKind::terminate()) {
-            Ok(mut term) => {
-                tokio::select! {
-                    _ = tokio::signal::ctrl_c() => {}
-                    _ = term.recv() => {}
-                }
-            }
-            Err(_) => {
-                let _ = tokio::signal::ctrl_c().await;
-            }
-        }
-    }
-    #[cfg(not(unix))]
-    {
-        let _ = tokio::signal::ctrl_c().await;
-    }
 }

@@ -1,13 +1,13 @@
 //! `ocelli sim`: the scenario's nodes in one process on a virtual clock (see `sim::runtime`).
 //! Same seed, same bytes out.
 
+use super::common::load_scenario;
 use crate::sim::net::NetworkModel;
 use crate::sim::runtime::{Level, Sim, SimOptions};
 use anyhow::{Context, Result};
 use node_server::replay::Loaded;
 use node_server::report;
 use proto::ClusterTime;
-use proto::scenario::Scenario;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -50,13 +50,6 @@ pub struct Args {
 pub enum LevelArg {
     Pixel,
     Measurement,
-}
-
-pub fn load_scenario(path: Option<&PathBuf>) -> Result<Scenario> {
-    Ok(match path {
-        Some(p) => Scenario::load(p)?,
-        None => Scenario::default_scenario(),
-    })
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
