@@ -228,6 +228,17 @@ fn assert_rejections(receiver: &mut Peer) {
     assert_eq!(s["rejected_malformed"], 1, "{s}");
     assert_eq!(s["rejected_oversized"], 1, "{s}");
     assert_eq!(s["rejected_version"], 1, "{s}");
+    // The log is read by another thread than the stats line: give it the same patience.
+    let deadline = now() + WAIT;
+    let wanted = [
+        "frame rejected",
+        "exceeds the maximum",
+        "malformed frame",
+        "protocol version 9",
+    ];
+    while !wanted.iter().all(|w| receiver.stderr().contains(w)) && now() < deadline {
+        std::thread::sleep(Duration::from_millis(20));
+    }
     let log = receiver.stderr();
     assert!(log.contains("frame rejected"), "no warning logged:\n{log}");
     assert!(
