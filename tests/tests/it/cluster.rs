@@ -3,6 +3,7 @@
 //! reads the launch's final JSON report and the server's recording (through `ocelli export`),
 //! and checks that no process and no `/dev/shm` file is left behind.
 
+use crate::harness::{EXE, now, owner_rows, signal};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -14,26 +15,11 @@ use std::time::Duration;
 /// two-core CI machine running 24 processes at once, so the bound leaves a margin of about 3×.
 const MEAN_ERROR_BOUND_M: f64 = 1.0;
 
-const EXE: &str = env!("CARGO_BIN_EXE_ocelli-e2e");
-
-#[allow(clippy::disallowed_methods)] // the harness's own deadlines, never asserted on
-fn now() -> std::time::Instant {
-    std::time::Instant::now()
-}
-
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("ocelli-e2e-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("scratch dir");
     dir
-}
-
-fn signal(pid: u32, sig: libc::c_int) {
-    #[allow(unsafe_code)]
-    // SAFETY: kill(2) has no memory-safety preconditions.
-    unsafe {
-        libc::kill(pid as libc::pid_t, sig);
-    }
 }
 
 fn alive(pid: u32) -> bool {
@@ -199,29 +185,6 @@ impl Drop for Launch {
     }
 }
 
-/// The recording's owner track rows (`ocelli export --format jsonl`).
-fn track_rows(record: &Path) -> Vec<Value> {
-    if !record.exists() {
-        return Vec::new();
-    }
-    let out = Command::new(EXE)
-        .args(["export", "--format", "jsonl"])
-        .arg(record)
-        .env("RUST_LOG", "error")
-        .output()
-        .expect("ocelli export");
-    assert!(
-        out.status.success(),
-        "export failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str::<Value>(l).expect("export JSON line"))
-        .filter(|r| r["owner"].as_bool() == Some(true))
-        .collect()
-}
-
 fn f(v: &Value, key: &str) -> f64 {
     v[key]
         .as_f64()
@@ -301,7 +264,7 @@ fn killing_the_owning_head_fails_over_and_keeps_the_global_id() {
     // Wait until the robot is tracked, then kill whichever head owns it.
     let deadline = now() + Duration::from_secs(30);
     let (global, owner, t_kill) = loop {
-        let rows = track_rows(&run.record());
+        let rows = owner_rows(&run.record());
         if let Some(last) = rows.last()
             && rows.len() >= 10
         {
@@ -320,7 +283,7 @@ fn killing_the_owning_head_fails_over_and_keeps_the_global_id() {
     };
     signal(run.pid_of(&format!("head-{owner}")), libc::SIGKILL);
     let (_report, run) = run.finish(Duration::from_secs(90));
-    let after: Vec<Value> = track_rows(&run.record())
+    let after: Vec<Value> = owner_rows(&run.record())
         .into_iter()
         .filter(|r| f(r, "t") > t_kill + 0.5)
         .collect();
@@ -352,7 +315,7 @@ fn killing_and_restarting_the_server_loses_no_recorded_data() {
     let recorded_before = node_server::recording::read_all(&snapshot)
         .expect("reading the crash-time recording")
         .records;
-    let before = track_rows(&snapshot);
+    let before = owner_rows(&snapshot);
     assert!(!before.is_empty(), "nothing was recorded before the crash");
     std::thread::sleep(Duration::from_secs(2));
     let mut restarted = Command::new(EXE)
@@ -369,7 +332,7 @@ fn killing_and_restarting_the_server_loses_no_recorded_data() {
     let (_report, run) = run.finish(Duration::from_secs(90));
     signal(restarted.id(), libc::SIGTERM);
     let _ = restarted.wait();
-    let after = track_rows(&run.record());
+    let after = owner_rows(&run.record());
     assert!(
         after.len() > before.len(),
         "no tracking recorded after the restart"

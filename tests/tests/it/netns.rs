@@ -7,13 +7,12 @@
 //! Needs root and `ip` (iproute2; `.ci/run` installs it). If namespaces cannot be created the
 //! test fails saying why.
 
+use crate::harness::{EXE, now, owner_rows, signal};
 use proto::scenario::{NodeRole, Scenario, TransportKind};
-use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
-const EXE: &str = env!("CARGO_BIN_EXE_ocelli-e2e");
 /// The hub namespace's address (server and head) and the cameras' namespace's address.
 const HUB_IP: &str = "10.213.0.1";
 const PIS_IP: &str = "10.213.0.2";
@@ -28,11 +27,6 @@ fn wall_clock_ns() -> i64 {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos() as i64)
         .unwrap_or_default()
-}
-
-#[allow(clippy::disallowed_methods)] // the harness's own deadlines, never asserted on
-fn now() -> std::time::Instant {
-    std::time::Instant::now()
 }
 
 /// Run `ip ARGS`; the error says what failed and why.
@@ -157,14 +151,6 @@ impl Drop for Nodes {
     }
 }
 
-fn signal(pid: u32, sig: libc::c_int) {
-    #[allow(unsafe_code)]
-    // SAFETY: kill(2) has no memory-safety preconditions.
-    unsafe {
-        libc::kill(pid as libc::pid_t, sig);
-    }
-}
-
 /// The default scenario cut down to the server, head 2 and four of its cameras, over TCP on
 /// the namespaces' addresses.
 fn scenario() -> Scenario {
@@ -214,26 +200,6 @@ fn logs(dir: &Path) -> String {
         }
     }
     out
-}
-
-/// Owner rows of the recording's tracks.
-fn owner_rows(record: &Path) -> Vec<Value> {
-    let out = Command::new(EXE)
-        .args(["export", "--format", "jsonl"])
-        .arg(record)
-        .env("RUST_LOG", "error")
-        .output()
-        .expect("ocelli export");
-    assert!(
-        out.status.success(),
-        "export failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str::<Value>(l).expect("export JSON line"))
-        .filter(|r| r["owner"].as_bool() == Some(true))
-        .collect()
 }
 
 #[test]

@@ -3,6 +3,7 @@
 //! clear error while the receiver keeps running, and no `/dev/shm` file of the test's domain
 //! is left behind.
 
+use crate::harness::now;
 use serde_json::Value;
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, ExitStatus, Stdio};
@@ -12,12 +13,6 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 const WAIT: Duration = Duration::from_secs(15);
-
-/// The test harness's own clock, for its wait deadlines (never asserted on).
-#[allow(clippy::disallowed_methods)]
-fn now() -> std::time::Instant {
-    std::time::Instant::now()
-}
 
 /// A running `ocelli peer`; killed and reaped on drop.
 struct Peer {
@@ -30,7 +25,7 @@ struct Peer {
 
 impl Peer {
     fn spawn(name: &str, args: &[&str]) -> Peer {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_ocelli-e2e"))
+        let mut child = Command::new(crate::harness::EXE)
             .arg("peer")
             .args(args)
             .env("RUST_LOG", "warn")
