@@ -309,14 +309,7 @@ impl Recorder {
         let back = match read_all(path) {
             Err(RecordingError::TruncatedHeader { .. }) => {
                 std::fs::remove_file(path).map_err(io(path))?;
-                let rec = Recorder::create(path, scenario_name)?;
-                let back = ReadBack {
-                    name: scenario_name.into(),
-                    records: Vec::new(),
-                    valid_len: rec.bytes,
-                    tail: None,
-                };
-                return Ok((rec, back));
+                return Recorder::fresh(path, scenario_name);
             }
             other => other?,
         };
@@ -349,15 +342,20 @@ impl Recorder {
         if path.exists() {
             Recorder::resume(path, scenario_name)
         } else {
-            let rec = Recorder::create(path, scenario_name)?;
-            let back = ReadBack {
-                name: scenario_name.into(),
-                records: Vec::new(),
-                valid_len: rec.bytes,
-                tail: None,
-            };
-            Ok((rec, back))
+            Recorder::fresh(path, scenario_name)
         }
+    }
+
+    /// A new recording, with the (empty) read-back that resuming one would give.
+    fn fresh(path: &Path, scenario_name: &str) -> Result<(Self, ReadBack), RecordingError> {
+        let rec = Recorder::create(path, scenario_name)?;
+        let back = ReadBack {
+            name: scenario_name.into(),
+            records: Vec::new(),
+            valid_len: rec.bytes,
+            tail: None,
+        };
+        Ok((rec, back))
     }
 
     /// Append one record with a single write.
