@@ -29,16 +29,6 @@ pub struct LaunchOptions {
     pub progress: bool,
 }
 
-/// Cluster time is the host's wall clock (ns since the Unix epoch); processes on one host agree
-/// without sync, and the server's beacons correct what differs across hosts.
-#[allow(clippy::disallowed_methods)] // the launcher is a runtime: it owns the clock
-fn wall_clock() -> ClusterTime {
-    let ns = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos());
-    ClusterTime(i64::try_from(ns).unwrap_or(i64::MAX))
-}
-
 /// A free loopback port (bound then released; the child binds it right after).
 fn free_port() -> Result<u16> {
     Ok(std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
@@ -163,7 +153,9 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
     std::fs::write(&scenario_path, scenario.to_toml())?;
     let exe = std::env::current_exe().context("locating the ocelli binary")?;
     let mut sup = Supervisor::new(Duration::from_secs(5));
-    let epoch = wall_clock();
+    // Cluster time is the wall clock; one epoch for every camera's synthetic world.
+    #[allow(clippy::disallowed_methods)] // the launcher is a runtime: it owns the clock
+    let epoch = ClusterTime::wall_clock();
     let how = Spawn {
         exe: &exe,
         scenario_path: &scenario_path,

@@ -72,9 +72,7 @@ impl Clock {
     // The runtime owns the clock; node cores never read it.
     #[allow(clippy::disallowed_methods)]
     fn host_ns() -> i64 {
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos() as i64)
+        ClusterTime::wall_clock().0
     }
 
     pub fn now(&self) -> ClusterTime {

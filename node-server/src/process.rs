@@ -60,10 +60,7 @@ pub struct RunSummary {
 /// The wall clock as cluster time (the leader's time base).
 #[allow(clippy::disallowed_methods)] // the process runtime owns the clock
 pub fn wall_now() -> ClusterTime {
-    let d = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap_or_default();
-    ClusterTime(i64::try_from(d.as_nanos()).unwrap_or(i64::MAX))
+    ClusterTime::wall_clock()
 }
 
 /// The transport configuration the scenario asks for.

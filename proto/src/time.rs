@@ -24,6 +24,17 @@ impl ClusterTime {
         ClusterTime(ms * 1_000_000)
     }
 
+    /// The host's wall clock as cluster time: nanoseconds since the Unix epoch. For process
+    /// runtimes only (clippy.toml forbids it in node cores, like `SystemTime::now`): processes
+    /// on one host agree on it, and the server's sync beacons correct it across hosts.
+    #[allow(clippy::disallowed_methods)] // the one place the wall clock is read
+    pub fn wall_clock() -> ClusterTime {
+        let ns = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos());
+        ClusterTime(i64::try_from(ns).unwrap_or(i64::MAX))
+    }
+
     /// Signed duration `self - earlier` in seconds.
     pub fn secs_since(self, earlier: ClusterTime) -> f64 {
         (self.0 - earlier.0) as f64 * 1e-9

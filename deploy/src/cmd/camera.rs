@@ -47,14 +47,6 @@ pub enum Reference {
     Foot,
 }
 
-#[allow(clippy::disallowed_methods)] // the process runtime owns the clock
-fn wall_clock() -> ClusterTime {
-    let d = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap_or_default();
-    ClusterTime(d.as_nanos() as i64)
-}
-
 fn parse_source(s: &str) -> Result<SourceSpec> {
     if s == "synthetic" {
         return Ok(SourceSpec::Synthetic);
@@ -78,7 +70,8 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
     let scenario = load_scenario(args.scenario.as_ref())?;
     let kind = transport_or_scenario(args.transport, &scenario);
     let source = parse_source(&args.source)?;
-    let clock: proto::transport::Clock = Arc::new(wall_clock);
+    #[allow(clippy::disallowed_methods)] // the process runtime owns the clock
+    let clock: proto::transport::Clock = Arc::new(ClusterTime::wall_clock);
     let transport = transport_config(&scenario, args.id, kind, clock.clone())?;
     let cfg = ProcessConfig {
         scenario,
@@ -86,7 +79,7 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
         transport,
         source,
         seed: args.seed,
-        epoch: args.epoch_ns.map_or_else(wall_clock, ClusterTime),
+        epoch: args.epoch_ns.map_or_else(|| clock(), ClusterTime),
         clock,
         tick: Duration::from_millis(100),
         reference: match args.reference {

@@ -416,8 +416,10 @@ impl Sim {
 /// node has priors for when the scenario has exactly one tagged target: the papers' setting,
 /// and the only one where a tag maps to a track without tag ids on the wire.
 fn slot_rssi(scenario: &Scenario, slot: &mut CameraSlot, id: NodeId, t_s: f64, now: ClusterTime, seed: u64) {
-    let tagged: Vec<_> = scenario.targets.iter().filter(|t| t.rssi_tag).collect();
-    let [tag] = tagged.as_slice() else { return };
+    let mut tagged = scenario.targets.iter().filter(|t| t.rssi_tag);
+    let (Some(tag), None) = (tagged.next(), tagged.next()) else {
+        return;
+    };
     if !slot.core.mode().radio_on() || slot.prior_targets.is_empty() {
         return;
     }

@@ -21,14 +21,6 @@ const CAMERAS: [u32; 4] = [10, 11, 12, 30];
 /// Same bound as the single-host cluster tests (`cluster.rs`), metres.
 const MEAN_ERROR_BOUND_M: f64 = 1.0;
 
-#[allow(clippy::disallowed_methods)] // the synthetic world's epoch, as `ocelli launch` sets it
-fn wall_clock_ns() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_nanos() as i64)
-        .unwrap_or_default()
-}
-
 /// Run `ip ARGS`; the error says what failed and why.
 fn ip(args: &[&str]) -> Result<(), String> {
     let out = Command::new("ip")
@@ -211,7 +203,8 @@ fn nodes_in_separate_network_namespaces_track_the_robot_over_tcp() {
     std::fs::write(&scenario_path, s.to_toml()).expect("scenario file");
     let sp = scenario_path.to_str().expect("utf-8 path");
     let record = dir.join("rec.ocrec");
-    let epoch = wall_clock_ns();
+    #[allow(clippy::disallowed_methods)] // the synthetic world's epoch, as `ocelli launch` sets it
+    let epoch = proto::ClusterTime::wall_clock().0;
     let epoch_arg = epoch.to_string();
 
     let mut nodes = Nodes::default();
