@@ -85,6 +85,8 @@ fn spawn_node(sup: &mut Supervisor, how: &Spawn<'_>, role: &str, id: u32) -> Res
 }
 
 /// One progress line per global track: position, σ, sensors and, with truth, error.
+/// Reads and replays the whole recording each call: fine for runs of minutes, linear in the run's
+/// length; an incremental reader is the fix when hour-long launches matter.
 fn progress_lines(record: &Path, scenario: &Scenario, epoch: ClusterTime) -> Vec<String> {
     let Ok(back) = recording::read_all(record) else {
         return Vec::new();
