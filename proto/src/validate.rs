@@ -75,7 +75,7 @@ pub fn check_psd6(field: &'static str, m: &Mat6) -> Result<(), ValidationError> 
     // eigen-solver into NaN, and a NaN comparison must not wave an indefinite matrix through.
     let mat = Matrix6::from_fn(|i, j| 0.5 * (m[i][j] / scale + m[j][i] / scale));
     let min = SymmetricEigen::new(mat).eigenvalues.min();
-    if !(min >= -PSD_TOLERANCE) {
+    if min.is_nan() || min < -PSD_TOLERANCE {
         return Err(err(
             field,
             format!("indefinite (smallest eigenvalue {:e})", min * scale),
