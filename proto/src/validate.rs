@@ -71,10 +71,15 @@ pub fn check_psd6(field: &'static str, m: &Mat6) -> Result<(), ValidationError> 
             }
         }
     }
-    let mat = Matrix6::from_fn(|i, j| 0.5 * (m[i][j] + m[j][i]));
+    // Decompose the matrix scaled to unit magnitude: entries near f64::MAX would overflow the
+    // eigen-solver into NaN, and a NaN comparison must not wave an indefinite matrix through.
+    let mat = Matrix6::from_fn(|i, j| 0.5 * (m[i][j] / scale + m[j][i] / scale));
     let min = SymmetricEigen::new(mat).eigenvalues.min();
-    if min < -PSD_TOLERANCE * scale {
-        return Err(err(field, format!("indefinite (smallest eigenvalue {min:e})")));
+    if min.is_nan() || min < -PSD_TOLERANCE {
+        return Err(err(
+            field,
+            format!("indefinite (smallest eigenvalue {:e})", min * scale),
+        ));
     }
     Ok(())
 }
@@ -156,6 +161,12 @@ impl Validate for Message {
                 finite("track_report.mean", &r.mean)?;
                 check_psd6("track_report.cov", &r.cov)?;
                 finite("track_report.power_mw", &[r.power_mw])?;
+                if r.power_mw < 0.0 {
+                    return Err(err(
+                        "track_report.power_mw",
+                        format!("negative power {} mW", r.power_mw),
+                    ));
+                }
                 if r.contributors.len() > MAX_CONTRIBUTORS {
                     return Err(err(
                         "track_report.contributors",

@@ -5,5 +5,6 @@
 #![allow(clippy::needless_range_loop)]
 
 mod camera;
+mod models;
 mod scenario;
 mod wire;

@@ -51,6 +51,8 @@ fn every_default_camera_sees_part_of_the_loop() {
     let t = &s.targets[0];
     for c in s.cameras() {
         let cam = s.camera_model(c.id).unwrap();
+        // A proper camera aimed at the floor: the OpenCV import's handedness test agrees.
+        assert!(!proto::opencv::sees_ground_behind(&cam.pose), "camera {}", c.id);
         let seen = (0..400)
             .filter(|k| {
                 let p = proto::models::position(&t.truth_at(f64::from(*k) * 0.25));

@@ -374,6 +374,14 @@ fn other_range_checks_name_the_field() {
     };
     a.reason = "x".repeat(513);
     assert_eq!(invalid(&raw(&env)).0, "hello_ack.reason");
+    let mut env = samples()[8].clone();
+    let Message::TrackReport(r) = &mut env.body else {
+        panic!()
+    };
+    r.power_mw = -1.0;
+    let (field, e) = invalid(&raw(&env));
+    assert_eq!(field, "track_report.power_mw");
+    assert!(e.contains("negative power"), "{e}");
     // Valid zero information (a camera with nothing) is accepted.
     let mut env = samples()[4].clone();
     let Message::Contribution(c) = &mut env.body else {
@@ -382,4 +390,32 @@ fn other_range_checks_name_the_field() {
     c.info_matrix = [[0.0; 6]; 6];
     c.target = TargetId(0);
     assert!(decode(&encode(&env).unwrap()).is_ok());
+}
+
+/// Matrices so large that their eigen-decomposition would overflow are still judged: an
+/// indefinite one is rejected (not waved through by a NaN comparison), a PSD one accepted.
+#[test]
+fn huge_matrices_are_judged_correctly() {
+    for big in [1e300, f64::MAX] {
+        let with = |f: &dyn Fn(usize, usize) -> f64| {
+            let mut env = samples()[6].clone();
+            let Message::Prior(p) = &mut env.body else {
+                panic!()
+            };
+            for i in 0..6 {
+                for j in 0..6 {
+                    p.cov[i][j] = f(i, j);
+                }
+            }
+            raw(&env)
+        };
+        let (field, e) = invalid(&with(&|i, j| if i == j { -big } else { big }));
+        assert_eq!(field, "prior.cov");
+        assert!(e.contains("indefinite"), "{e}");
+        // Rank one, v vᵀ with v = ±√big: positive semi-definite.
+        assert!(
+            decode(&with(&|i, j| if (i + j) % 2 == 0 { big } else { -big })).is_ok(),
+            "{big:e}"
+        );
+    }
 }

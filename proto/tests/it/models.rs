@@ -1,0 +1,200 @@
+//! Shared models: Jacobians against central finite differences, the information form against
+//! the covariance form, motion noise positive definite.
+
+use approx::assert_relative_eq;
+use nalgebra::{DMatrix, Matrix6, SMatrix, SVector, Vector3};
+use proptest::prelude::*;
+use proto::camera::{CameraModel, Distortion, Intrinsics, Pose};
+use proto::models::{self, MotionModel, RssiModel, State, information_contribution};
+
+fn state() -> impl Strategy<Value = State> {
+    (
+        prop::array::uniform3(-5.0..5.0f64),
+        prop::array::uniform3(-2.0..2.0f64),
+    )
+        .prop_map(|(p, v)| State::new(p[0], p[1], p[2], v[0], v[1], v[2]))
+}
+
+/// A camera 4–8 m from the origin looking at a point near it.
+fn camera() -> impl Strategy<Value = CameraModel> {
+    (
+        prop::array::uniform3(-1.0..1.0f64),
+        4.0..8.0f64,
+        0.0..std::f64::consts::TAU,
+        0.2..1.2f64,
+    )
+        .prop_map(|(aim, dist, az, el)| {
+            let pos = Vector3::new(
+                dist * el.cos() * az.cos(),
+                dist * el.cos() * az.sin(),
+                dist * el.sin(),
+            );
+            CameraModel {
+                intrinsics: Intrinsics {
+                    fx: 500.0,
+                    fy: 500.0,
+                    cx: 320.0,
+                    cy: 240.0,
+                    width: 640,
+                    height: 480,
+                },
+                distortion: Distortion::default(),
+                pose: Pose::look_at(pos, Vector3::from(aim), Vector3::z()).unwrap(),
+            }
+        })
+}
+
+/// Central differences of `f` at `x`, one state component at a time.
+fn numeric_jacobian<const M: usize>(f: impl Fn(&State) -> SVector<f64, M>, x: &State) -> SMatrix<f64, M, 6> {
+    let h = 1e-6;
+    let mut j = SMatrix::<f64, M, 6>::zeros();
+    for k in 0..6 {
+        let mut e = State::zeros();
+        e[k] = h;
+        j.set_column(k, &((f(&(x + e)) - f(&(x - e))) / (2.0 * h)));
+    }
+    j
+}
+
+/// A random symmetric positive-definite n×n matrix `A Aᵀ + εI`.
+fn spd(n: usize) -> impl Strategy<Value = DMatrix<f64>> {
+    prop::collection::vec(-2.0..2.0f64, n * n).prop_map(move |a| {
+        let a = DMatrix::from_vec(n, n, a);
+        &a * a.transpose() + DMatrix::identity(n, n) * 0.05
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(1000))]
+
+    #[test]
+    fn pinhole_jacobian_matches_finite_differences(cam in camera(), x in state()) {
+        let (_, depth) = cam.normalized(&models::position(&x));
+        prop_assume!(depth > 0.5);
+        let (h, jac) = models::pinhole(&cam, &x).unwrap();
+        let (want, _) = cam.normalized(&models::position(&x));
+        assert_relative_eq!(h, want, epsilon = 1e-12);
+        let fd = numeric_jacobian(|s| models::pinhole(&cam, s).unwrap().0, &x);
+        prop_assert!((jac - fd).abs().max() <= 1e-6 * (1.0 + fd.abs().max()), "analytic {jac} fd {fd}");
+        // Position only: the velocity columns are zero.
+        prop_assert!(jac.fixed_view::<2, 3>(0, 3).iter().all(|v| *v == 0.0));
+    }
+
+    #[test]
+    fn pinhole_previous_jacobian_matches_finite_differences(cam in camera(), x in state(), dt in 0.01..0.5f64) {
+        let back = models::position(&x) - Vector3::new(x[3], x[4], x[5]) * dt;
+        prop_assume!(cam.normalized(&back).1 > 0.5);
+        let (h, jac) = models::pinhole_previous(&cam, &x, dt).unwrap();
+        assert_relative_eq!(h, cam.normalized(&back).0, epsilon = 1e-12);
+        let fd = numeric_jacobian(|s| models::pinhole_previous(&cam, s, dt).unwrap().0, &x);
+        prop_assert!((jac - fd).abs().max() <= 1e-6 * (1.0 + fd.abs().max()), "analytic {jac} fd {fd}");
+    }
+
+    #[test]
+    fn rssi_jacobian_matches_finite_differences(
+        node in prop::array::uniform3(-5.0..5.0f64),
+        x in state(),
+        a in -40.0..-5.0f64,
+        b in -70.0..-30.0f64,
+        linear in any::<bool>(),
+    ) {
+        let node = Vector3::from(node);
+        prop_assume!((models::position(&x) - node).norm() > 0.3);
+        let model = if linear {
+            RssiModel::Linear { a: a / 10.0, b, variance: 9.0 }
+        } else {
+            RssiModel::LogDistance { a, b, variance: 16.0 }
+        };
+        let (h, jac) = model.measurement(&node, &x);
+        assert_relative_eq!(h, model.predict((models::position(&x) - node).norm()), epsilon = 1e-12);
+        let fd = numeric_jacobian(|s| SVector::<f64, 1>::new(model.measurement(&node, s).0), &x);
+        prop_assert!((jac - fd).abs().max() <= 1e-6 * (1.0 + fd.abs().max()), "analytic {jac} fd {fd}");
+    }
+
+    /// Folding one measurement in information form (Ω̄ + Hᵀ Q⁻¹ H, ξ̄ + ξ_i) gives the same
+    /// posterior as the covariance-form (Kalman) update with the same linearization.
+    #[test]
+    fn information_form_equals_covariance_form(
+        sigma in spd(6),
+        q in spd(2),
+        h in prop::collection::vec(-3.0..3.0f64, 12),
+        mean in state(),
+        z in prop::array::uniform2(-1.0..1.0f64),
+        predicted in prop::array::uniform2(-1.0..1.0f64),
+    ) {
+        let sigma = Matrix6::from_iterator(sigma.iter().copied());
+        let q = SMatrix::<f64, 2, 2>::from_iterator(q.iter().copied());
+        let h = SMatrix::<f64, 2, 6>::from_row_slice(&h);
+        let (z, predicted) = (SVector::<f64, 2>::from(z), SVector::<f64, 2>::from(predicted));
+        let (omega_i, xi_i) = information_contribution(&z, &predicted, &h, &q, &mean).unwrap();
+        // Ω_i is Hᵀ Q⁻¹ H.
+        let qinv = q.try_inverse().unwrap();
+        assert_relative_eq!(omega_i, h.transpose() * qinv * h, epsilon = 1e-8, max_relative = 1e-8);
+        // Covariance form.
+        let s = h * sigma * h.transpose() + q;
+        let k = sigma * h.transpose() * s.try_inverse().unwrap();
+        let mean_cov = mean + k * (z - predicted);
+        let sigma_cov = (Matrix6::identity() - k * h) * sigma;
+        // Information form.
+        let omega_prior = sigma.try_inverse().unwrap();
+        let omega = omega_prior + omega_i;
+        let xi = omega_prior * mean + xi_i;
+        let sigma_info = omega.try_inverse().unwrap();
+        let mean_info = sigma_info * xi;
+        let scale = sigma.abs().max();
+        prop_assert!((sigma_info - sigma_cov).abs().max() <= 1e-7 * scale, "Σ differs");
+        prop_assert!((mean_info - mean_cov).norm() <= 1e-7 * (1.0 + mean_cov.norm()) * (1.0 + scale));
+    }
+
+    /// The RSSI half, scalar: the same agreement through `rssi_contribution`.
+    #[test]
+    fn rssi_contribution_equals_covariance_form(sigma in spd(6), x in state(), dbm in -90.0..-40.0f64) {
+        let sigma = Matrix6::from_iterator(sigma.iter().copied());
+        let node = Vector3::new(6.0, -1.0, 2.5);
+        let model = RssiModel::default();
+        let (omega_i, xi_i) = models::rssi_contribution(&model, &node, dbm, &x).unwrap();
+        let (h, jac) = model.measurement(&node, &x);
+        let s = (jac * sigma * jac.transpose())[(0, 0)] + model.variance();
+        let k = sigma * jac.transpose() / s;
+        let mean_cov = x + k * (dbm - h);
+        let omega = sigma.try_inverse().unwrap() + omega_i;
+        let mean_info = omega.try_inverse().unwrap() * (sigma.try_inverse().unwrap() * x + xi_i);
+        prop_assert!((mean_info - mean_cov).norm() <= 1e-7 * (1.0 + mean_cov.norm()) * (1.0 + sigma.abs().max()));
+    }
+
+    #[test]
+    fn process_noise_is_spd(q in prop::array::uniform3(1e-4..10.0f64), dt in 1e-3..5.0f64) {
+        let r = MotionModel { accel_psd: q }.process_noise(dt);
+        prop_assert_eq!(r, r.transpose());
+        let eig = r.symmetric_eigenvalues();
+        prop_assert!(eig.min() > 0.0, "eigenvalues {eig}");
+        prop_assert!(r.cholesky().is_some());
+    }
+}
+
+/// A noise matrix that is not positive definite gives `None`, not a panic.
+#[test]
+fn non_spd_noise_is_refused() {
+    let h = SMatrix::<f64, 1, 6>::new(1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let z = SVector::<f64, 1>::new(1.0);
+    assert!(
+        information_contribution(&z, &z, &h, &SMatrix::<f64, 1, 1>::new(-1.0), &State::zeros()).is_none()
+    );
+}
+
+/// Constant velocity: one step moves the position by v·dt and keeps the velocity.
+#[test]
+fn transition_moves_position_by_velocity() {
+    let m = MotionModel::default();
+    let x = State::new(1.0, 2.0, 0.5, 0.4, -0.2, 0.0);
+    assert_relative_eq!(
+        m.predict_mean(&x, 0.5),
+        State::new(1.2, 1.9, 0.5, 0.4, -0.2, 0.0),
+        epsilon = 1e-15
+    );
+    // The process noise is the integral of white acceleration: Var(pos) = q dt³/3.
+    let r = m.process_noise(2.0);
+    assert_relative_eq!(r[(0, 0)], 0.25 * 8.0 / 3.0, epsilon = 1e-15);
+    assert_relative_eq!(r[(0, 3)], 0.25 * 4.0 / 2.0, epsilon = 1e-15);
+    assert_relative_eq!(r[(3, 3)], 0.25 * 2.0, epsilon = 1e-15);
+}
