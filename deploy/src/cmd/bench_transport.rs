@@ -46,7 +46,10 @@ struct Phase {
     received: usize,
     dropped: u64,
     latencies_ns: Vec<u64>,
-    wall: Duration,
+    /// Time the sender took to offer every message.
+    send_wall: Duration,
+    /// From the first to the last measured message received.
+    receive_span: Duration,
 }
 
 fn percentile(sorted: &[u64], p: f64) -> f64 {
@@ -75,7 +78,8 @@ impl Phase {
             "p99_us": percentile(&l, 0.99),
             "max_us": percentile(&l, 1.0),
             "mean_us": mean,
-            "msgs_per_s": self.received as f64 / self.wall.as_secs_f64(),
+            "offered_msgs_per_s": self.sent as f64 / self.send_wall.as_secs_f64(),
+            "delivered_msgs_per_s": self.received.saturating_sub(1) as f64 / self.receive_span.as_secs_f64(),
         })
     }
 
@@ -132,7 +136,7 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
     let (addr_tx, addr_rx) = std::sync::mpsc::channel();
     let (done_tx, done_rx) = std::sync::mpsc::channel::<()>();
     let receiver_domain = domain.clone();
-    let receiver = std::thread::spawn(move || -> Result<(Vec<u64>, usize, u64)> {
+    let receiver = std::thread::spawn(move || -> Result<(Vec<u64>, usize, u64, Duration)> {
         let rt = tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()?;
@@ -152,6 +156,7 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
                 .map_err(|_| anyhow!("sender gone"))?;
             let mut lat = Vec::with_capacity(count);
             let mut received = 0;
+            let (mut first, mut last) = (None, 0i64);
             loop {
                 let idle = if done_rx.try_recv().is_ok() {
                     Duration::from_millis(500)
@@ -168,6 +173,8 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
                         && meas.step == 1
                     {
                         lat.push((t - m.env.time.0).max(0) as u64);
+                        first.get_or_insert(t);
+                        last = t;
                         received += 1;
                         if received == count {
                             break;
@@ -176,7 +183,8 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
                 }
             }
             shutdown.shutdown().await;
-            Ok((lat, received, rstats.snapshot().dropped_inbox_full))
+            let span = Duration::from_nanos((last - first.unwrap_or(last)).max(0) as u64);
+            Ok((lat, received, rstats.snapshot().dropped_inbox_full, span))
         })
     });
     let addr = addr_rx
@@ -243,15 +251,41 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
     });
     let (sent, dropped, wall) = sender.join().map_err(|_| anyhow!("sender panicked"))??;
     let _ = done_tx.send(());
-    let (latencies_ns, received, dropped_inbox) =
+    let (latencies_ns, received, dropped_inbox, span) =
         receiver.join().map_err(|_| anyhow!("receiver panicked"))??;
     Ok(Phase {
         sent,
         received,
         dropped: dropped + dropped_inbox,
         latencies_ns,
-        wall,
+        send_wall: wall,
+        receive_span: span,
     })
+}
+
+/// The floor under any latency here: one thread waking another through a plain
+/// `std::sync::mpsc` channel at the fixed rate, nothing else.
+fn thread_wake_baseline(count: usize, interval: Duration) -> Value {
+    #[allow(clippy::disallowed_methods)] // a benchmark owns its clock
+    let base = Instant::now();
+    let (tx, rx) = std::sync::mpsc::channel::<i64>();
+    let waiter = std::thread::spawn(move || {
+        let mut lat = Vec::new();
+        while let Ok(t) = rx.recv() {
+            lat.push((now_ns(base) - t).max(0) as u64);
+        }
+        lat
+    });
+    for _ in 0..count {
+        std::thread::sleep(interval);
+        if tx.send(now_ns(base)).is_err() {
+            break;
+        }
+    }
+    drop(tx);
+    let mut lat = waiter.join().unwrap_or_default();
+    lat.sort_unstable();
+    json!({"p50_us": percentile(&lat, 0.5), "p99_us": percentile(&lat, 0.99), "samples": lat.len()})
 }
 
 fn samples() -> Vec<Message> {
@@ -377,6 +411,7 @@ fn codec_costs(iterations: usize) -> Result<Vec<Value>> {
 pub fn run(args: Args) -> Result<ExitCode> {
     let interval = Duration::from_secs_f64(1.0 / args.rate_hz.max(0.1));
     let codec = codec_costs(args.codec_iterations.max(1))?;
+    let baseline = thread_wake_baseline(args.rate_messages, interval);
     let mut transports = serde_json::Map::new();
     let mut p99 = serde_json::Map::new();
     for (kind, name) in [(Kind::Ipc, "ipc"), (Kind::Tcp, "tcp")] {
@@ -403,9 +438,15 @@ pub fn run(args: Args) -> Result<ExitCode> {
         "frame_bytes": frame_bytes,
         "rate_hz": args.rate_hz,
         "p99_of": "fixed_rate phase",
+        "full_rate": "measurements offered back to back; droppable, so beyond the queues they are dropped and counted (sender queue + receiver inbox); latency of those delivered",
+        "hops": {
+            "ipc": "sender task publishes (iceoryx2 thread-safe service) -> shared memory + event -> iceoryx2 rx thread (decode) -> receiver task",
+            "tcp": "sender task -> link task (same runtime) -> loopback socket -> reader task (decode) -> receiver task (same runtime)"
+        },
         "goals": {"ipc_p99_us": 20, "tcp_p99_us": 200},
         "transports": transports,
         "codec": codec,
+        "thread_wake_baseline": baseline,
     });
     if let Some(o) = report.as_object_mut() {
         for (k, v) in p99 {

@@ -7,14 +7,15 @@
 //! never see each other's services and a test can check that nothing of its domain is left in
 //! `/dev/shm`.
 //!
-//! iceoryx2 ports are not `Send`, so two dedicated threads own them: the *receiver* blocks on
-//! its listener, drains the subscriber, decodes and forwards to the tokio inbox; the *sender*
-//! takes encoded frames from a bounded tokio channel and publishes them. iceoryx2's own signal
-//! handling is disabled (tokio owns SIGINT/SIGTERM). Each thread creates its iceoryx2 node
-//! with dead-node cleanup, so resources left by a crashed node of the domain are removed at
-//! start; dropping the threads' nodes on shutdown removes this node's files.
+//! Receiving runs on a dedicated thread that blocks on the inbox listener, drains the
+//! subscriber, decodes and forwards to the tokio inbox (blocking only for messages that must
+//! not be dropped). Sending uses iceoryx2's thread-safe service flavour, so `Endpoint::send`
+//! publishes straight from the caller's task: a thread hop costs tens of microseconds on an
+//! idle machine. iceoryx2's own signal handling is disabled (tokio owns SIGINT/SIGTERM). Each
+//! iceoryx2 node is created with dead-node cleanup, so resources left by a crashed node of the
+//! domain are removed at start; dropping the nodes on shutdown removes this node's files.
 
-use super::common::{accept, push, push_blocking};
+use super::common::{accept, push_blocking};
 use super::stats::{TransportStats, bump};
 use super::{Delivery, Event, Incoming, OutFrame, SendError, ShutdownHandle, TransportError};
 use crate::MAX_FRAME_BYTES;
@@ -25,10 +26,14 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use std::collections::{HashMap, HashSet};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::mpsc;
+
+/// iceoryx2's thread-safe flavour of its IPC service: its ports may be used from tokio tasks,
+/// so frames are published straight from `Endpoint::send` without a thread hop.
+type Svc = ipc_threadsafe::Service;
 
 /// Room in a shared-memory slot beyond [`MAX_FRAME_BYTES`], so that an oversized frame
 /// reaches the receiver and is rejected there (counted, logged) like on every other transport.
@@ -76,7 +81,7 @@ pub struct IpcConfig {
     pub me: NodeId,
     pub role: Role,
     pub limits: IpcLimits,
-    /// Outgoing frames queued before the sender thread, and events queued in the inbox.
+    /// Events queued in the inbox.
     pub queue_len: usize,
     /// Send a `Heartbeat` to every node this endpoint has sent to, this often, stamped with
     /// the clock. Shared memory has no connection whose loss tells a peer we are gone, so
@@ -143,11 +148,11 @@ fn iox_config(domain: &str) -> Result<Config, TransportError> {
     Ok(config)
 }
 
-fn iox_node(config: &Config) -> Result<Node<ipc::Service>, TransportError> {
+fn iox_node(config: &Config) -> Result<Node<Svc>, TransportError> {
     let node = NodeBuilder::new()
         .config(config)
         .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<ipc::Service>()
+        .create::<Svc>()
         .map_err(|e| ipc_err("node", e))?;
     let cleaned = node.blocking_cleanup_dead_nodes(Duration::from_millis(500));
     if cleaned.cleanups > 0 || cleaned.failed_cleanups > 0 {
@@ -168,7 +173,7 @@ fn release_domain(domain: &str) {
         return;
     };
     let mut nodes = 0usize;
-    let listed = Node::<ipc::Service>::list(&config, |_| {
+    let listed = Node::<Svc>::list(&config, |_| {
         nodes += 1;
         CallbackProgression::Continue
     });
@@ -200,11 +205,11 @@ fn inbox_name(domain: &str, node: NodeId) -> Result<ServiceName, TransportError>
 }
 
 type Inbox = (
-    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
-    iceoryx2::service::port_factory::event::PortFactory<ipc::Service>,
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], ()>,
+    iceoryx2::service::port_factory::event::PortFactory<Svc>,
 );
 
-fn open_inbox(node: &Node<ipc::Service>, name: &ServiceName, l: &IpcLimits) -> Result<Inbox, TransportError> {
+fn open_inbox(node: &Node<Svc>, name: &ServiceName, l: &IpcLimits) -> Result<Inbox, TransportError> {
     let data = node
         .service_builder(name)
         .publish_subscribe::<[u8]>()
@@ -228,20 +233,80 @@ fn open_inbox(node: &Node<ipc::Service>, name: &ServiceName, l: &IpcLimits) -> R
     Ok((data, wake))
 }
 
-enum Cmd {
-    Frame(OutFrame),
-    Stop,
+/// The sending half handed to the endpoint: publishes from the caller's task.
+pub(crate) struct Sender {
+    inner: Arc<SenderInner>,
 }
 
-/// The sending half handed to the endpoint.
-pub(crate) struct Sender {
-    tx: mpsc::Sender<Cmd>,
+struct SenderInner {
+    cfg: IpcConfig,
+    /// `None` once stopped.
+    node: Mutex<Option<Node<Svc>>>,
+    outlets: Mutex<HashMap<NodeId, Outlet>>,
+}
+
+/// What one publish attempt did.
+enum Published {
+    Delivered,
+    /// Reached no receiver although one is subscribed: its buffer is full.
+    Full,
+    /// Nobody reads this inbox.
+    NoReceiver,
 }
 
 impl Sender {
+    /// Publish `frame` on the recipient's inbox. A frame that must not be dropped and meets
+    /// a full inbox is tried again (yielding to the runtime) for up to
+    /// [`MUST_DELIVER_PATIENCE`]; a droppable one is dropped at once. Undelivered frames are
+    /// counted in `dropped_undelivered`.
     pub(crate) async fn send(&self, frame: OutFrame, stats: &TransportStats) -> Result<Delivery, SendError> {
-        let droppable = frame.droppable;
-        push(&self.tx, Cmd::Frame(frame), droppable, &stats.dropped_queue_full).await
+        let started = tokio::time::Instant::now();
+        loop {
+            match self.publish_once(&frame, stats)? {
+                Some(Published::Delivered) => return Ok(Delivery::Queued),
+                Some(Published::Full) if !frame.droppable && started.elapsed() < MUST_DELIVER_PATIENCE => {
+                    tokio::time::sleep(Duration::from_micros(200)).await;
+                }
+                Some(Published::Full) | Some(Published::NoReceiver) => {
+                    bump(&stats.dropped_undelivered);
+                    tracing::debug!(to = %frame.to, "frame reached no receiver");
+                    return Ok(Delivery::Dropped);
+                }
+                // Could not be published at all; counted and logged where it failed.
+                None => return Ok(Delivery::Dropped),
+            }
+        }
+    }
+
+    fn publish_once(&self, frame: &OutFrame, stats: &TransportStats) -> Result<Option<Published>, SendError> {
+        let mut outlets = self.inner.outlets.lock().unwrap_or_else(|p| p.into_inner());
+        let outlet = match outlets.entry(frame.to) {
+            std::collections::hash_map::Entry::Occupied(o) => o.into_mut(),
+            std::collections::hash_map::Entry::Vacant(v) => {
+                let node = self.inner.node.lock().unwrap_or_else(|p| p.into_inner());
+                let Some(node) = node.as_ref() else {
+                    return Err(SendError::Closed);
+                };
+                match open_outlet(node, &self.inner.cfg, frame.to) {
+                    Ok(o) => v.insert(o),
+                    Err(e) => {
+                        bump(&stats.unroutable);
+                        tracing::warn!(to = %frame.to, error = %e, "cannot open the recipient's inbox");
+                        return Ok(None);
+                    }
+                }
+            }
+        };
+        Ok(publish(outlet, frame, stats))
+    }
+
+    fn stop(&self) {
+        self.inner
+            .outlets
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .clear();
+        self.inner.node.lock().unwrap_or_else(|p| p.into_inner()).take();
     }
 }
 
@@ -256,41 +321,41 @@ pub(crate) fn start(
     let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<(), TransportError>>();
 
     let rcfg = cfg.clone();
-    let (rstats, rstop, rready) = (stats.clone(), stop.clone(), ready_tx.clone());
+    let (rstats, rstop) = (stats.clone(), stop.clone());
     let receiver = std::thread::Builder::new()
         .name(format!("iox2-rx-{}", cfg.me.0))
-        .spawn(move || receiver_thread(rcfg, events, rstats, rstop, rready))
+        .spawn(move || receiver_thread(rcfg, events, rstats, rstop, ready_tx))
         .map_err(TransportError::Io)?;
     handle.threads.push(receiver);
 
-    let (tx, rx) = mpsc::channel(cfg.queue_len.max(1));
-    let scfg = cfg.clone();
-    let sstats = stats.clone();
-    let sender = std::thread::Builder::new()
-        .name(format!("iox2-tx-{}", cfg.me.0))
-        .spawn(move || sender_thread(scfg, rx, sstats, ready_tx))
-        .map_err(TransportError::Io)?;
-    handle.threads.push(sender);
-
-    let stop_tx = tx.clone();
-    handle.on_stop.push(Box::new(move || {
-        stop.store(true, Ordering::Release);
-        // Wakes the sender thread if it waits; if the queue is full it sees the closed
-        // channel once the endpoint is dropped.
-        let _ = stop_tx.try_send(Cmd::Stop);
-    }));
-
     let domain = cfg.domain.clone();
     handle.after_join.push(Box::new(move || release_domain(&domain)));
-
-    for _ in 0..2 {
-        match ready_rx.recv_timeout(Duration::from_secs(10)) {
-            Ok(Ok(())) => {}
-            Ok(Err(e)) => return Err(e),
-            Err(_) => return Err(TransportError::Ipc("iceoryx2 threads did not start".into())),
+    match ready_rx.recv_timeout(Duration::from_secs(10)) {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => return Err(e),
+        Err(_) => {
+            return Err(TransportError::Ipc(
+                "iceoryx2 receiver thread did not start".into(),
+            ));
         }
     }
-    Ok(Sender { tx })
+
+    let node = iox_node(&iox_config(&cfg.domain)?)?;
+    let sender = Sender {
+        inner: Arc::new(SenderInner {
+            cfg,
+            node: Mutex::new(Some(node)),
+            outlets: Mutex::new(HashMap::new()),
+        }),
+    };
+    let on_stop = Sender {
+        inner: sender.inner.clone(),
+    };
+    handle.on_stop.push(Box::new(move || {
+        stop.store(true, Ordering::Release);
+        on_stop.stop();
+    }));
+    Ok(sender)
 }
 
 fn receiver_thread(
@@ -300,11 +365,7 @@ fn receiver_thread(
     stop: Arc<AtomicBool>,
     ready: std::sync::mpsc::Sender<Result<(), TransportError>>,
 ) {
-    type Ports = (
-        Node<ipc::Service>,
-        Subscriber<ipc::Service, [u8], ()>,
-        Listener<ipc::Service>,
-    );
+    type Ports = (Node<Svc>, Subscriber<Svc, [u8], ()>, Listener<Svc>);
     let setup = || -> Result<Ports, TransportError> {
         let config = iox_config(&cfg.domain)?;
         let node = iox_node(&config)?;
@@ -369,78 +430,20 @@ fn receiver_thread(
 }
 
 struct Outlet {
-    data: iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
-    publisher: Publisher<ipc::Service, [u8], ()>,
-    notifier: Notifier<ipc::Service>,
+    data: iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], ()>,
+    publisher: Publisher<Svc, [u8], ()>,
+    notifier: Notifier<Svc>,
 }
 
-fn sender_thread(
-    cfg: IpcConfig,
-    mut rx: mpsc::Receiver<Cmd>,
-    stats: Arc<TransportStats>,
-    ready: std::sync::mpsc::Sender<Result<(), TransportError>>,
-) {
-    let setup = || -> Result<(Config, Node<ipc::Service>), TransportError> {
-        let config = iox_config(&cfg.domain)?;
-        let node = iox_node(&config)?;
-        Ok((config, node))
-    };
-    let (_config, node) = match setup() {
-        Ok(v) => {
-            let _ = ready.send(Ok(()));
-            v
-        }
-        Err(e) => {
-            let _ = ready.send(Err(e));
-            return;
-        }
-    };
-    let mut outlets: HashMap<NodeId, Outlet> = HashMap::new();
-    let must_deliver = Arc::new(AtomicBool::new(false));
-    while let Some(Cmd::Frame(frame)) = rx.blocking_recv() {
-        must_deliver.store(!frame.droppable, Ordering::Relaxed);
-        let outlet = match outlets.entry(frame.to) {
-            std::collections::hash_map::Entry::Occupied(o) => o.into_mut(),
-            std::collections::hash_map::Entry::Vacant(v) => {
-                match open_outlet(&node, &cfg, frame.to, must_deliver.clone()) {
-                    Ok(o) => v.insert(o),
-                    Err(e) => {
-                        bump(&stats.unroutable);
-                        tracing::warn!(to = %frame.to, error = %e, "cannot open the recipient's inbox");
-                        continue;
-                    }
-                }
-            }
-        };
-        publish(outlet, &frame, &stats);
-    }
-    drop(outlets);
-    drop(node);
-}
-
-/// Open a publisher and notifier on `to`'s inbox. When the inbox buffer is full, droppable
-/// frames are discarded at once; others are retried (the receiver drains as its runtime
-/// reads) for up to [`MUST_DELIVER_PATIENCE`].
-fn open_outlet(
-    node: &Node<ipc::Service>,
-    cfg: &IpcConfig,
-    to: NodeId,
-    must_deliver: Arc<AtomicBool>,
-) -> Result<Outlet, TransportError> {
+/// Open a publisher and notifier on `to`'s inbox. A full inbox makes the publisher discard
+/// (never overwrite); [`Sender::send`] decides whether to try again.
+fn open_outlet(node: &Node<Svc>, cfg: &IpcConfig, to: NodeId) -> Result<Outlet, TransportError> {
     let (data, wake) = open_inbox(node, &inbox_name(&cfg.domain, to)?, &cfg.limits)?;
     let publisher = data
         .publisher_builder()
         .initial_max_slice_len(MAX_FRAME_BYTES + SLOT_SLACK)
         .allocation_strategy(AllocationStrategy::Static)
         .backpressure_strategy(BackpressureStrategy::DiscardData)
-        .set_backpressure_handler(move |info: &iceoryx2::port::BackpressureInfo| {
-            if must_deliver.load(Ordering::Relaxed) && info.elapsed_time < MUST_DELIVER_PATIENCE {
-                std::thread::sleep(Duration::from_micros(50));
-                iceoryx2::port::BackpressureAction::Retry
-            } else {
-                iceoryx2::port::BackpressureAction::DiscardData
-            }
-        })
         .max_loaned_samples(2)
         .create()
         .map_err(|e| ipc_err("publisher", e))?;
@@ -455,47 +458,39 @@ fn open_outlet(
     })
 }
 
-/// Publish one frame and wake the recipient. A frame that must not be dropped and reached
-/// no receiver although one is subscribed (its buffer was full) is published again until
-/// [`MUST_DELIVER_PATIENCE`] runs out; a frame for an inbox nobody reads is dropped at once.
-/// Either way an undelivered frame is counted.
-fn publish(outlet: &Outlet, frame: &OutFrame, stats: &TransportStats) {
+/// Publish one frame and wake the recipient; `None` if it could not even be loaned (counted).
+fn publish(outlet: &Outlet, frame: &OutFrame, stats: &TransportStats) -> Option<Published> {
     use iceoryx2::service::port_factory::PortFactory;
     let to = frame.to;
-    #[allow(clippy::disallowed_methods)] // a transport thread, not node logic
-    let started = std::time::Instant::now();
-    loop {
-        let sample = match outlet.publisher.loan_slice_uninit(frame.bytes.len()) {
-            Ok(s) => s,
-            Err(e) => {
-                bump(&stats.rejected_oversized);
-                tracing::warn!(%to, len = frame.bytes.len(), error = ?e, "frame does not fit a shared-memory slot");
-                return;
-            }
-        };
-        let sample = sample.write_from_slice(&frame.bytes);
-        match sample.send() {
-            Ok(0) => {
-                let subscribed = outlet.data.dynamic_config().number_of_subscribers() > 0;
-                if !frame.droppable && subscribed && started.elapsed() < MUST_DELIVER_PATIENCE {
-                    let _ = outlet.notifier.notify();
-                    std::thread::sleep(Duration::from_micros(50));
-                    continue;
-                }
-                bump(&stats.dropped_undelivered);
-                tracing::debug!(%to, subscribed, "frame reached no receiver");
-            }
-            Ok(_) => {
-                if let Err(e) = outlet.notifier.notify() {
-                    tracing::warn!(%to, error = ?e, "iceoryx2 notify failed");
-                }
-            }
-            Err(e) => {
-                bump(&stats.dropped_undelivered);
-                tracing::warn!(%to, error = ?e, "iceoryx2 send failed");
+    let sample = match outlet.publisher.loan_slice_uninit(frame.bytes.len()) {
+        Ok(s) => s,
+        Err(e) => {
+            bump(&stats.rejected_oversized);
+            tracing::warn!(%to, len = frame.bytes.len(), error = ?e, "frame does not fit a shared-memory slot");
+            return None;
+        }
+    };
+    let sample = sample.write_from_slice(&frame.bytes);
+    match sample.send() {
+        Ok(0) => {
+            if outlet.data.dynamic_config().number_of_subscribers() > 0 {
+                // Wake the reader so it drains.
+                let _ = outlet.notifier.notify();
+                Some(Published::Full)
+            } else {
+                Some(Published::NoReceiver)
             }
         }
-        return;
+        Ok(_) => {
+            if let Err(e) = outlet.notifier.notify() {
+                tracing::warn!(%to, error = ?e, "iceoryx2 notify failed");
+            }
+            Some(Published::Delivered)
+        }
+        Err(e) => {
+            tracing::warn!(%to, error = ?e, "iceoryx2 send failed");
+            Some(Published::NoReceiver)
+        }
     }
 }
 
