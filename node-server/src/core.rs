@@ -498,7 +498,9 @@ impl ServerNode {
                 self.counters.rejected += 1;
                 self.journal(s.at, Record::Decision(d.clone()));
             }
-            Record::Decision(_) | Record::Scenario(_) | Record::Sent { .. } => return false,
+            Record::Decision(_) | Record::Scenario(_) | Record::Sent { .. } | Record::Measured(_) => {
+                return false;
+            }
         }
         true
     }

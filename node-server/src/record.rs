@@ -5,7 +5,9 @@
 //! Payload layout (inside the recording's length + CRC framing, see [`crate::recording`]):
 //! `u8 kind | i64 LE at | body`, where the body is the scenario's TOML text, an encoded
 //! envelope (`proto::wire::encode`), `u32 LE destination` + encoded envelope, nothing, a
-//! decision as JSON, or `u32 LE node` + `u8 up` for a link event.
+//! decision as JSON, `u32 LE node` + `u8 up` for a link event, or a postcard-encoded
+//! [`MeasuredFrame`] (a logging run's camera measurement; kind 6, added later: recordings
+//! without it read as before).
 
 use crate::decision::Decision;
 use proto::{ClusterTime, Envelope, NodeId, WireError};
@@ -26,6 +28,57 @@ pub enum Record {
     Decision(Decision),
     /// The transport reported a link to `node` up or down.
     Link { node: NodeId, up: bool },
+    /// One camera frame of a logging run: everything the camera measured, whatever its mode,
+    /// so the run can be processed again offline with another method and policy.
+    Measured(MeasuredFrame),
+}
+
+/// What one camera measured in one frame (paper 002 logged every camera's measurements once
+/// and processed them offline with each method).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MeasuredFrame {
+    pub camera: NodeId,
+    /// Capture time, the camera's cluster time.
+    pub captured: ClusterTime,
+    /// The RSSI of the scenario's tag at the camera's radio at capture time, dBm.
+    pub rssi_dbm: Option<f64>,
+    pub detections: Vec<MeasuredDetection>,
+}
+
+/// One undistorted detection of a [`MeasuredFrame`]: the segmented region and its normalized
+/// pin-hole point with covariance, bit for bit as the camera computed them.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MeasuredDetection {
+    /// Region centroid and foot point, pixels.
+    pub centre: [f32; 2],
+    pub foot: [f32; 2],
+    pub pixel_box: proto::msg::PixelBox,
+    pub area: u32,
+    pub colour: proto::msg::ColourSignature,
+    /// Undistorted normalized point.
+    pub point: [f64; 2],
+    /// Its covariance, row-major 2×2, normalized units².
+    pub cov: [f64; 4],
+}
+
+impl MeasuredFrame {
+    /// Why the frame cannot be used, if it cannot: a non-finite number or a covariance that is
+    /// not symmetric positive semi-definite on its diagonal.
+    pub fn problem(&self) -> Option<String> {
+        if self.rssi_dbm.is_some_and(|d| !d.is_finite()) {
+            return Some(format!("camera {}: RSSI is not finite", self.camera));
+        }
+        self.detections.iter().enumerate().find_map(|(i, d)| {
+            let finite = d.point.iter().chain(&d.cov).all(|x| x.is_finite());
+            (!finite || d.cov[0] < 0.0 || d.cov[3] < 0.0 || d.cov[1] != d.cov[2]).then(|| {
+                format!(
+                    "camera {} detection {i}: point {:?} / covariance {:?} is not a finite \
+                     symmetric covariance",
+                    self.camera, d.point, d.cov
+                )
+            })
+        })
+    }
 }
 
 /// A record with the server's cluster time when it was made.
@@ -47,6 +100,7 @@ const KIND_SENT: u8 = 2;
 const KIND_TICK: u8 = 3;
 const KIND_DECISION: u8 = 4;
 const KIND_LINK: u8 = 5;
+const KIND_MEASURED: u8 = 6;
 
 /// A record payload that could not be encoded or decoded.
 #[derive(Debug, Error)]
@@ -61,6 +115,8 @@ pub enum RecordError {
     Json(#[from] serde_json::Error),
     #[error("recorded scenario is not UTF-8")]
     Utf8,
+    #[error("recorded measurement: {0}")]
+    Measured(String),
 }
 
 impl Stamped {
@@ -77,6 +133,7 @@ impl Stamped {
             Record::Tick => KIND_TICK,
             Record::Decision(_) => KIND_DECISION,
             Record::Link { .. } => KIND_LINK,
+            Record::Measured(_) => KIND_MEASURED,
         };
         out.push(kind);
         out.extend_from_slice(&self.at.0.to_le_bytes());
@@ -92,6 +149,12 @@ impl Stamped {
             Record::Link { node, up } => {
                 out.extend_from_slice(&node.0.to_le_bytes());
                 out.push(u8::from(*up));
+            }
+            Record::Measured(m) => {
+                if let Some(p) = m.problem() {
+                    return Err(RecordError::Measured(p));
+                }
+                out = postcard::to_extend(m, out).map_err(|e| RecordError::Measured(e.to_string()))?;
             }
         }
         Ok(out)
@@ -136,6 +199,14 @@ impl Stamped {
                     up: body[4] != 0,
                 }
             }
+            KIND_MEASURED => {
+                let m: MeasuredFrame =
+                    postcard::from_bytes(body).map_err(|e| RecordError::Measured(e.to_string()))?;
+                if let Some(p) = m.problem() {
+                    return Err(RecordError::Measured(p));
+                }
+                Record::Measured(m)
+            }
             k => return Err(RecordError::UnknownKind(k)),
         };
         Ok(Stamped { at, record })
@@ -175,11 +246,60 @@ mod tests {
                 node: NodeId(7),
                 up: false,
             },
+            Record::Measured(frame()),
+            Record::Measured(MeasuredFrame {
+                detections: Vec::new(),
+                rssi_dbm: None,
+                ..frame()
+            }),
         ];
         for r in all {
             let s = Stamped::new(ClusterTime(-17), r);
             assert_eq!(Stamped::decode(&s.encode().unwrap()).unwrap(), s);
         }
+    }
+
+    fn frame() -> MeasuredFrame {
+        MeasuredFrame {
+            camera: NodeId(12),
+            captured: ClusterTime(1_234_567_891),
+            rssi_dbm: Some(-61.25),
+            detections: vec![MeasuredDetection {
+                centre: [320.5, 240.25],
+                foot: [320.5, 300.0],
+                pixel_box: proto::msg::PixelBox {
+                    xmin: 300.0,
+                    ymin: 200.0,
+                    xmax: 340.0,
+                    ymax: 300.0,
+                },
+                area: 3200,
+                colour: proto::msg::ColourSignature {
+                    hue: 1.0,
+                    saturation: 0.5,
+                    intensity: 0.25,
+                },
+                point: [0.1 + 0.2, -1.0 / 3.0],
+                cov: [1e-6 / 3.0, 1e-9, 1e-9, 2e-6 / 7.0],
+            }],
+        }
+    }
+
+    #[test]
+    fn bad_measured_frames_are_refused_both_ways() {
+        let mut bad = frame();
+        bad.detections[0].point[1] = f64::NAN;
+        let s = Stamped::new(ClusterTime(0), Record::Measured(bad.clone()));
+        assert!(matches!(s.encode(), Err(RecordError::Measured(_))));
+        let mut p = vec![KIND_MEASURED];
+        p.extend_from_slice(&[0; 8]);
+        p.extend_from_slice(&postcard::to_stdvec(&bad).unwrap());
+        let e = Stamped::decode(&p).unwrap_err().to_string();
+        assert!(e.contains("camera n12 detection 0"), "{e}");
+        let mut p = vec![KIND_MEASURED];
+        p.extend_from_slice(&[0; 8]);
+        p.extend_from_slice(&[1, 2, 3]);
+        assert!(matches!(Stamped::decode(&p), Err(RecordError::Measured(_))));
     }
 
     #[test]

@@ -83,3 +83,12 @@ pub fn replay(loaded: &Loaded, mut visit: impl FnMut(&ServerNode, &Stamped)) {
         visit(&node, s);
     }
 }
+
+/// The camera measurements a logging run recorded, in recording order, each with the server
+/// time it was recorded at.
+pub fn measured_frames(loaded: &Loaded) -> impl Iterator<Item = (proto::ClusterTime, &crate::MeasuredFrame)> {
+    loaded.records.iter().filter_map(|s| match &s.record {
+        Record::Measured(m) => Some((s.at, m)),
+        _ => None,
+    })
+}
