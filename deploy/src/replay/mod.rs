@@ -4,4 +4,5 @@ pub mod cameras;
 pub mod detections;
 pub mod ml;
 pub mod multiviewx;
+pub mod rerun;
 pub mod track;

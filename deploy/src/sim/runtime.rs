@@ -3,19 +3,29 @@
 //! and segmented (pixel level) unless the measurement level is chosen, which projects the truth
 //! and adds the scenario's pixel noise (and is labelled so in every output).
 //!
+//! With `record_measurements` (a *logging run*, as paper 002 made): every camera measures
+//! every frame whatever its mode, the measurement goes into the recording as a
+//! `Record::Measured`, and the core is fed the same measurements through
+//! `CameraNode::on_measured` (used only while its camera is on). [`Sim::replaying`] runs the
+//! same nodes on such a recording's measurements instead of sensing (`ocelli replay`).
+//!
 //! Everything is a pure function of (scenario, options): ordered maps, one event queue with
 //! stable tie-breaking and seeded random streams. Every message goes through
 //! `proto::wire::{encode, decode}` on its way, as it would between processes.
 
+use super::logged::{self, Recorded};
 use super::net::{Fate, NetworkModel, SimNetwork, SkewedClock};
 use super::queue::EventQueue;
 use node_camera::config::CameraConfig;
 use node_camera::core::CameraNode;
+use node_camera::detect::Detection;
 use node_camera::frame::Frame;
+use node_camera::measure::{self, Measured};
 use node_camera::radio::{self, MultipathField};
 use node_camera::render::Renderer;
+use node_camera::segment::Segmenter;
 use node_head::{HeadConfig, HeadNode};
-use node_server::{ServerConfig, ServerNode, Stamped};
+use node_server::{MeasuredFrame, Record, ServerConfig, ServerNode, Stamped};
 use proto::msg::Message;
 use proto::node::Outgoing;
 use proto::scenario::{NodeRole, Scenario};
@@ -45,6 +55,9 @@ pub struct SimOptions {
     pub tick_ms: u64,
     /// Period of head ticks, ms (bounds how late a step deadline is noticed).
     pub head_tick_ms: u64,
+    /// A logging run: every camera measures every frame whatever its mode, and each frame's
+    /// measurements (and the tag's RSSI) go into the recording for offline replay.
+    pub record_measurements: bool,
 }
 
 impl Default for SimOptions {
@@ -60,6 +73,7 @@ impl Default for SimOptions {
             },
             tick_ms: 50,
             head_tick_ms: 10,
+            record_measurements: false,
         }
     }
 }
@@ -84,6 +98,9 @@ pub struct SimOutcome {
     pub net: NetCounters,
     pub frames_rendered: u64,
     pub level: Level,
+    /// A replay's recorded frames passed over because a newer one was due at the same frame
+    /// event (a recording made at another frame rate).
+    pub superseded_frames: u64,
 }
 
 #[derive(Debug)]
@@ -121,6 +138,10 @@ struct CameraSlot {
     prior_targets: BTreeSet<TargetId>,
     position: nalgebra::Vector3<f64>,
     period_ns: i64,
+    /// Logging runs segment every frame here, whatever the core's mode.
+    logger: Option<Segmenter>,
+    scratch: Vec<Detection>,
+    logged: Vec<Measured>,
 }
 
 /// The simulation: build with [`Sim::new`], run with [`Sim::run`].
@@ -138,6 +159,8 @@ pub struct Sim {
     frames_rendered: u64,
     /// Pixel noise of measurement-level detections.
     noise: rand_chacha::ChaCha8Rng,
+    /// A replay's recorded measurements, used instead of sensing.
+    recorded: Option<Recorded>,
 }
 
 /// Sync window of every follower (beacons kept for the regression).
@@ -160,6 +183,7 @@ impl Sim {
             records: Vec::new(),
             frames_rendered: 0,
             noise: rand::SeedableRng::seed_from_u64(opts.seed ^ 0x006d_6561_7375_7265),
+            recorded: None,
             net,
             scenario,
             opts,
@@ -202,6 +226,7 @@ impl Sim {
                     let phase =
                         (u64::from(node.id).wrapping_mul(2_654_435_761) % 1000) as i64 * period_ns / 1000;
                     sim.queue.push(phase, Event::Frame(id));
+                    let logger = sim.opts.record_measurements.then(|| Segmenter::new(&cfg.segment));
                     sim.cameras.insert(
                         id,
                         CameraSlot {
@@ -212,6 +237,9 @@ impl Sim {
                             prior_targets: BTreeSet::new(),
                             position,
                             period_ns,
+                            logger,
+                            scratch: Vec::new(),
+                            logged: Vec::new(),
                         },
                     );
                 }
@@ -226,6 +254,24 @@ impl Sim {
             }
             sim.queue.push(0, Event::Tick(id));
         }
+        Ok(sim)
+    }
+
+    /// The scenario's nodes on a logging run's recorded measurements: each camera frame event
+    /// takes the camera's newest recorded frame that is due instead of sensing, and the tag
+    /// RSSI recorded with it. Nothing is rendered or projected and no measurement is recorded
+    /// again. With the run's scenario, options and seed, the nodes see exactly what they saw.
+    ///
+    /// # Errors
+    /// As [`Sim::new`].
+    pub fn replaying(scenario: Scenario, opts: SimOptions, recorded: Recorded) -> anyhow::Result<Sim> {
+        let opts = SimOptions {
+            level: Level::Measurement,
+            record_measurements: false,
+            ..opts
+        };
+        let mut sim = Sim::new(scenario, opts)?;
+        sim.recorded = Some(recorded);
         Ok(sim)
     }
 
@@ -249,6 +295,7 @@ impl Sim {
             net: self.counters,
             frames_rendered: self.frames_rendered,
             level: self.opts.level,
+            superseded_frames: self.recorded.as_ref().map_or(0, |r| r.superseded),
         }
     }
 
@@ -288,36 +335,117 @@ impl Sim {
 
     fn frame(&mut self, t: i64, id: NodeId) {
         let now = self.now_of(id, t);
-        let t_s = t as f64 * 1e-9;
-        let Some(slot) = self.cameras.get_mut(&id) else {
+        let Some(period) = self.cameras.get(&id).map(|slot| slot.period_ns) else {
             return;
         };
-        slot_rssi(&self.scenario, slot, id, t_s, now, self.opts.seed);
-        let out = if slot.core.mode().camera_on() {
-            match &slot.renderer {
-                Some(r) => {
-                    r.render(&self.scenario.targets, t_s, now, &mut slot.frame);
-                    self.frames_rendered += 1;
-                    slot.core.on_frame(now, &slot.frame)
-                }
-                None => {
-                    let dets = node_camera::synthetic::project_truth(
-                        &slot.core.config().camera,
-                        &self.scenario.world,
-                        &self.scenario.targets,
-                        t_s,
-                        self.scenario.method.pixel_sigma,
-                        &mut self.noise,
-                    );
-                    slot.core.on_detections(now, now, &dets)
-                }
-            }
+        let out = if self.recorded.is_some() {
+            self.frame_recorded(t, id, now)
+        } else if self.opts.record_measurements {
+            self.frame_logged(t, id, now)
         } else {
-            Vec::new()
+            self.frame_live(t, id, now)
         };
-        let period = slot.period_ns;
         self.send_all(t, id, out);
         self.queue.push(t + period, Event::Frame(id));
+    }
+
+    /// A replay: the camera's recorded frame that is due, if any.
+    fn frame_recorded(&mut self, t: i64, id: NodeId, now: ClusterTime) -> Vec<Outgoing> {
+        let (Some(slot), Some(recorded)) = (self.cameras.get_mut(&id), self.recorded.as_mut()) else {
+            return Vec::new();
+        };
+        let Some(f) = recorded.take_due(id, t) else {
+            return Vec::new();
+        };
+        if let Some(dbm) = f.rssi_dbm {
+            apply_rssi(slot, now, dbm);
+        }
+        slot.logged.clear();
+        slot.logged.extend(f.detections.iter().map(logged::from_record));
+        slot.core.on_measured(now, now, &slot.logged)
+    }
+
+    /// A logging run: sense and record whatever the mode; the core uses it only when on.
+    fn frame_logged(&mut self, t: i64, id: NodeId, now: ClusterTime) -> Vec<Outgoing> {
+        let t_s = t as f64 * 1e-9;
+        let Some(slot) = self.cameras.get_mut(&id) else {
+            return Vec::new();
+        };
+        let dbm = tag_reading(&self.scenario, slot, id, t_s, self.opts.seed);
+        if let Some(dbm) = dbm {
+            apply_rssi(slot, now, dbm);
+        }
+        slot.scratch.clear();
+        match (&slot.renderer, &mut slot.logger) {
+            (Some(r), Some(seg)) => {
+                r.render(&self.scenario.targets, t_s, now, &mut slot.frame);
+                self.frames_rendered += 1;
+                if let Err(e) = seg.process(&slot.frame, &mut slot.scratch) {
+                    tracing::warn!(node = %id, error = %e, "sim: logging segmentation failed");
+                    slot.scratch.clear();
+                }
+            }
+            _ => slot.scratch.extend(node_camera::synthetic::project_truth(
+                &slot.core.config().camera,
+                &self.scenario.world,
+                &self.scenario.targets,
+                t_s,
+                self.scenario.method.pixel_sigma,
+                &mut self.noise,
+            )),
+        }
+        let cfg = slot.core.config();
+        slot.logged.clear();
+        slot.logged.extend(
+            slot.scratch
+                .iter()
+                .filter_map(|d| measure::measure(&cfg.camera, d, cfg.reference, cfg.pixel_sigma).ok()),
+        );
+        self.records.push(Stamped::new(
+            ClusterTime(t),
+            Record::Measured(MeasuredFrame {
+                camera: id,
+                captured: now,
+                rssi_dbm: dbm,
+                detections: slot.logged.iter().map(logged::to_record).collect(),
+            }),
+        ));
+        slot.core.on_measured(now, now, &slot.logged)
+    }
+
+    /// An ordinary run: the radio reads while on, the camera captures while on.
+    fn frame_live(&mut self, t: i64, id: NodeId, now: ClusterTime) -> Vec<Outgoing> {
+        let t_s = t as f64 * 1e-9;
+        let Some(slot) = self.cameras.get_mut(&id) else {
+            return Vec::new();
+        };
+        if slot.core.mode().radio_on()
+            && !slot.prior_targets.is_empty()
+            && let Some(dbm) = tag_reading(&self.scenario, slot, id, t_s, self.opts.seed)
+        {
+            apply_rssi(slot, now, dbm);
+        }
+        if !slot.core.mode().camera_on() {
+            return Vec::new();
+        }
+        match &slot.renderer {
+            Some(r) => {
+                r.render(&self.scenario.targets, t_s, now, &mut slot.frame);
+                self.frames_rendered += 1;
+                slot.core.on_frame(now, &slot.frame)
+            }
+            None => {
+                let dets = node_camera::synthetic::project_truth(
+                    &slot.core.config().camera,
+                    &self.scenario.world,
+                    &self.scenario.targets,
+                    t_s,
+                    self.scenario.method.pixel_sigma,
+                    &mut self.noise,
+                );
+                slot.core.on_detections(now, now, &dets)
+            }
+        }
     }
 
     fn send_all(&mut self, t: i64, from: NodeId, out: Vec<Outgoing>) {
@@ -412,20 +540,17 @@ impl Sim {
     }
 }
 
-/// RSSI of the scenario's tags at a camera node. A reading is filed under every track the
-/// node has priors for when the scenario has exactly one tagged target: the papers' setting,
-/// and the only one where a tag maps to a track without tag ids on the wire.
-fn slot_rssi(scenario: &Scenario, slot: &mut CameraSlot, id: NodeId, t_s: f64, now: ClusterTime, seed: u64) {
+/// RSSI of the scenario's tag at a camera node, dBm, when the scenario has exactly one tagged
+/// target: the papers' setting, and the only one where a tag maps to a track without tag ids
+/// on the wire.
+fn tag_reading(scenario: &Scenario, slot: &CameraSlot, id: NodeId, t_s: f64, seed: u64) -> Option<f64> {
     let mut tagged = scenario.targets.iter().filter(|t| t.rssi_tag);
     let (Some(tag), None) = (tagged.next(), tagged.next()) else {
-        return;
+        return None;
     };
-    if !slot.core.mode().radio_on() || slot.prior_targets.is_empty() {
-        return;
-    }
     let truth = tag.truth_at(t_s);
     let pos = nalgebra::Vector3::new(truth[0], truth[1], truth[2]);
-    let dbm = radio::reading(
+    Some(radio::reading(
         &scenario.world,
         &slot.field,
         id.0,
@@ -434,7 +559,14 @@ fn slot_rssi(scenario: &Scenario, slot: &mut CameraSlot, id: NodeId, t_s: f64, n
         &pos,
         t_s,
         seed,
-    );
+    ))
+}
+
+/// File a reading under every track the node has priors for, when its radio is on.
+fn apply_rssi(slot: &mut CameraSlot, now: ClusterTime, dbm: f64) {
+    if !slot.core.mode().radio_on() || slot.prior_targets.is_empty() {
+        return;
+    }
     for &target in &slot.prior_targets {
         slot.core.on_rssi(now, target, dbm);
     }

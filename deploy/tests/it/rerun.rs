@@ -1,0 +1,178 @@
+//! `ocelli replay RECORDING`: a logging run's recorded measurements re-run through the heads.
+//! Replayed with the run's own method, policy, seed and network, the replay is the run (every
+//! server record equal, bit for bit); replayed with another policy, it shows that policy's
+//! sensor use on the very same measurements (paper 002's offline comparison).
+
+use deploy::replay::rerun::{RerunOptions, rerun, without_measurements};
+use deploy::sim::runtime::{Level, Sim, SimOptions};
+use node_server::replay::Loaded;
+use node_server::report::{self, Report};
+use node_server::{Record, Recorder, Stamped};
+use proto::ClusterTime;
+use proto::msg::Message;
+use proto::scenario::{Activation, Fusion, Scenario};
+
+fn opts(seed: u64, duration_s: f64) -> SimOptions {
+    SimOptions {
+        seed,
+        duration_s,
+        level: Level::Measurement,
+        record_measurements: true,
+        ..SimOptions::default()
+    }
+}
+
+/// A logging run written to a recording file and read back.
+fn logging_run(fusion: Fusion, activation: Activation, o: &SimOptions, name: &str) -> (Vec<Stamped>, Loaded) {
+    let mut scenario = Scenario::default_scenario();
+    scenario.method.fusion = fusion;
+    scenario.method.activation = activation;
+    let outcome = Sim::new(scenario.clone(), o.clone()).expect("simulates").run();
+    let path = std::env::temp_dir().join(format!("ocelli-rerun-{name}-{}.ocrec", std::process::id()));
+    {
+        let mut rec = Recorder::create(&path, &scenario.name).expect("recording");
+        rec.append(&Stamped::new(ClusterTime(0), Record::Scenario(scenario.to_toml())))
+            .unwrap();
+        for r in &outcome.records {
+            rec.append(r).unwrap();
+        }
+        rec.sync().unwrap();
+    }
+    let loaded = node_server::replay::load(&path, None).expect("reads back with its scenario");
+    let _ = std::fs::remove_file(&path);
+    (outcome.records, loaded)
+}
+
+fn track_reports(records: &[&Stamped]) -> usize {
+    records
+        .iter()
+        .filter(|s| matches!(&s.record, Record::Received(e) if matches!(e.body, Message::TrackReport(_))))
+        .count()
+}
+
+#[test]
+fn replaying_a_logging_run_with_its_own_method_and_policy_is_the_run() {
+    for (fusion, activation, seed, level) in [
+        (Fusion::DistributedEif, Activation::ThreeMode, 3, Level::Measurement),
+        (Fusion::CentralizedEif, Activation::AllOn, 4, Level::Measurement),
+        (Fusion::DistributedEif, Activation::FullNode, 5, Level::Measurement),
+        (Fusion::DistributedEif, Activation::ThreeMode, 6, Level::Pixel),
+    ] {
+        let o = SimOptions {
+            level,
+            ..opts(seed, 8.0)
+        };
+        let (run, loaded) = logging_run(fusion, activation, &o, "same");
+        let measured = run.len() - without_measurements(&run).len();
+        // 21 cameras at 5 fps for 8 s, whatever their mode.
+        assert!(measured > 21 * 5 * 7, "only {measured} measured frames");
+        let replay = rerun(
+            &loaded,
+            &RerunOptions {
+                fusion: Some(fusion),
+                activation: Some(activation),
+                sim: o.clone(),
+                t0: ClusterTime(0),
+            },
+        )
+        .expect("replays");
+        assert_eq!(replay.frames, measured as u64);
+        assert_eq!((replay.unknown_camera_frames, replay.superseded_frames), (0, 0));
+        let (a, b) = (without_measurements(&run), without_measurements(&replay.records));
+        assert!(
+            track_reports(&a) > 20,
+            "{fusion:?}/{activation:?}: only {} track reports",
+            track_reports(&a)
+        );
+        let first_difference = a.iter().zip(&b).position(|(x, y)| x != y);
+        assert_eq!(
+            (a.len(), first_difference),
+            (b.len(), None),
+            "{fusion:?}/{activation:?}/{level:?}: the replay differs from the run"
+        );
+    }
+}
+
+/// The replay's estimates come from the recorded measurements: move every recorded point a
+/// little and the estimates move.
+#[test]
+fn replayed_estimates_follow_the_recorded_measurements() {
+    let o = opts(3, 6.0);
+    let (_, mut loaded) = logging_run(Fusion::DistributedEif, Activation::AllOn, &o, "moved");
+    let replay = |loaded: &Loaded| {
+        let r = rerun(
+            loaded,
+            &RerunOptions {
+                fusion: None,
+                activation: None,
+                sim: o.clone(),
+                t0: ClusterTime(0),
+            },
+        )
+        .expect("replays");
+        node_server::export::track_rows(&r.loaded())
+    };
+    let before = replay(&loaded);
+    for s in &mut loaded.records {
+        if let Record::Measured(f) = &mut s.record {
+            for d in &mut f.detections {
+                d.point[0] += 0.01;
+            }
+        }
+    }
+    let after = replay(&loaded);
+    assert!(before.len() > 20);
+    let moved = before
+        .iter()
+        .zip(&after)
+        .filter(|(a, b)| (a.x - b.x).abs() + (a.y - b.y).abs() > 1e-3)
+        .count();
+    assert!(moved > before.len() / 2, "{moved} of {} estimates moved", before.len());
+}
+
+fn replay_with(loaded: &Loaded, activation: Activation, o: &SimOptions) -> Report {
+    let replay = rerun(
+        loaded,
+        &RerunOptions {
+            fusion: None,
+            activation: Some(activation),
+            sim: o.clone(),
+            t0: ClusterTime(0),
+        },
+    )
+    .expect("replays");
+    report::compute(&replay.loaded(), ClusterTime(0))
+}
+
+#[test]
+fn one_logging_run_replayed_with_three_mode_uses_fewer_cameras_and_less_power_than_all_on() {
+    let o = opts(2, 20.0);
+    let (_, loaded) = logging_run(Fusion::DistributedEif, Activation::AllOn, &o, "policies");
+    let all_on = replay_with(&loaded, Activation::AllOn, &o);
+    let three = replay_with(&loaded, Activation::ThreeMode, &o);
+    eprintln!(
+        "all-on: {:?} m, {:.2} cameras, {:.0} mW; three-mode: {:?} m, {:.2} cameras, {:.0} mW",
+        all_on.mean_error_m,
+        all_on.active_cameras_mean,
+        all_on.power_mw_mean,
+        three.mean_error_m,
+        three.active_cameras_mean,
+        three.power_mw_mean
+    );
+    let err_all = all_on.mean_error_m.expect("the scenario has ground truth");
+    let err_three = three.mean_error_m.expect("the scenario has ground truth");
+    assert!(err_all < 0.3, "all-on replay error {err_all} m");
+    assert!(
+        three.active_cameras_mean < 0.6 * all_on.active_cameras_mean,
+        "three-mode {} cameras vs all-on {}",
+        three.active_cameras_mean,
+        all_on.active_cameras_mean
+    );
+    assert!(
+        three.power_mw_mean < 0.6 * all_on.power_mw_mean,
+        "three-mode {} mW vs all-on {} mW",
+        three.power_mw_mean,
+        all_on.power_mw_mean
+    );
+    assert!(err_three < 5.0 * err_all, "three-mode {err_three} m vs all-on {err_all} m");
+}
