@@ -263,7 +263,12 @@ impl CameraNode {
     /// frame whatever the mode, and a replay feeds a recording's measurements back. Handled
     /// exactly as a frame's detections after undistortion; ignored when the camera is off.
     /// Non-finite points or covariances reject the whole frame and change no state.
-    pub fn on_measured(&mut self, now: ClusterTime, captured: ClusterTime, measured: &[Measured]) -> Vec<Outgoing> {
+    pub fn on_measured(
+        &mut self,
+        now: ClusterTime,
+        captured: ClusterTime,
+        measured: &[Measured],
+    ) -> Vec<Outgoing> {
         let mut out = Vec::new();
         if !self.mode.camera_on() {
             self.counters.frames_skipped += 1;
@@ -273,7 +278,10 @@ impl CameraNode {
             .iter()
             .find(|m| !(m.point.iter().chain(m.cov.iter()).all(|x| x.is_finite())))
         {
-            self.reject("measured", format!("point {:?} or its covariance is not finite", m.point));
+            self.reject(
+                "measured",
+                format!("point {:?} or its covariance is not finite", m.point),
+            );
             return out;
         }
         self.counters.frames += 1;

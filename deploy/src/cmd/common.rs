@@ -1,5 +1,5 @@
-//! What the node and cluster subcommands share: the transport flag, the scenario argument and
-//! the stop signal.
+//! What the node and cluster subcommands share: the transport flag, the scenario argument,
+//! the simulated network's flags and the stop signal.
 
 use anyhow::Result;
 use proto::scenario::{Scenario, TransportKind};
@@ -19,6 +19,39 @@ impl TransportArg {
         match self {
             TransportArg::Ipc => TransportKind::Ipc,
             TransportArg::Tcp => TransportKind::Tcp,
+        }
+    }
+}
+
+/// The simulated network of `ocelli sim` and `ocelli replay RECORDING`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct NetArgs {
+    /// One-way network latency, ms.
+    #[arg(long, default_value_t = 2.0)]
+    pub latency_ms: f64,
+    /// Uniform latency jitter, ms.
+    #[arg(long, default_value_t = 1.0)]
+    pub jitter_ms: f64,
+    /// Message loss probability.
+    #[arg(long, default_value_t = 0.0)]
+    pub loss: f64,
+    /// Largest per-node clock offset, ms.
+    #[arg(long, default_value_t = 20.0)]
+    pub clock_offset_ms: f64,
+    /// Largest per-node clock drift, ppm.
+    #[arg(long, default_value_t = 50.0)]
+    pub clock_drift_ppm: f64,
+}
+
+impl NetArgs {
+    pub fn model(&self) -> crate::sim::net::NetworkModel {
+        crate::sim::net::NetworkModel {
+            latency_ms: self.latency_ms,
+            jitter_ms: self.jitter_ms,
+            loss: self.loss,
+            clock_offset_ms: self.clock_offset_ms,
+            clock_drift_ppm: self.clock_drift_ppm,
+            partitions: Vec::new(),
         }
     }
 }

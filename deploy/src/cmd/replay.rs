@@ -1,13 +1,24 @@
-//! `ocelli replay`: external detections (JSON Lines, any detector) through a fusion method,
-//! estimates as JSON Lines on standard output. Cameras come from a scenario (ids = node ids) or
-//! an OpenCV calibration folder (ids from the file names). Recorded camera measurements are not
-//! replayed: the server's recording holds tracks, not the cameras' measurements.
+//! `ocelli replay`: estimates as JSON Lines on standard output, from either
+//! - a logging run's recording (`ocelli replay RECORDING --fusion … --activation …`): its
+//!   recorded camera measurements re-run through the heads with any method and policy
+//!   ([`crate::replay::rerun`]), followed by the run report of the replay (`ocelli report`'s);
+//! - external detections (`--detections FILE`, JSON Lines, any detector) through a fusion
+//!   method, with cameras from a scenario (ids = node ids) or an OpenCV calibration folder (ids
+//!   from the file names).
 
+use super::common::NetArgs;
 use crate::replay::cameras::Cameras;
 use crate::replay::detections::read_detections;
 use crate::replay::ml::{Estimate, MlOptions, replay_ml};
+use crate::replay::rerun::{RerunOptions, rerun};
 use crate::replay::track::{TrackOptions, track};
+use crate::sim::net::NetworkModel;
+use crate::sim::runtime::SimOptions;
 use anyhow::{Context, Result};
+use node_server::export::{TrackRow, track_rows};
+use node_server::report::Report;
+use proto::ClusterTime;
+use proto::scenario::{Activation, Fusion};
 use std::io::{BufRead, BufReader, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -21,13 +32,93 @@ pub enum ReplayMethod {
     Eif,
 }
 
+/// `--fusion` of a recording's replay.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FusionArg {
+    DistributedEif,
+    CentralizedEif,
+    Ml,
+}
+
+/// `--activation` of a recording's replay.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ActivationArg {
+    AllOn,
+    CameraEntropy,
+    FullNode,
+    ThreeMode,
+}
+
+impl FusionArg {
+    pub fn fusion(self) -> Fusion {
+        match self {
+            FusionArg::DistributedEif => Fusion::DistributedEif,
+            FusionArg::CentralizedEif => Fusion::CentralizedEif,
+            FusionArg::Ml => Fusion::Ml,
+        }
+    }
+}
+
+impl ActivationArg {
+    pub fn activation(self) -> Activation {
+        match self {
+            ActivationArg::AllOn => Activation::AllOn,
+            ActivationArg::CameraEntropy => Activation::CameraEntropy,
+            ActivationArg::FullNode => Activation::FullNode,
+            ActivationArg::ThreeMode => Activation::ThreeMode,
+        }
+    }
+}
+
+/// What only a recording's replay uses.
+#[derive(clap::Args, Debug, Clone)]
+pub struct RecordingArgs {
+    /// Fusion method of the replay (default: the recorded scenario's).
+    #[arg(long, value_enum)]
+    pub fusion: Option<FusionArg>,
+    /// Activation policy of the replay (default: the recorded scenario's).
+    #[arg(long, value_enum)]
+    pub activation: Option<ActivationArg>,
+    /// Seed of the replay's simulated network and clocks (the run's, to reproduce it).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    #[command(flatten)]
+    pub net: NetArgs,
+    /// No latency, jitter, loss or clock error (overrides the network flags).
+    #[arg(long)]
+    pub ideal_network: bool,
+    /// Cluster time (ns) of scenario time 0 in the recording.
+    #[arg(long, default_value_t = 0)]
+    pub t0_ns: i64,
+    /// Print the report as one JSON line (`{"report": …}`) after the estimates instead of a
+    /// table on standard error.
+    #[arg(long)]
+    pub json: bool,
+}
+
+impl Default for RecordingArgs {
+    /// The command line's defaults (for callers that build [`Args`] in code).
+    fn default() -> Self {
+        #[derive(clap::Parser)]
+        struct Only {
+            #[command(flatten)]
+            rec: RecordingArgs,
+        }
+        <Only as clap::Parser>::parse_from(["replay"]).rec
+    }
+}
+
 #[derive(clap::Args, Debug)]
-#[command(group(clap::ArgGroup::new("cams").required(true).args(["scenario", "opencv_calibration"])))]
+#[command(group(clap::ArgGroup::new("input").required(true).args(["recording", "detections"])))]
 pub struct Args {
+    /// A logging run's recording (`ocelli sim --record-measurements --record FILE`) to re-run
+    /// through the heads.
+    pub recording: Option<PathBuf>,
     /// JSON Lines detections, `-` for standard input.
     #[arg(long)]
-    pub detections: String,
-    /// Cameras from this scenario (detections name cameras by node id).
+    pub detections: Option<String>,
+    /// Cameras from this scenario (detections name cameras by node id); with a recording,
+    /// replaces the recorded scenario.
     #[arg(long)]
     pub scenario: Option<PathBuf>,
     /// Cameras from an OpenCV calibration folder (`intrinsic/intr_<ID>.xml`,
@@ -51,6 +142,8 @@ pub struct Args {
     /// Report only people seen by at least this many cameras.
     #[arg(long, default_value_t = 1)]
     pub min_cameras: usize,
+    #[command(flatten)]
+    pub rec: RecordingArgs,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -126,21 +219,89 @@ pub fn replay(args: &Args, input: impl BufRead) -> Result<Vec<Estimate>> {
     })
 }
 
-pub fn run(args: Args) -> Result<ExitCode> {
-    let estimates = if args.detections == "-" {
-        replay(&args, std::io::stdin().lock())?
+/// Re-run a recording's measurements through the heads: the replay's owner track rows (one per
+/// global track and step) and its report.
+///
+/// # Errors
+/// An unreadable recording or scenario, or a recording without measurements.
+pub fn replay_recording(path: &std::path::Path, args: &Args) -> Result<(Vec<TrackRow>, Report)> {
+    let scenario = args
+        .scenario
+        .as_deref()
+        .map(proto::scenario::Scenario::load)
+        .transpose()?;
+    let loaded =
+        node_server::replay::load(path, scenario).with_context(|| format!("reading {}", path.display()))?;
+    if let Some(tail) = &loaded.tail {
+        tracing::warn!(
+            skipped_bytes = tail.skipped_bytes,
+            "replay: torn tail of the recording skipped"
+        );
+    }
+    let rec = &args.rec;
+    let network = if rec.ideal_network {
+        NetworkModel::default()
     } else {
-        let file = std::fs::File::open(&args.detections)
-            .with_context(|| format!("cannot open {}", args.detections))?;
-        replay(&args, BufReader::new(file))?
+        rec.net.model()
     };
-    let stdout = std::io::stdout();
-    let mut out = std::io::BufWriter::new(stdout.lock());
-    for e in &estimates {
+    let opts = RerunOptions {
+        fusion: rec.fusion.map(FusionArg::fusion),
+        activation: rec.activation.map(ActivationArg::activation),
+        sim: SimOptions {
+            seed: rec.seed,
+            network,
+            ..SimOptions::default()
+        },
+        t0: ClusterTime(rec.t0_ns),
+    };
+    let replay = rerun(&loaded, &opts)?;
+    tracing::info!(
+        frames = replay.frames,
+        unknown_camera_frames = replay.unknown_camera_frames,
+        superseded_frames = replay.superseded_frames,
+        fusion = ?replay.scenario.method.fusion,
+        activation = ?replay.scenario.method.activation,
+        "replay done"
+    );
+    let replayed = replay.loaded();
+    let rows = track_rows(&replayed).into_iter().filter(|r| r.owner).collect();
+    Ok((rows, node_server::report::compute(&replayed, opts.t0)))
+}
+
+fn write_lines<T: serde::Serialize>(items: &[T], out: &mut impl Write) -> Result<bool> {
+    for e in items {
         let line = serde_json::to_string(e)?;
         match writeln!(out, "{line}") {
-            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(ExitCode::SUCCESS),
+            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(false),
             other => other?,
+        }
+    }
+    Ok(true)
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::new(stdout.lock());
+    if let Some(path) = &args.recording {
+        let (rows, report) = replay_recording(path, &args)?;
+        if !write_lines(&rows, &mut out)? {
+            return Ok(ExitCode::SUCCESS);
+        }
+        if args.rec.json {
+            write_lines(&[serde_json::json!({ "report": report })], &mut out)?;
+        } else {
+            eprint!("{}", report.to_table());
+        }
+    } else {
+        let estimates = match args.detections.as_deref() {
+            Some("-") | None => replay(&args, std::io::stdin().lock())?,
+            Some(p) => {
+                let file = std::fs::File::open(p).with_context(|| format!("cannot open {p}"))?;
+                replay(&args, BufReader::new(file))?
+            }
+        };
+        if !write_lines(&estimates, &mut out)? {
+            return Ok(ExitCode::SUCCESS);
         }
     }
     match out.flush() {

@@ -1,8 +1,7 @@
 //! `ocelli sim`: the scenario's nodes in one process on a virtual clock (see `sim::runtime`).
 //! Same seed, same bytes out.
 
-use super::common::load_scenario;
-use crate::sim::net::NetworkModel;
+use super::common::{NetArgs, load_scenario};
 use crate::sim::runtime::{Level, Sim, SimOptions};
 use anyhow::{Context, Result};
 use node_server::replay::Loaded;
@@ -26,24 +25,15 @@ pub struct Args {
     /// `pixel` (rendered and segmented frames) or `measurement` (truth projected plus noise).
     #[arg(long, value_enum, default_value = "pixel")]
     pub level: LevelArg,
-    /// One-way network latency, ms.
-    #[arg(long, default_value_t = 2.0)]
-    pub latency_ms: f64,
-    /// Uniform latency jitter, ms.
-    #[arg(long, default_value_t = 1.0)]
-    pub jitter_ms: f64,
-    /// Message loss probability.
-    #[arg(long, default_value_t = 0.0)]
-    pub loss: f64,
-    /// Largest per-node clock offset, ms.
-    #[arg(long, default_value_t = 20.0)]
-    pub clock_offset_ms: f64,
-    /// Largest per-node clock drift, ppm.
-    #[arg(long, default_value_t = 50.0)]
-    pub clock_drift_ppm: f64,
+    #[command(flatten)]
+    pub net: NetArgs,
     /// Write the server's recording here.
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// A logging run: every camera measures every frame whatever its mode, and the
+    /// measurements go into the recording, for `ocelli replay RECORDING --fusion … --activation …`.
+    #[arg(long, requires = "record")]
+    pub record_measurements: bool,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -61,14 +51,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
             LevelArg::Pixel => Level::Pixel,
             LevelArg::Measurement => Level::Measurement,
         },
-        network: NetworkModel {
-            latency_ms: args.latency_ms,
-            jitter_ms: args.jitter_ms,
-            loss: args.loss,
-            clock_offset_ms: args.clock_offset_ms,
-            clock_drift_ppm: args.clock_drift_ppm,
-            partitions: Vec::new(),
-        },
+        network: args.net.model(),
+        record_measurements: args.record_measurements,
         ..SimOptions::default()
     };
     let outcome = Sim::new(scenario.clone(), opts)?.run();

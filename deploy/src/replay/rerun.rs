@@ -96,7 +96,10 @@ pub fn rerun(loaded: &Loaded, opts: &RerunOptions) -> Result<Rerun> {
          --record-measurements --record FILE`)"
     );
     if unknown > 0 {
-        tracing::warn!(frames = unknown, "replay: frames of cameras the scenario does not have, skipped");
+        tracing::warn!(
+            frames = unknown,
+            "replay: frames of cameras the scenario does not have, skipped"
+        );
     }
     let last_ns = loaded
         .records

@@ -48,7 +48,10 @@ pub struct Recorded {
 
 impl Recorded {
     /// Queue `frames` (recorded at `at`); `t0` is the cluster time of scenario time 0.
-    pub fn new<'a>(frames: impl IntoIterator<Item = (ClusterTime, &'a MeasuredFrame)>, t0: ClusterTime) -> Self {
+    pub fn new<'a>(
+        frames: impl IntoIterator<Item = (ClusterTime, &'a MeasuredFrame)>,
+        t0: ClusterTime,
+    ) -> Self {
         let mut out = Recorded::default();
         for (at, f) in frames {
             out.frames
@@ -121,12 +124,21 @@ mod tests {
             detections: Vec::new(),
         };
         let frames = [(100, f(1, 1)), (200, f(1, 2)), (150, f(2, 3)), (300, f(1, 4))];
-        let mut r = Recorded::new(frames.iter().map(|(at, f)| (ClusterTime(*at + 50), f)), ClusterTime(50));
+        let mut r = Recorded::new(
+            frames.iter().map(|(at, f)| (ClusterTime(*at + 50), f)),
+            ClusterTime(50),
+        );
         assert_eq!(r.last_ns(), Some(300));
         assert_eq!(r.take_due(NodeId(1), 99), None);
-        assert_eq!(r.take_due(NodeId(1), 250).map(|f| f.captured), Some(ClusterTime(2)));
+        assert_eq!(
+            r.take_due(NodeId(1), 250).map(|f| f.captured),
+            Some(ClusterTime(2))
+        );
         assert_eq!(r.superseded, 1);
-        assert_eq!(r.take_due(NodeId(2), 150).map(|f| f.captured), Some(ClusterTime(3)));
+        assert_eq!(
+            r.take_due(NodeId(2), 150).map(|f| f.captured),
+            Some(ClusterTime(3))
+        );
         assert_eq!(r.take_due(NodeId(3), 1000), None);
     }
 }

@@ -31,7 +31,8 @@ fn args(cameras: &str, method: ReplayMethod, plane_z: Option<f64>) -> Args {
         (None, Some(PathBuf::from(cameras)))
     };
     Args {
-        detections: "-".into(),
+        recording: None,
+        detections: Some("-".into()),
         scenario,
         opencv_calibration,
         image_size: (1920, 1080),
@@ -40,6 +41,7 @@ fn args(cameras: &str, method: ReplayMethod, plane_z: Option<f64>) -> Args {
         pixel_sigma: 2.0,
         gate: 1.0,
         min_cameras: 1,
+        rec: Default::default(),
     }
 }
 

@@ -31,8 +31,11 @@ fn logging_run(fusion: Fusion, activation: Activation, o: &SimOptions, name: &st
     let path = std::env::temp_dir().join(format!("ocelli-rerun-{name}-{}.ocrec", std::process::id()));
     {
         let mut rec = Recorder::create(&path, &scenario.name).expect("recording");
-        rec.append(&Stamped::new(ClusterTime(0), Record::Scenario(scenario.to_toml())))
-            .unwrap();
+        rec.append(&Stamped::new(
+            ClusterTime(0),
+            Record::Scenario(scenario.to_toml()),
+        ))
+        .unwrap();
         for r in &outcome.records {
             rec.append(r).unwrap();
         }
@@ -53,9 +56,19 @@ fn track_reports(records: &[&Stamped]) -> usize {
 #[test]
 fn replaying_a_logging_run_with_its_own_method_and_policy_is_the_run() {
     for (fusion, activation, seed, level) in [
-        (Fusion::DistributedEif, Activation::ThreeMode, 3, Level::Measurement),
+        (
+            Fusion::DistributedEif,
+            Activation::ThreeMode,
+            3,
+            Level::Measurement,
+        ),
         (Fusion::CentralizedEif, Activation::AllOn, 4, Level::Measurement),
-        (Fusion::DistributedEif, Activation::FullNode, 5, Level::Measurement),
+        (
+            Fusion::DistributedEif,
+            Activation::FullNode,
+            5,
+            Level::Measurement,
+        ),
         (Fusion::DistributedEif, Activation::ThreeMode, 6, Level::Pixel),
     ] {
         let o = SimOptions {
@@ -127,7 +140,11 @@ fn replayed_estimates_follow_the_recorded_measurements() {
         .zip(&after)
         .filter(|(a, b)| (a.x - b.x).abs() + (a.y - b.y).abs() > 1e-3)
         .count();
-    assert!(moved > before.len() / 2, "{moved} of {} estimates moved", before.len());
+    assert!(
+        moved > before.len() / 2,
+        "{moved} of {} estimates moved",
+        before.len()
+    );
 }
 
 fn replay_with(loaded: &Loaded, activation: Activation, o: &SimOptions) -> Report {
@@ -174,5 +191,77 @@ fn one_logging_run_replayed_with_three_mode_uses_fewer_cameras_and_less_power_th
         three.power_mw_mean,
         all_on.power_mw_mean
     );
-    assert!(err_three < 5.0 * err_all, "three-mode {err_three} m vs all-on {err_all} m");
+    assert!(
+        err_three < 5.0 * err_all,
+        "three-mode {err_three} m vs all-on {err_all} m"
+    );
+}
+
+/// The commands as a user runs them: `ocelli sim --record-measurements --record F`, then
+/// `ocelli replay F` with the run's seed prints the run's own estimates (those `ocelli export`
+/// reads from F) and, with `--json`, the report; `--activation all-on` keeps more cameras on.
+#[test]
+fn binary_replays_a_sim_recording_to_its_own_estimates() {
+    let dir = std::env::temp_dir().join(format!("ocelli-rerun-bin-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let rec = dir.join("run.ocrec");
+    let ocelli = |args: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_ocelli"))
+            .args(args)
+            .output()
+            .expect("ocelli runs");
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).expect("utf-8")
+    };
+    let rec_s = rec.to_str().unwrap();
+    ocelli(&[
+        "sim",
+        "--seed",
+        "9",
+        "--duration",
+        "6",
+        "--level",
+        "measurement",
+        "--json",
+        "--record",
+        rec_s,
+        "--record-measurements",
+    ]);
+    let json_lines = |text: &str| -> Vec<serde_json::Value> {
+        text.lines()
+            .map(|l| serde_json::from_str(l).expect("each line is JSON"))
+            .collect()
+    };
+    let exported: Vec<_> = json_lines(&ocelli(&["export", rec_s, "--format", "jsonl"]))
+        .into_iter()
+        .filter(|r| r["owner"] == true)
+        .collect();
+    let mut replayed = json_lines(&ocelli(&["replay", rec_s, "--seed", "9", "--json"]));
+    let report = replayed.pop().expect("a report line");
+    assert!(exported.len() > 10, "only {} exported rows", exported.len());
+    assert_eq!(replayed, exported, "the replay's estimates are the run's");
+    let report = &report["report"];
+    assert!(
+        report["mean_error_m"].as_f64().expect("truth known") < 0.5,
+        "{report}"
+    );
+    let three = report["active_cameras_mean"].as_f64().unwrap();
+    let mut all_on = json_lines(&ocelli(&[
+        "replay",
+        rec_s,
+        "--seed",
+        "9",
+        "--json",
+        "--activation",
+        "all-on",
+    ]));
+    let all_on = all_on.pop().unwrap()["report"]["active_cameras_mean"]
+        .as_f64()
+        .unwrap();
+    assert!(three < all_on, "three-mode {three} vs all-on {all_on} cameras");
+    let _ = std::fs::remove_dir_all(&dir);
 }
