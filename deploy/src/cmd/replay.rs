@@ -11,7 +11,7 @@ use crate::replay::cameras::Cameras;
 use crate::replay::detections::read_detections;
 use crate::replay::ml::{Estimate, MlOptions, replay_ml};
 use crate::replay::rerun::{RerunOptions, rerun};
-use crate::replay::track::{TrackOptions, track};
+use crate::replay::track::{RssiNodes, TrackOptions, track_with_rssi};
 use crate::sim::net::NetworkModel;
 use crate::sim::runtime::SimOptions;
 use anyhow::{Context, Result};
@@ -177,14 +177,19 @@ pub fn replay(args: &Args, input: impl BufRead) -> Result<Vec<Estimate>> {
     if let Some(h) = args.plane_z {
         anyhow::ensure!(h.is_finite(), "--plane-z {h} must be finite");
     }
-    let (cameras, motion) = match (&args.scenario, &args.opencv_calibration) {
+    let (cameras, motion, rssi_model) = match (&args.scenario, &args.opencv_calibration) {
         (Some(path), _) => {
             let scenario = proto::scenario::Scenario::load(path)?;
-            (Cameras::from_scenario(&scenario)?, scenario.method.motion)
+            (
+                Cameras::from_scenario(&scenario)?,
+                scenario.method.motion,
+                scenario.method.rssi_default,
+            )
         }
         (None, Some(dir)) => (
             Cameras::from_opencv_dir(dir, Some(args.image_size))?,
             proto::models::MotionModel::default(),
+            proto::models::RssiModel::default(),
         ),
         (None, None) => anyhow::bail!("give --scenario or --opencv-calibration"),
     };
@@ -206,14 +211,31 @@ pub fn replay(args: &Args, input: impl BufRead) -> Result<Vec<Estimate>> {
     Ok(match args.method {
         ReplayMethod::Ml => estimates,
         ReplayMethod::Eif => {
-            let (tracked, dropped) = track(
+            // A detection's RSSI names a node; camera nodes carry the radios, so a node's
+            // position is its camera's centre.
+            let nodes = RssiNodes {
+                positions: cameras
+                    .models
+                    .iter()
+                    .map(|(id, m)| (id.clone(), cameras.to_user(&m.pose.centre())))
+                    .collect(),
+                model: rssi_model,
+            };
+            let (tracked, counts) = track_with_rssi(
                 &estimates,
                 &TrackOptions {
                     motion,
                     ..TrackOptions::default()
                 },
+                &nodes,
             );
-            tracing::info!(tracked = tracked.len(), dropped, "EIF tracking done");
+            tracing::info!(tracked = tracked.len(), ?counts, "EIF tracking done");
+            if counts.rssi_unknown_node > 0 {
+                tracing::warn!(
+                    readings = counts.rssi_unknown_node,
+                    "RSSI readings from nodes that are not cameras of the replay, not used"
+                );
+            }
             tracked
         }
     })

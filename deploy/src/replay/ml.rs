@@ -15,6 +15,7 @@ use super::detections::ExternalDetection;
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 use node_head::ml::{DepthHandling, fuse, lift};
 use serde::Serialize;
+use std::collections::BTreeMap;
 
 /// Settings of the ML replay.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -60,6 +61,25 @@ pub struct Estimate {
     /// Track id (`--method eif` only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub track: Option<u64>,
+    /// RSSI readings of the person's tag that came with the group's detections, by node id
+    /// (dBm; a node reported by several detections is averaged). ML fusion does not use them;
+    /// `--method eif` adds them as range measurements.
+    #[serde(skip)]
+    pub rssi: BTreeMap<String, f64>,
+    /// RSSI readings the tracker used (`--method eif` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rssi_nodes: Option<usize>,
+}
+
+/// The mean reading of each node over the detections `dets`.
+fn merged_rssi<'a>(dets: impl Iterator<Item = &'a ExternalDetection>) -> BTreeMap<String, f64> {
+    let mut sums: BTreeMap<String, (f64, f64)> = BTreeMap::new();
+    for (node, dbm) in dets.filter_map(|d| d.rssi.as_ref()).flatten() {
+        let e = sums.entry(node.clone()).or_default();
+        e.0 += dbm;
+        e.1 += 1.0;
+    }
+    sums.into_iter().map(|(k, (s, n))| (k, s / n)).collect()
 }
 
 /// Detections that could not be used, by reason.
@@ -79,6 +99,8 @@ pub struct Skipped {
 
 /// A detection ready to lift: camera index, normalized point and its covariance.
 struct Normalized {
+    /// Index of the detection in its `t`.
+    det: usize,
     camera: usize,
     point: Vector2<f64>,
     cov: Matrix2<f64>,
@@ -99,7 +121,7 @@ pub fn replay_ml(
     for frame in sorted.chunk_by(|a, b| a.t == b.t) {
         let t = frame[0].t;
         let mut normalized = Vec::with_capacity(frame.len());
-        for det in frame {
+        for (det_idx, det) in frame.iter().enumerate() {
             let Some(camera) = ids.iter().position(|id| **id == det.camera) else {
                 tracing::warn!(camera = %det.camera, t, "detection from an unknown camera, skipped");
                 skipped.unknown_camera += 1;
@@ -108,6 +130,7 @@ pub fn replay_ml(
             let model = &models[camera];
             match model.undistort(&Vector2::new(det.u, det.v)) {
                 Ok(point) => normalized.push(Normalized {
+                    det: det_idx,
                     camera,
                     point,
                     cov: model.normalized_covariance(&point, options.pixel_sigma),
@@ -126,22 +149,30 @@ pub fn replay_ml(
                     sigma: options.plane_sigma,
                 };
                 let mut lifted = Vec::with_capacity(normalized.len());
+                let mut lifted_det = Vec::with_capacity(normalized.len());
                 for n in &normalized {
                     match lift(&models[n.camera], &n.point, &n.cov, depth) {
-                        Some((p, c)) => lifted.push((n.camera, p, c)),
+                        Some((p, c)) => {
+                            lifted.push((n.camera, p, c));
+                            lifted_det.push(n.det);
+                        }
                         None => skipped.no_intersection += 1,
                     }
                 }
                 cluster(&lifted, options.gate_m)
                     .into_iter()
-                    .map(|g| g.iter().map(|&i| (lifted[i].1, lifted[i].2)).collect::<Vec<_>>())
+                    .map(|g| {
+                        let points = g.iter().map(|&i| (lifted[i].1, lifted[i].2)).collect::<Vec<_>>();
+                        (points, g.iter().map(|&i| lifted_det[i]).collect::<Vec<_>>())
+                    })
                     .collect::<Vec<_>>()
             }
             None => free_3d(&normalized, &models, options, &mut skipped)
+                .map(|points| (points, normalized.iter().map(|n| n.det).collect()))
                 .into_iter()
                 .collect(),
         };
-        for group in groups {
+        for (group, dets) in groups {
             if group.len() < options.min_cameras.max(1) {
                 skipped.too_few_cameras += 1;
                 continue;
@@ -159,6 +190,8 @@ pub fn replay_ml(
                 cov: [0, 1, 2].map(|r| [0, 1, 2].map(|k| c[(r, k)])),
                 cameras: group.len(),
                 track: None,
+                rssi: merged_rssi(dets.iter().map(|&i| frame[i])),
+                rssi_nodes: None,
             });
         }
     }

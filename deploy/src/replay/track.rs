@@ -2,11 +2,61 @@
 //! Information Filter per target (the heads' constant-velocity EIF, [`node_head::eif`]), with
 //! greedy nearest-neighbour association on the Mahalanobis distance of the position innovation.
 //! An estimate no track accepts starts a new track; a track not updated for `timeout_s` ends.
+//!
+//! RSSI: the readings that came with an estimate's detections (`"rssi": {"<node>": dBm}`) are
+//! added to the same update as range measurements of the nodes ([`RssiNodes`]: positions and
+//! the scenario's default model, paper 002 eq. 2), each linearized at the predicted mean with
+//! `proto::models::rssi_contribution`, as a head does. Where cameras are sparse — one camera
+//! and no plane leaves the depth along its ray almost unknown — they are what fixes the
+//! position.
 
 use super::ml::Estimate;
 use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
 use node_head::eif::{Accumulator, Eif};
-use proto::models::{MotionModel, POS, VEL};
+use proto::models::{MotionModel, POS, RssiModel, State, VEL};
+use std::collections::BTreeMap;
+
+/// The nodes whose RSSI readings a tracker can use: positions (the user's world) by node id,
+/// and the range model of every node.
+#[derive(Clone, Debug, Default)]
+pub struct RssiNodes {
+    pub positions: BTreeMap<String, Vector3<f64>>,
+    pub model: RssiModel,
+}
+
+/// What the tracker did not use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TrackCounts {
+    /// Estimates dropped (covariance not positive definite, or a failed update).
+    pub dropped: usize,
+    /// RSSI readings folded into updates.
+    pub rssi_used: usize,
+    /// RSSI readings from nodes without a known position.
+    pub rssi_unknown_node: usize,
+}
+
+/// The information of an estimate's RSSI readings linearized at `mean`.
+fn rssi_info(
+    e: &Estimate,
+    nodes: &RssiNodes,
+    mean: &State,
+    acc: &mut Accumulator,
+    counts: &mut TrackCounts,
+) -> usize {
+    let mut used = 0;
+    for (node, &dbm) in &e.rssi {
+        let Some(pos) = nodes.positions.get(node) else {
+            counts.rssi_unknown_node += 1;
+            continue;
+        };
+        if let Some((omega, xi)) = proto::models::rssi_contribution(&nodes.model, pos, dbm, mean) {
+            acc.add(&omega, &xi);
+            used += 1;
+        }
+    }
+    counts.rssi_used += used;
+    used
+}
 
 /// Settings of the tracker.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -45,6 +95,18 @@ fn position_cov(e: &Estimate) -> Matrix3<f64> {
 /// carrying the filtered position, covariance and track id. Estimates whose covariance is not
 /// positive definite are dropped (counted in the returned number).
 pub fn track(estimates: &[Estimate], options: &TrackOptions) -> (Vec<Estimate>, usize) {
+    let nodes = RssiNodes::default();
+    let (out, counts) = track_with_rssi(estimates, options, &nodes);
+    (out, counts.dropped)
+}
+
+/// As [`track`], adding each estimate's RSSI readings from `nodes` to its update.
+pub fn track_with_rssi(
+    estimates: &[Estimate],
+    options: &TrackOptions,
+    nodes: &RssiNodes,
+) -> (Vec<Estimate>, TrackCounts) {
+    let mut counts = TrackCounts::default();
     let mut tracks: Vec<Track> = Vec::new();
     let mut next_id = 1;
     let mut out = Vec::new();
@@ -99,6 +161,7 @@ pub fn track(estimates: &[Estimate], options: &TrackOptions) -> (Vec<Estimate>, 
             let Some(mut filter) = predicted[k].clone() else {
                 continue;
             };
+            let rssi = rssi_info(e, nodes, filter.mean(), &mut acc, &mut counts);
             if filter.update(&acc).is_err() {
                 dropped += 1;
                 continue;
@@ -106,7 +169,7 @@ pub fn track(estimates: &[Estimate], options: &TrackOptions) -> (Vec<Estimate>, 
             let tr = &mut tracks[k];
             tr.filter = filter;
             tr.last_t = t;
-            out.push(output(e, tr));
+            out.push(output(e, tr, rssi));
         }
         for (e_idx, e) in frame.iter().enumerate().filter(|(i, _)| !est_used[*i]) {
             let mut cov = Matrix6::zeros();
@@ -117,15 +180,23 @@ pub fn track(estimates: &[Estimate], options: &TrackOptions) -> (Vec<Estimate>, 
             let mut mean = Vector6::zeros();
             mean.fixed_rows_mut::<3>(POS)
                 .copy_from(&Vector3::new(e.x, e.y, e.z));
-            match Eif::from_gaussian(mean, cov) {
-                Ok(filter) => {
+            let born = Eif::from_gaussian(mean, cov).and_then(|mut filter| {
+                let mut acc = Accumulator::default();
+                let used = rssi_info(e, nodes, filter.mean(), &mut acc, &mut counts);
+                if used > 0 {
+                    filter.update(&acc)?;
+                }
+                Ok((filter, used))
+            });
+            match born {
+                Ok((filter, rssi)) => {
                     let tr = Track {
                         id: next_id,
                         filter,
                         last_t: t,
                     };
                     next_id += 1;
-                    out.push(output(e, &tr));
+                    out.push(output(e, &tr, rssi));
                     tracks.push(tr);
                 }
                 Err(err) => {
@@ -135,10 +206,11 @@ pub fn track(estimates: &[Estimate], options: &TrackOptions) -> (Vec<Estimate>, 
             }
         }
     }
-    (out, dropped)
+    counts.dropped = dropped;
+    (out, counts)
 }
 
-fn output(e: &Estimate, tr: &Track) -> Estimate {
+fn output(e: &Estimate, tr: &Track, rssi: usize) -> Estimate {
     let m = tr.filter.mean();
     let c = tr.filter.cov();
     Estimate {
@@ -149,6 +221,8 @@ fn output(e: &Estimate, tr: &Track) -> Estimate {
         cov: [0, 1, 2].map(|r| [0, 1, 2].map(|k| c[(POS + r, POS + k)])),
         cameras: e.cameras,
         track: Some(tr.id),
+        rssi: BTreeMap::new(),
+        rssi_nodes: Some(rssi),
     }
 }
 
@@ -166,6 +240,8 @@ mod tests {
             cov: [[s2, 0.0, 0.0], [0.0, s2, 0.0], [0.0, 0.0, 1e-4]],
             cameras: 2,
             track: None,
+            rssi: BTreeMap::new(),
+            rssi_nodes: None,
         }
     }
 
@@ -194,5 +270,31 @@ mod tests {
         all.extend(later);
         let (out, _) = track(&all, &TrackOptions::default());
         assert_eq!(out.last().unwrap().track, Some(3));
+    }
+
+    #[test]
+    fn rssi_of_unknown_nodes_is_counted_and_not_used() {
+        let mut input: Vec<Estimate> = (0..4).map(|k| est(f64::from(k) * 0.5, 1.0, 1.0)).collect();
+        for e in &mut input {
+            e.rssi.insert("7".into(), -60.0);
+            e.rssi.insert("99".into(), -50.0);
+        }
+        let nodes = RssiNodes {
+            positions: [("7".to_string(), Vector3::new(4.0, 1.0, 2.0))]
+                .into_iter()
+                .collect(),
+            model: RssiModel::default(),
+        };
+        let (out, counts) = track_with_rssi(&input, &TrackOptions::default(), &nodes);
+        assert_eq!(counts.rssi_used, 4);
+        assert_eq!(counts.rssi_unknown_node, 4);
+        assert!(out.iter().all(|e| e.rssi_nodes == Some(1)));
+        let (plain, _) = track(&input, &TrackOptions::default());
+        assert!(plain.iter().all(|e| e.rssi_nodes == Some(0)));
+        assert_ne!(
+            plain.last().unwrap().x,
+            out.last().unwrap().x,
+            "the reading was used"
+        );
     }
 }

@@ -283,3 +283,79 @@ fn binary_writes_json_lines_and_names_a_bad_line() {
     let want = format!("line {}", lines.lines().count() + 1);
     assert!(err.contains(&want), "error should name {want}: {err}");
 }
+
+/// `--method eif` with sparse cameras: one camera and no plane leave the depth along its ray
+/// unknown (ML lifts at the mean depth), and the detections' RSSI readings (noise-free
+/// log-distance readings of six other nodes, the scenario's default model) pull the estimate
+/// along the ray towards the target.
+#[test]
+fn eif_replay_uses_rssi_where_one_camera_leaves_the_depth_open() {
+    let scenario_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../proto/scenarios/default.toml");
+    let scenario = proto::scenario::Scenario::load(&scenario_path).expect("default scenario");
+    let w = &scenario.world;
+    let target = nalgebra::Vector3::new(0.5 * (w.min[0] + w.max[0]), 0.5 * (w.min[1] + w.max[1]), 0.5);
+    let sees = |id: u32| {
+        let cam = scenario.camera_model(id).expect("camera model");
+        let px = cam.project(&target)?;
+        let k = &cam.intrinsics;
+        (px.x >= 0.0 && px.y >= 0.0 && px.x < f64::from(k.width) && px.y < f64::from(k.height)).then_some(px)
+    };
+    // The seeing camera farthest from the target: its depth is far from the 5 m guess.
+    let (cam_id, px) = scenario
+        .cameras()
+        .filter_map(|n| sees(n.id).map(|px| (n.id, px)))
+        .max_by(|a, b| {
+            let d = |id| (scenario.camera_model(id).unwrap().pose.centre() - target).norm();
+            d(a.0).total_cmp(&d(b.0))
+        })
+        .expect("a camera sees the target");
+    let model = scenario.method.rssi_default;
+    let readings: BTreeMap<String, f64> = scenario
+        .cameras()
+        .filter(|n| n.id != cam_id)
+        .take(6)
+        .map(|n| {
+            let d = (scenario.camera_model(n.id).unwrap().pose.centre() - target).norm();
+            (n.id.to_string(), model.predict(d))
+        })
+        .collect();
+    assert_eq!(readings.len(), 6);
+    let dets = |with_rssi: bool| -> Vec<ExternalDetection> {
+        (0..21)
+            .map(|k| ExternalDetection {
+                t: f64::from(k) * 0.2,
+                camera: cam_id.to_string(),
+                u: px.x,
+                v: px.y,
+                pixel_box: None,
+                rssi: with_rssi.then(|| readings.clone()),
+            })
+            .collect()
+    };
+    let mut a = args(scenario_path.to_str().unwrap(), ReplayMethod::Eif, None);
+    a.min_cameras = 1;
+    let last = |with_rssi: bool| {
+        let est = replay(&a, to_jsonl(&dets(with_rssi)).as_bytes()).expect("replays");
+        assert_eq!(est.len(), 21, "one estimate per t");
+        assert!(est.iter().all(|e| e.track == Some(1)), "one track");
+        let e = est.last().unwrap().clone();
+        (nalgebra::Vector3::new(e.x, e.y, e.z), e.rssi_nodes)
+    };
+    let (without, used_without) = last(false);
+    let (with, used_with) = last(true);
+    assert_eq!((used_without, used_with), (Some(0), Some(6)));
+    let (err_without, err_with) = ((without - target).norm(), (with - target).norm());
+    eprintln!("one camera, no plane: error {err_without:.3} m without RSSI, {err_with:.3} m with");
+    assert!(
+        err_without > 0.5,
+        "the camera alone already localizes ({err_without} m)"
+    );
+    assert!(
+        err_with < 0.5 * err_without,
+        "{err_with} m with RSSI vs {err_without} m without"
+    );
+    assert!(
+        (with - without).dot(&(target - without)) > 0.0,
+        "RSSI moved the estimate away from the target"
+    );
+}
