@@ -147,6 +147,29 @@ fn replayed_estimates_follow_the_recorded_measurements() {
     );
 }
 
+/// A recording without measurements (an ordinary run) cannot be re-run, and says how to make
+/// one that can.
+#[test]
+fn an_ordinary_recording_is_refused_with_a_hint() {
+    let o = SimOptions {
+        record_measurements: false,
+        ..opts(1, 2.0)
+    };
+    let (_, loaded) = logging_run(Fusion::DistributedEif, Activation::AllOn, &o, "plain");
+    let e = rerun(
+        &loaded,
+        &RerunOptions {
+            fusion: None,
+            activation: None,
+            sim: o,
+            t0: ClusterTime(0),
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("--record-measurements"), "{e}");
+}
+
 fn replay_with(loaded: &Loaded, activation: Activation, o: &SimOptions) -> Report {
     let replay = rerun(
         loaded,
