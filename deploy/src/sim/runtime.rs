@@ -7,6 +7,7 @@
 //! stable tie-breaking and seeded random streams. Every message goes through
 //! `proto::wire::{encode, decode}` on its way, as it would between processes.
 
+use super::faults::{self, Faults};
 use super::net::{Fate, NetworkModel, SimNetwork, SkewedClock};
 use super::queue::EventQueue;
 use node_camera::config::CameraConfig;
@@ -45,6 +46,8 @@ pub struct SimOptions {
     pub tick_ms: u64,
     /// Period of head ticks, ms (bounds how late a step deadline is noticed).
     pub head_tick_ms: u64,
+    /// Sensor faults injected into the simulated world (none by default).
+    pub faults: Faults,
 }
 
 impl Default for SimOptions {
@@ -60,6 +63,7 @@ impl Default for SimOptions {
             },
             tick_ms: 50,
             head_tick_ms: 10,
+            faults: Faults::default(),
         }
     }
 }
@@ -121,6 +125,8 @@ struct CameraSlot {
     prior_targets: BTreeSet<TargetId>,
     position: nalgebra::Vector3<f64>,
     period_ns: i64,
+    /// The camera as it truly is (differs from the node's under a yaw fault).
+    true_camera: proto::camera::CameraModel,
 }
 
 /// The simulation: build with [`Sim::new`], run with [`Sim::run`].
@@ -138,6 +144,8 @@ pub struct Sim {
     frames_rendered: u64,
     /// Pixel noise of measurement-level detections.
     noise: rand_chacha::ChaCha8Rng,
+    /// Frame failures (a stream of its own, so faults leave the noise stream as it was).
+    failures: rand_chacha::ChaCha8Rng,
 }
 
 /// Sync window of every follower (beacons kept for the regression).
@@ -160,11 +168,13 @@ impl Sim {
             records: Vec::new(),
             frames_rendered: 0,
             noise: rand::SeedableRng::seed_from_u64(opts.seed ^ 0x006d_6561_7375_7265),
+            failures: rand::SeedableRng::seed_from_u64(opts.seed ^ 0x0066_6169_6c75_7265),
             net,
             scenario,
             opts,
         };
         let scenario = sim.scenario.clone();
+        let world = faults::true_world(&scenario, &sim.opts.faults, sim.opts.seed);
         for node in &scenario.nodes {
             let id = NodeId(node.id);
             let clock = if node.role == NodeRole::Server {
@@ -189,7 +199,7 @@ impl Sim {
                         .map_err(|e| anyhow::anyhow!("camera {}: {e}", node.id))?;
                     let renderer = match sim.opts.level {
                         Level::Pixel => Some(
-                            Renderer::for_node(&scenario, node.id, sim.opts.seed)
+                            Renderer::for_node(&world, node.id, sim.opts.seed)
                                 .map_err(|e| anyhow::anyhow!("camera {}: {e}", node.id))?,
                         ),
                         Level::Measurement => None,
@@ -198,6 +208,9 @@ impl Sim {
                     let period_ns = (1e9 / cfg.fps).round() as i64;
                     let position = cfg.camera.pose.centre();
                     let field = MultipathField::new(&scenario.world.radio, node.id, sim.opts.seed);
+                    let true_camera = world
+                        .camera_model(node.id)
+                        .map_err(|e| anyhow::anyhow!("camera {}: {e}", node.id))?;
                     // Cameras are not frame-synchronized: a fixed phase per node.
                     let phase =
                         (u64::from(node.id).wrapping_mul(2_654_435_761) % 1000) as i64 * period_ns / 1000;
@@ -212,6 +225,7 @@ impl Sim {
                             prior_targets: BTreeSet::new(),
                             position,
                             period_ns,
+                            true_camera,
                         },
                     );
                 }
@@ -293,7 +307,10 @@ impl Sim {
             return;
         };
         slot_rssi(&self.scenario, slot, id, t_s, now, self.opts.seed);
-        let out = if slot.core.mode().camera_on() {
+        let faults = &self.opts.faults;
+        let failed = slot.core.mode().camera_on()
+            && (faults.blacked_out(id.0, t_s) || faults.frame_fails(&mut self.failures));
+        let out = if slot.core.mode().camera_on() && !failed {
             match &slot.renderer {
                 Some(r) => {
                     r.render(&self.scenario.targets, t_s, now, &mut slot.frame);
@@ -302,11 +319,11 @@ impl Sim {
                 }
                 None => {
                     let dets = node_camera::synthetic::project_truth(
-                        &slot.core.config().camera,
+                        &slot.true_camera,
                         &self.scenario.world,
                         &self.scenario.targets,
                         t_s,
-                        self.scenario.method.pixel_sigma,
+                        faults.pixel_sigma(self.scenario.method.pixel_sigma),
                         &mut self.noise,
                     );
                     slot.core.on_detections(now, now, &dets)
