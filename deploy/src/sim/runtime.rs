@@ -48,6 +48,9 @@ pub struct SimOptions {
     pub head_tick_ms: u64,
     /// Sensor faults injected into the simulated world (none by default).
     pub faults: Faults,
+    /// How heads fusing by ML choose the depth (the head's default, a known target plane,
+    /// when `None`); paper 000's usual choice is a mean depth with a high variance.
+    pub ml_depth: Option<node_head::ml::DepthHandling>,
 }
 
 impl Default for SimOptions {
@@ -64,6 +67,7 @@ impl Default for SimOptions {
             tick_ms: 50,
             head_tick_ms: 10,
             faults: Faults::default(),
+            ml_depth: None,
         }
     }
 }
@@ -230,8 +234,11 @@ impl Sim {
                     );
                 }
                 NodeRole::Head => {
-                    let cfg = HeadConfig::from_scenario(&scenario, node.id)
+                    let mut cfg = HeadConfig::from_scenario(&scenario, node.id)
                         .map_err(|e| anyhow::anyhow!("head {}: {e}", node.id))?;
+                    if let Some(d) = sim.opts.ml_depth {
+                        cfg.ml_depth = d;
+                    }
                     sim.heads.insert(id, HeadNode::new(cfg));
                 }
                 NodeRole::Server => {

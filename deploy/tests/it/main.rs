@@ -1,4 +1,5 @@
 //! Integration tests of the `deploy` crate (one binary).
 
+mod experiment;
 mod replay;
 mod sim;
