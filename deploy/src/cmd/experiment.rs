@@ -60,12 +60,18 @@ pub fn run(args: Args) -> Result<ExitCode> {
         if args.json {
             println!("{}", serde_json::to_string(&table::to_json(&outcome))?);
         } else if args.markdown {
-            let mut command = format!("ocelli experiment {name} --runs {} --seed {}", args.runs, args.seed);
+            let mut command = format!(
+                "ocelli experiment {name} --runs {} --seed {}",
+                args.runs, args.seed
+            );
             if let Some(d) = args.duration {
                 command.push_str(&format!(" --duration {d}"));
             }
             if args.level.is_some() {
-                command.push_str(&format!(" --level {}", serde_json::to_value(outcome.level)?.as_str().unwrap_or("?")));
+                command.push_str(&format!(
+                    " --level {}",
+                    serde_json::to_value(outcome.level)?.as_str().unwrap_or("?")
+                ));
             }
             let names: Vec<String> = figures
                 .iter()

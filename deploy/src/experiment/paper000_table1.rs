@@ -134,7 +134,10 @@ pub fn methods() -> anyhow::Result<Vec<Method>> {
     ml.ml_depth = Some(mean_depth(&ml.scenario));
     let mut out = vec![
         ml,
-        method(EIF3.into(), three(with(Fusion::CentralizedEif, Activation::AllOn, None))),
+        method(
+            EIF3.into(),
+            three(with(Fusion::CentralizedEif, Activation::AllOn, None)),
+        ),
         method(EIF5.into(), with(Fusion::CentralizedEif, Activation::AllOn, None)),
     ];
     for c in COSTS {
@@ -176,8 +179,11 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
         shape: Vec::new(),
         notes: vec![
             "Geometry, 2 fps, 500 ms step, 18 px noise and power are ours; the paper gives none.".to_string(),
-            "Paper cost c (nats per step of a camera on) = energy-weight × (P_active − P_inactive) × step.".into(),
-            format!("ML takes paper 000's usual depth: Z_i = the mean camera-to-floor-centre distance, σ = {ML_DEPTH_SIGMA_M} m (not the known target plane our heads default to)."),
+            "Paper cost c (nats per step of a camera on) = energy-weight × (P_active − P_inactive) × step."
+                .into(),
+            format!(
+                "ML takes paper 000's usual depth: Z_i = the mean camera-to-floor-centre distance, σ = {ML_DEPTH_SIGMA_M} m (not the known target plane our heads default to)."
+            ),
             "Measurements = camera measurements the filter used per run (cameras per step × steps).".into(),
         ],
         traces,

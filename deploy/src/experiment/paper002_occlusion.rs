@@ -10,8 +10,8 @@
 //! a track alive for 30 s without measurements (`track-timeout-ms`, a parameter the paper leaves
 //! open), so Method2 keeps predicting through the occlusion as the paper describes.
 
-use super::runner;
 use super::paper002_table1::{M2, PROPOSED, method, testbed};
+use super::runner;
 use super::{Check, Options, Outcome, Row, Trace};
 use crate::sim::faults::Faults;
 use crate::sim::runtime::Level;
@@ -183,7 +183,10 @@ mod tests {
         let w = hidden_windows(&s, DURATION_S);
         let hidden: f64 = w.iter().map(|w| w.1 - w.0).sum();
         assert!(!w.is_empty(), "never hidden");
-        assert!(hidden > 5.0 && hidden < 0.8 * DURATION_S, "hidden {hidden} s in {w:?}");
+        assert!(
+            hidden > 5.0 && hidden < 0.8 * DURATION_S,
+            "hidden {hidden} s in {w:?}"
+        );
         // Without the walls every camera-free moment disappears.
         let mut open = s.clone();
         open.world.walls.clear();

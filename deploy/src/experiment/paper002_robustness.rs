@@ -8,8 +8,8 @@
 //! paper's filter keeps its 18 px covariance); a yaw error is drawn once per camera and run.
 
 use super::paper002_table1::{DURATION_S, M2, PROPOSED, method, testbed};
-use super::{Check, Options, Outcome, Row, Trace};
 use super::runner;
+use super::{Check, Options, Outcome, Row, Trace};
 use crate::sim::faults::Faults;
 use crate::sim::runtime::Level;
 use proto::scenario::Activation;
@@ -90,7 +90,10 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
         }
         let mean_saving = runner::mean_std(&savings).map_or(f64::NAN, |s| s.0);
         shape.push(Check::new(
-            &format!("{}: Proposed saves power against Method2 at every point (paper: 41-43% on average)", sweep.name),
+            &format!(
+                "{}: Proposed saves power against Method2 at every point (paper: 41-43% on average)",
+                sweep.name
+            ),
             !savings.is_empty() && savings.iter().all(|s| *s > 0.0),
             format!("mean saving {:.0}%", 100.0 * mean_saving),
         ));
@@ -100,7 +103,10 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
         };
         let worst = errs.iter().map(ratio).fold(0.0, f64::max);
         shape.push(Check::new(
-            &format!("{}: Proposed's error stays within 1.5x Method2's (paper: similar; 22% worse at 36 px)", sweep.name),
+            &format!(
+                "{}: Proposed's error stays within 1.5x Method2's (paper: similar; 22% worse at 36 px)",
+                sweep.name
+            ),
             worst <= 1.5,
             format!("worst ratio {worst:.2}"),
         ));

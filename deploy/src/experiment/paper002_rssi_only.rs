@@ -12,9 +12,9 @@
 //! approximated as (√ trace)²/3 (the recording keeps √ trace only). Ground truth feeds the
 //! simulated radio (as in the simulation) and the scoring, never the filters.
 
+use super::paper002_table1::testbed;
 use super::runner::{self, Method, Sample};
 use super::{Check, Options, Outcome, Row, Trace};
-use super::paper002_table1::testbed;
 use crate::sim::faults::Faults;
 use crate::sim::runtime::Level;
 use nalgebra::{Matrix6, Vector3};
@@ -148,7 +148,13 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
             std_m: st.map(|x| x.1),
             measurements: Some(0.0),
             active_cameras: Some(0.0),
-            rssi_measurements: Some(runs.iter().flatten().map(|x| f64::from(x.rssi_nodes)).sum::<f64>() / steps),
+            rssi_measurements: Some(
+                runs.iter()
+                    .flatten()
+                    .map(|x| f64::from(x.rssi_nodes))
+                    .sum::<f64>()
+                    / steps,
+            ),
             power_mw: None,
             param: Some(frac),
             untracked_runs: None,
@@ -169,7 +175,11 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
         Check::new(
             "trained models: error below 0.9 m in at least 80% of samples",
             within[1] >= 0.8,
-            format!("{:.0}% (default model {:.0}%)", 100.0 * within[1], 100.0 * within[0]),
+            format!(
+                "{:.0}% (default model {:.0}%)",
+                100.0 * within[1],
+                100.0 * within[0]
+            ),
         ),
     ];
     Ok(Outcome {

@@ -128,7 +128,13 @@ pub fn shape(o: &Outcome) -> Vec<Check> {
         Check::new(
             "power Method1 > Method2 > Method3 > Proposed",
             p(M1) > p(M2) && p(M2) > p(M3) && p(M3) > p(PROPOSED),
-            format!("{:.0} > {:.0} > {:.0} > {:.0} mW", p(M1), p(M2), p(M3), p(PROPOSED)),
+            format!(
+                "{:.0} > {:.0} > {:.0} > {:.0} mW",
+                p(M1),
+                p(M2),
+                p(M3),
+                p(PROPOSED)
+            ),
         ),
         Check::new(
             "Proposed uses at most 25% of Method1's power",
@@ -138,7 +144,12 @@ pub fn shape(o: &Outcome) -> Vec<Check> {
         Check::new(
             "Proposed's mean error is at most 1.25x Method1's",
             e(PROPOSED) <= 1.25 * e(M1),
-            format!("{:.3} vs {:.3} m ({:.2}x)", e(PROPOSED), e(M1), e(PROPOSED) / e(M1)),
+            format!(
+                "{:.3} vs {:.3} m ({:.2}x)",
+                e(PROPOSED),
+                e(M1),
+                e(PROPOSED) / e(M1)
+            ),
         ),
     ]
 }

@@ -31,7 +31,13 @@ struct Panel {
 
 impl Panel {
     fn new(index: u32, lo: (f64, f64), hi: (f64, f64)) -> Panel {
-        let pad = |a: f64, b: f64| if (b - a).abs() < 1e-9 { (a - 0.5, b + 0.5) } else { (a, b) };
+        let pad = |a: f64, b: f64| {
+            if (b - a).abs() < 1e-9 {
+                (a - 0.5, b + 0.5)
+            } else {
+                (a, b)
+            }
+        };
         let (x, y) = (pad(lo.0, hi.0), pad(lo.1, hi.1));
         Panel {
             x0: f64::from(index * PANEL_W),
@@ -132,10 +138,10 @@ fn axes(img: &mut RgbImage, p: &Panel) {
 }
 
 fn bounds(pts: impl Iterator<Item = (f64, f64)>) -> ((f64, f64), (f64, f64)) {
-    pts.filter(|p| p.0.is_finite() && p.1.is_finite()).fold(
-        ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN)),
-        |(lo, hi), p| ((lo.0.min(p.0), lo.1.min(p.1)), (hi.0.max(p.0), hi.1.max(p.1))),
-    )
+    pts.filter(|p| p.0.is_finite() && p.1.is_finite())
+        .fold(((f64::MAX, f64::MAX), (f64::MIN, f64::MIN)), |(lo, hi), p| {
+            ((lo.0.min(p.0), lo.1.min(p.1)), (hi.0.max(p.0), hi.1.max(p.1)))
+        })
 }
 
 /// The three panels of one method's trace.
@@ -146,26 +152,48 @@ pub fn render(trace: &Trace) -> RgbImage {
         return img;
     }
     // Trajectory, with equal scales on x and y.
-    let (mut lo, mut hi) = bounds(s.iter().flat_map(|v| [(v.truth[0], v.truth[1]), (v.est[0], v.est[1])]));
+    let (mut lo, mut hi) = bounds(
+        s.iter()
+            .flat_map(|v| [(v.truth[0], v.truth[1]), (v.est[0], v.est[1])]),
+    );
     let span = (hi.0 - lo.0).max(hi.1 - lo.1).max(1.0) * 0.5 + 0.5;
     let mid = ((lo.0 + hi.0) * 0.5, (lo.1 + hi.1) * 0.5);
     (lo, hi) = ((mid.0 - span, mid.1 - span), (mid.0 + span, mid.1 + span));
     let p = Panel::new(0, lo, hi);
     for v in s {
-        disc(&mut img, p.px(v.est[0], v.est[1]), 3.0 * v.sigma_m * p.scale(), PINK);
+        disc(
+            &mut img,
+            p.px(v.est[0], v.est[1]),
+            3.0 * v.sigma_m * p.scale(),
+            PINK,
+        );
     }
     for w in s.windows(2) {
-        line(&mut img, p.px(w[0].truth[0], w[0].truth[1]), p.px(w[1].truth[0], w[1].truth[1]), BLUE);
+        line(
+            &mut img,
+            p.px(w[0].truth[0], w[0].truth[1]),
+            p.px(w[1].truth[0], w[1].truth[1]),
+            BLUE,
+        );
     }
     for w in s.windows(2) {
-        line(&mut img, p.px(w[0].est[0], w[0].est[1]), p.px(w[1].est[0], w[1].est[1]), RED);
+        line(
+            &mut img,
+            p.px(w[0].est[0], w[0].est[1]),
+            p.px(w[1].est[0], w[1].est[1]),
+            RED,
+        );
     }
     axes(&mut img, &p);
 
     // Error over time.
     let t_lo = s.first().map_or(0.0, |v| v.t.min(0.0));
     let t_hi = s.last().map_or(1.0, |v| v.t);
-    let e_hi = s.iter().map(|v| v.error_m.max(3.0 * v.sigma_m)).fold(0.1, f64::max).min(10.0);
+    let e_hi = s
+        .iter()
+        .map(|v| v.error_m.max(3.0 * v.sigma_m))
+        .fold(0.1, f64::max)
+        .min(10.0);
     let p = Panel::new(1, (t_lo, 0.0), (t_hi, e_hi));
     if let Some((a, b)) = trace.window {
         let (pa, pb) = (p.px(a, 0.0), p.px(b.min(t_hi), e_hi));
@@ -182,7 +210,12 @@ pub fn render(trace: &Trace) -> RgbImage {
     axes(&mut img, &p);
 
     // Active sensors over time.
-    let n_hi = s.iter().map(|v| v.cameras.max(v.rssi_nodes)).max().unwrap_or(1).max(1);
+    let n_hi = s
+        .iter()
+        .map(|v| v.cameras.max(v.rssi_nodes))
+        .max()
+        .unwrap_or(1)
+        .max(1);
     let p = Panel::new(2, (t_lo, 0.0), (t_hi, f64::from(n_hi)));
     for w in s.windows(2) {
         let r = |v: &super::runner::Sample| f64::from(v.rssi_nodes);
@@ -253,7 +286,13 @@ mod tests {
             window: Some((2.0, 4.0)),
         });
         let count = |c: Rgb<u8>| img.pixels().filter(|p| **p == c).count();
-        for (name, c) in [("blue", BLUE), ("red", RED), ("pink", PINK), ("green", GREEN), ("grey", GREY)] {
+        for (name, c) in [
+            ("blue", BLUE),
+            ("red", RED),
+            ("pink", PINK),
+            ("green", GREEN),
+            ("grey", GREY),
+        ] {
             assert!(count(c) > 20, "{name}: {} pixels", count(c));
         }
         assert_eq!(slug("Active perception (cost 0.2)"), "active-perception-cost-0-2");

@@ -80,7 +80,12 @@ pub fn mean_std(xs: &[f64]) -> Option<(f64, f64)> {
 ///
 /// # Errors
 /// A scenario the simulation cannot build.
-pub fn run_once(m: &Method, seed: u64, level: Level, duration_s: f64) -> anyhow::Result<(Report, Vec<Sample>)> {
+pub fn run_once(
+    m: &Method,
+    seed: u64,
+    level: Level,
+    duration_s: f64,
+) -> anyhow::Result<(Report, Vec<Sample>)> {
     let opts = SimOptions {
         seed,
         duration_s,
@@ -97,7 +102,11 @@ pub fn run_once(m: &Method, seed: u64, level: Level, duration_s: f64) -> anyhow:
     };
     let report = report::compute_with(&loaded, ClusterTime(0), m.gate_m);
     // The report associates global tracks with the true target; score exactly those.
-    let globals = report.targets.first().map(|t| t.globals.clone()).unwrap_or_default();
+    let globals = report
+        .targets
+        .first()
+        .map(|t| t.globals.clone())
+        .unwrap_or_default();
     let target = m.scenario.targets.first();
     let samples = track_rows(&loaded)
         .into_iter()
@@ -106,7 +115,12 @@ pub fn run_once(m: &Method, seed: u64, level: Level, duration_s: f64) -> anyhow:
             let x = target?.truth_at(r.t);
             let truth = [x[0], x[1], x[2]];
             let est = [r.x, r.y, r.z];
-            let error_m = est.iter().zip(&truth).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
+            let error_m = est
+                .iter()
+                .zip(&truth)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                .sqrt();
             Some(Sample {
                 t: r.t,
                 est,

@@ -128,11 +128,19 @@ fn md_table(rows: &[Row], s: &mut String) {
     let param = has_param(rows);
     let keep = |i: &usize| *i != 1 || param;
     let idx: Vec<usize> = (0..8).filter(keep).collect();
-    let _ = writeln!(s, "| {} |", idx.iter().map(|&i| HEADERS[i]).collect::<Vec<_>>().join(" | "));
+    let _ = writeln!(
+        s,
+        "| {} |",
+        idx.iter().map(|&i| HEADERS[i]).collect::<Vec<_>>().join(" | ")
+    );
     let _ = writeln!(s, "|{}", idx.iter().map(|_| "---|").collect::<String>());
     for r in rows {
         let c = cells(r);
-        let _ = writeln!(s, "| {} |", idx.iter().map(|&i| c[i].as_str()).collect::<Vec<_>>().join(" | "));
+        let _ = writeln!(
+            s,
+            "| {} |",
+            idx.iter().map(|&i| c[i].as_str()).collect::<Vec<_>>().join(" | ")
+        );
     }
 }
 

@@ -129,10 +129,12 @@ mod tests {
         let (a, b) = (true_world(&s, &f, 1), true_world(&s, &f, 1));
         assert_eq!(a, b);
         assert_ne!(a, true_world(&s, &f, 2));
-        let pose = |sc: &Scenario, i: usize| match sc.cameras().nth(i).and_then(|n| n.camera.as_ref()?.pose.clone()) {
-            Some(PoseSpec::LookAt { position, look_at }) => (position, look_at),
-            other => panic!("camera {i} is not posed by look-at: {other:?}"),
-        };
+        let pose =
+            |sc: &Scenario, i: usize| match sc.cameras().nth(i).and_then(|n| n.camera.as_ref()?.pose.clone())
+            {
+                Some(PoseSpec::LookAt { position, look_at }) => (position, look_at),
+                other => panic!("camera {i} is not posed by look-at: {other:?}"),
+            };
         let mut yaws = Vec::new();
         for i in 0..s.cameras().count() {
             let ((p0, l0), (p1, l1)) = (pose(&s, i), pose(&a, i));
@@ -140,10 +142,14 @@ mod tests {
             assert!((l0[2] - l1[2]).abs() < 1e-12, "the turn is about the vertical");
             let h0 = (l0[1] - p0[1]).atan2(l0[0] - p0[0]);
             let h1 = (l1[1] - p1[1]).atan2(l1[0] - p1[0]);
-            let d = (h1 - h0 + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI) - std::f64::consts::PI;
+            let d = (h1 - h0 + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
+                - std::f64::consts::PI;
             yaws.push(d);
         }
         let rms = (yaws.iter().map(|y| y * y).sum::<f64>() / yaws.len() as f64).sqrt();
-        assert!((0.04..0.2).contains(&rms), "rms yaw {rms} rad for σ = 0.1 over 21 cameras");
+        assert!(
+            (0.04..0.2).contains(&rms),
+            "rms yaw {rms} rad for σ = 0.1 over 21 cameras"
+        );
     }
 }
