@@ -9,8 +9,10 @@ RUNS=${RUNS:-5}
 OUT=docs/results.md
 FIG=docs/figures
 mkdir -p "$FIG"
-rm -f "$FIG"/paper*.png
 export RUST_LOG=${RUST_LOG:-error}
+SECTIONS=target/results-sections.md
+# `docs/results.sh --discussion-only` re-assembles results.md from the last run's sections.
+if [[ "${1:-}" != "--discussion-only" ]]; then
 {
   cat <<'HEAD'
 # Results: the papers' experiments in the simulation
@@ -27,10 +29,11 @@ red, 3σ band light red, σ = √ trace of the position covariance); middle, err
 over time (cameras blue, RSSI readings green). Axes in m and s.
 
 HEAD
+  rm -f "$FIG"/paper*.png
   for name in paper000-table1 paper002-table1 paper002-occlusion paper002-rssi-only paper002-robustness; do
     "$OCELLI" experiment "$name" --runs "$RUNS" --seed 1 --markdown --plot "$FIG"
   done
-  cat docs/results-discussion.md
-} > "$OUT.tmp"
-mv "$OUT.tmp" "$OUT"
+} > "$SECTIONS"
+fi
+cat "$SECTIONS" docs/results-discussion.md > "$OUT"
 echo "wrote $OUT and $(ls "$FIG" | wc -l) figures"

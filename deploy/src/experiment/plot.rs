@@ -74,14 +74,29 @@ fn line(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), c: Rgb<u8>) {
     }
 }
 
-fn disc(img: &mut RgbImage, c: (f64, f64), r: f64, col: Rgb<u8>) {
-    let r = r.clamp(1.0, 200.0);
+/// A filled disc, clipped to the plot area of panel `p`.
+fn disc(img: &mut RgbImage, p: &Panel, c: (f64, f64), r: f64, col: Rgb<u8>) {
+    let r = r.clamp(1.0, f64::from(PANEL_W));
     let ri = r.ceil() as i64;
+    let (x_lo, x_hi) = (p.x0 + MARGIN, p.x0 + f64::from(PANEL_W) - MARGIN);
+    let (y_lo, y_hi) = (MARGIN, f64::from(PANEL_H) - MARGIN);
     for dy in -ri..=ri {
         for dx in -ri..=ri {
-            if (dx * dx + dy * dy) as f64 <= r * r {
-                put(img, c.0 + dx as f64, c.1 + dy as f64, col);
+            let (x, y) = (c.0 + dx as f64, c.1 + dy as f64);
+            if (dx * dx + dy * dy) as f64 <= r * r && x >= x_lo && x <= x_hi && y >= y_lo && y <= y_hi {
+                put(img, x, y, col);
             }
+        }
+    }
+}
+
+/// A filled axis-aligned rectangle between two pixel corners.
+fn rect(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), col: Rgb<u8>) {
+    let (x0, x1) = (a.0.min(b.0).max(0.0) as u32, a.0.max(b.0).max(0.0) as u32);
+    let (y0, y1) = (a.1.min(b.1).max(0.0) as u32, a.1.max(b.1).max(0.0) as u32);
+    for y in y0..=y1.min(img.height().saturating_sub(1)) {
+        for x in x0..=x1.min(img.width().saturating_sub(1)) {
+            img.put_pixel(x, y, col);
         }
     }
 }
@@ -163,6 +178,7 @@ pub fn render(trace: &Trace) -> RgbImage {
     for v in s {
         disc(
             &mut img,
+            &p,
             p.px(v.est[0], v.est[1]),
             3.0 * v.sigma_m * p.scale(),
             PINK,
@@ -196,10 +212,7 @@ pub fn render(trace: &Trace) -> RgbImage {
         .min(10.0);
     let p = Panel::new(1, (t_lo, 0.0), (t_hi, e_hi));
     if let Some((a, b)) = trace.window {
-        let (pa, pb) = (p.px(a, 0.0), p.px(b.min(t_hi), e_hi));
-        for x in pa.0 as i64..=pb.0 as i64 {
-            line(&mut img, (x as f64, pa.1), (x as f64, pb.1), GREY);
-        }
+        rect(&mut img, p.px(a.max(t_lo), 0.0), p.px(b.min(t_hi), e_hi), GREY);
     }
     for w in s.windows(2) {
         let c = |v: &super::runner::Sample| (3.0 * v.sigma_m).min(e_hi);
