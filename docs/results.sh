@@ -24,9 +24,10 @@ our numbers, and the setup choices the paper leaves open. Errors are in metres, 
 mean total of the camera nodes in mW, measurements are camera measurements used per run.
 
 Figures (first run of each method): left, trajectory in the x-y plane (truth blue, estimate
-red, 3σ band light red, σ = √ trace of the position covariance); middle, error over time
-(red; 3σ light red; grey = the experiment's loss or occlusion window); right, sensors per step
-over time (cameras blue, RSSI readings green). Axes in m and s.
+red, the 3σ band as light-red rings around every k-th estimate, σ = √ trace of the position
+covariance); middle, error over time (red; 3σ light red, clipped at the top; grey = the
+experiment's loss or occlusion window); right, sensors per step over time (cameras blue, RSSI
+readings green). Axes in m and s.
 
 HEAD
   rm -f "$FIG"/paper*.png

@@ -1,9 +1,9 @@
 //! PNG figures of an experiment's first run per method, drawn with the `image` crate (no fonts:
 //! tick values in a built-in 3×5 digit font). One file per method, three panels:
 //! - **trajectory** (x–y plane, m): truth in blue, estimate in red, its 3σ band (σ = √ trace
-//!   of the position covariance) as light-red discs;
-//! - **error over time** (s, m): error in red, 3σ in light red, the experiment's window (loss,
-//!   occlusion) shaded grey;
+//!   of the position covariance) as light-red rings around every k-th estimate;
+//! - **error over time** (s, m): error in red, 3σ in light red (clipped to the panel, which is
+//!   scaled to the error), the experiment's window (loss, occlusion) shaded grey;
 //! - **active sensors over time** (s, count): cameras in blue, RSSI readings in green.
 
 use super::{Outcome, Trace};
@@ -74,16 +74,17 @@ fn line(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), c: Rgb<u8>) {
     }
 }
 
-/// A filled disc, clipped to the plot area of panel `p`.
-fn disc(img: &mut RgbImage, p: &Panel, c: (f64, f64), r: f64, col: Rgb<u8>) {
-    let r = r.clamp(1.0, f64::from(PANEL_W));
-    let ri = r.ceil() as i64;
+/// A circle of radius `r` px (two pixels wide), clipped to the plot area of panel `p`.
+fn ring(img: &mut RgbImage, p: &Panel, c: (f64, f64), r: f64, col: Rgb<u8>) {
+    let r = r.clamp(1.0, 4.0 * f64::from(PANEL_W));
     let (x_lo, x_hi) = (p.x0 + MARGIN, p.x0 + f64::from(PANEL_W) - MARGIN);
     let (y_lo, y_hi) = (MARGIN, f64::from(PANEL_H) - MARGIN);
-    for dy in -ri..=ri {
-        for dx in -ri..=ri {
-            let (x, y) = (c.0 + dx as f64, c.1 + dy as f64);
-            if (dx * dx + dy * dy) as f64 <= r * r && x >= x_lo && x <= x_hi && y >= y_lo && y <= y_hi {
+    let n = (r * 8.0).ceil().max(16.0) as usize;
+    for k in 0..n {
+        let a = std::f64::consts::TAU * k as f64 / n as f64;
+        for rr in [r, r + 1.0] {
+            let (x, y) = (c.0 + rr * a.cos(), c.1 + rr * a.sin());
+            if x >= x_lo && x <= x_hi && y >= y_lo && y <= y_hi {
                 put(img, x, y, col);
             }
         }
@@ -175,8 +176,11 @@ pub fn render(trace: &Trace) -> RgbImage {
     let mid = ((lo.0 + hi.0) * 0.5, (lo.1 + hi.1) * 0.5);
     (lo, hi) = ((mid.0 - span, mid.1 - span), (mid.0 + span, mid.1 + span));
     let p = Panel::new(0, lo, hi);
-    for v in s {
-        disc(
+    // The band as rings around every k-th estimate: filled, a filter that assumes more noise
+    // than it gets would hide the trajectory under it.
+    let every = (s.len() / 24).max(1);
+    for v in s.iter().step_by(every) {
+        ring(
             &mut img,
             &p,
             p.px(v.est[0], v.est[1]),
