@@ -44,6 +44,8 @@ pub enum Command {
     Head(cmd::head::Args),
     /// Fuse external detections (JSON Lines) with a method; estimates as JSON Lines.
     Replay(cmd::replay::Args),
+    /// Reproduce a paper's experiment in the simulation; our table beside the paper's.
+    Experiment(cmd::experiment::Args),
     /// Measure parts of the system; prints JSON.
     #[command(subcommand)]
     Bench(Bench),
@@ -93,6 +95,7 @@ fn filter_command(c: &Command) -> bool {
             | Command::Sim(_)
             | Command::Replay(_)
             | Command::Deploy(_)
+            | Command::Experiment(_)
     )
 }
 
@@ -122,6 +125,7 @@ pub fn main() -> ExitCode {
         Command::Launch(args) => cmd::launch::run(args),
         Command::Head(args) => cmd::head::run(args),
         Command::Replay(args) => cmd::replay::run(args),
+        Command::Experiment(args) => cmd::experiment::run(args),
         Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
         Command::Bench(Bench::Camera(args)) => cmd::bench_camera::run(args),
         Command::Bench(Bench::Server(args)) => cmd::bench_server::run(args),

@@ -2,6 +2,7 @@
 pub mod cli;
 pub mod cmd;
 pub mod deploy;
+pub mod experiment;
 pub mod launch;
 pub mod replay;
 pub mod sim;

@@ -7,6 +7,7 @@ pub mod bench_transport;
 pub mod camera;
 pub mod common;
 pub mod deploy;
+pub mod experiment;
 pub mod export;
 pub mod head;
 pub mod launch;

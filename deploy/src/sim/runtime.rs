@@ -14,6 +14,7 @@
 //! `proto::wire::{encode, decode}` on its way, as it would between processes.
 
 use super::logged::{self, Recorded};
+use super::faults::{self, Faults};
 use super::net::{Fate, NetworkModel, SimNetwork, SkewedClock};
 use super::queue::EventQueue;
 use node_camera::config::CameraConfig;
@@ -58,6 +59,11 @@ pub struct SimOptions {
     /// A logging run: every camera measures every frame whatever its mode, and each frame's
     /// measurements (and the tag's RSSI) go into the recording for offline replay.
     pub record_measurements: bool,
+    /// Sensor faults injected into the simulated world (none by default).
+    pub faults: Faults,
+    /// How heads fusing by ML choose the depth (the head's default, a known target plane,
+    /// when `None`); paper 000's usual choice is a mean depth with a high variance.
+    pub ml_depth: Option<node_head::ml::DepthHandling>,
 }
 
 impl Default for SimOptions {
@@ -74,6 +80,8 @@ impl Default for SimOptions {
             tick_ms: 50,
             head_tick_ms: 10,
             record_measurements: false,
+            faults: Faults::default(),
+            ml_depth: None,
         }
     }
 }
@@ -142,6 +150,8 @@ struct CameraSlot {
     logger: Option<Segmenter>,
     scratch: Vec<Detection>,
     logged: Vec<Measured>,
+    /// The camera as it truly is (differs from the node's under a yaw fault).
+    true_camera: proto::camera::CameraModel,
 }
 
 /// The simulation: build with [`Sim::new`], run with [`Sim::run`].
@@ -161,6 +171,8 @@ pub struct Sim {
     noise: rand_chacha::ChaCha8Rng,
     /// A replay's recorded measurements, used instead of sensing.
     recorded: Option<Recorded>,
+    /// Frame failures (a stream of its own, so faults leave the noise stream as it was).
+    failures: rand_chacha::ChaCha8Rng,
 }
 
 /// Sync window of every follower (beacons kept for the regression).
@@ -184,11 +196,13 @@ impl Sim {
             frames_rendered: 0,
             noise: rand::SeedableRng::seed_from_u64(opts.seed ^ 0x006d_6561_7375_7265),
             recorded: None,
+            failures: rand::SeedableRng::seed_from_u64(opts.seed ^ 0x0066_6169_6c75_7265),
             net,
             scenario,
             opts,
         };
         let scenario = sim.scenario.clone();
+        let world = faults::true_world(&scenario, &sim.opts.faults, sim.opts.seed);
         for node in &scenario.nodes {
             let id = NodeId(node.id);
             let clock = if node.role == NodeRole::Server {
@@ -213,7 +227,7 @@ impl Sim {
                         .map_err(|e| anyhow::anyhow!("camera {}: {e}", node.id))?;
                     let renderer = match sim.opts.level {
                         Level::Pixel => Some(
-                            Renderer::for_node(&scenario, node.id, sim.opts.seed)
+                            Renderer::for_node(&world, node.id, sim.opts.seed)
                                 .map_err(|e| anyhow::anyhow!("camera {}: {e}", node.id))?,
                         ),
                         Level::Measurement => None,
@@ -222,6 +236,9 @@ impl Sim {
                     let period_ns = (1e9 / cfg.fps).round() as i64;
                     let position = cfg.camera.pose.centre();
                     let field = MultipathField::new(&scenario.world.radio, node.id, sim.opts.seed);
+                    let true_camera = world
+                        .camera_model(node.id)
+                        .map_err(|e| anyhow::anyhow!("camera {}: {e}", node.id))?;
                     // Cameras are not frame-synchronized: a fixed phase per node.
                     let phase =
                         (u64::from(node.id).wrapping_mul(2_654_435_761) % 1000) as i64 * period_ns / 1000;
@@ -240,12 +257,16 @@ impl Sim {
                             logger,
                             scratch: Vec::new(),
                             logged: Vec::new(),
+                            true_camera,
                         },
                     );
                 }
                 NodeRole::Head => {
-                    let cfg = HeadConfig::from_scenario(&scenario, node.id)
+                    let mut cfg = HeadConfig::from_scenario(&scenario, node.id)
                         .map_err(|e| anyhow::anyhow!("head {}: {e}", node.id))?;
+                    if let Some(d) = sim.opts.ml_depth {
+                        cfg.ml_depth = d;
+                    }
                     sim.heads.insert(id, HeadNode::new(cfg));
                 }
                 NodeRole::Server => {
@@ -386,7 +407,7 @@ impl Sim {
                 }
             }
             _ => slot.scratch.extend(node_camera::synthetic::project_truth(
-                &slot.core.config().camera,
+                &slot.true_camera,
                 &self.scenario.world,
                 &self.scenario.targets,
                 t_s,
@@ -428,6 +449,10 @@ impl Sim {
         if !slot.core.mode().camera_on() {
             return Vec::new();
         }
+        let faults = &self.opts.faults;
+        if faults.blacked_out(id.0, t_s) || faults.frame_fails(&mut self.failures) {
+            return Vec::new();
+        }
         match &slot.renderer {
             Some(r) => {
                 r.render(&self.scenario.targets, t_s, now, &mut slot.frame);
@@ -436,11 +461,11 @@ impl Sim {
             }
             None => {
                 let dets = node_camera::synthetic::project_truth(
-                    &slot.core.config().camera,
+                    &slot.true_camera,
                     &self.scenario.world,
                     &self.scenario.targets,
                     t_s,
-                    self.scenario.method.pixel_sigma,
+                    faults.pixel_sigma(self.scenario.method.pixel_sigma),
                     &mut self.noise,
                 );
                 slot.core.on_detections(now, now, &dets)

@@ -1,0 +1,89 @@
+//! `ocelli experiment NAME|all [--runs N] [--seed S] [--json] [--plot DIR] [--markdown]`: run
+//! the papers' experiments in the simulation runtime and print our table beside the paper's
+//! (see `experiment`).
+
+use crate::experiment::{self, NAMES, Options, plot, table};
+use crate::sim::runtime::Level;
+use anyhow::Result;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Experiment name (`paper000-table1`, `paper002-table1`, `paper002-occlusion`,
+    /// `paper002-rssi-only`, `paper002-robustness`) or `all`.
+    pub name: String,
+    /// Seeded runs per method.
+    #[arg(long, default_value_t = 5)]
+    pub runs: u32,
+    /// Seed of the first run (run k uses seed + k).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print JSON (`{"experiment", "rows": [...]}`; one object per line with `all`).
+    #[arg(long)]
+    pub json: bool,
+    /// Print a Markdown section per experiment (for docs/results.md).
+    #[arg(long, conflicts_with = "json")]
+    pub markdown: bool,
+    /// Write PNG figures (first run of each method) into this directory.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Override the experiment's level: `pixel` or `measurement`.
+    #[arg(long, value_enum)]
+    pub level: Option<super::sim::LevelArg>,
+    /// Override the simulated seconds per run.
+    #[arg(long)]
+    pub duration: Option<f64>,
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    let names: Vec<&str> = if args.name == "all" {
+        NAMES.to_vec()
+    } else {
+        vec![args.name.as_str()]
+    };
+    let opts = Options {
+        runs: args.runs,
+        seed: args.seed,
+        level: args.level.map(|l| match l {
+            super::sim::LevelArg::Pixel => Level::Pixel,
+            super::sim::LevelArg::Measurement => Level::Measurement,
+        }),
+        duration_s: args.duration,
+    };
+    for name in names {
+        let outcome = experiment::run(name, &opts)?;
+        let figures = match &args.plot {
+            Some(dir) => plot::write_all(&outcome, dir)?,
+            None => Vec::new(),
+        };
+        if args.json {
+            println!("{}", serde_json::to_string(&table::to_json(&outcome))?);
+        } else if args.markdown {
+            let mut command = format!(
+                "ocelli experiment {name} --runs {} --seed {}",
+                args.runs, args.seed
+            );
+            if let Some(d) = args.duration {
+                command.push_str(&format!(" --duration {d}"));
+            }
+            if args.level.is_some() {
+                command.push_str(&format!(
+                    " --level {}",
+                    serde_json::to_value(outcome.level)?.as_str().unwrap_or("?")
+                ));
+            }
+            let names: Vec<String> = figures
+                .iter()
+                .filter_map(|p| p.file_name().map(|f| format!("figures/{}", f.to_string_lossy())))
+                .collect();
+            print!("{}", table::to_markdown(&outcome, &command, &names));
+        } else {
+            println!("{}", table::to_text(&outcome));
+            for f in &figures {
+                println!("figure: {}", f.display());
+            }
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

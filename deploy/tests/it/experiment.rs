@@ -1,0 +1,134 @@
+//! The papers' experiments, short: a few seeded runs at measurement level (truth projected plus
+//! the scenario's pixel noise; the CLI's default is pixel level), asserting the shapes the
+//! papers report. These can fail: they are the acceptance checks of `ocelli experiment`.
+
+use deploy::experiment::{self, Options, Outcome, paper000_table1 as p000, paper002_table1 as p002};
+use deploy::sim::runtime::Level;
+
+/// Bound on Proposed's mean error over Method1's asserted here (the paper's is 1.25; see the
+/// test).
+const PROPOSED_ERROR_FACTOR: f64 = 1.7;
+
+fn run(name: &str, runs: u32, duration_s: Option<f64>) -> Outcome {
+    let opts = Options {
+        runs,
+        seed: 1,
+        level: Some(Level::Measurement),
+        duration_s,
+    };
+    experiment::run(name, &opts).expect("the experiment runs")
+}
+
+fn col(o: &Outcome, method: &str, f: fn(&experiment::Row) -> Option<f64>) -> f64 {
+    let row = o
+        .row(method)
+        .unwrap_or_else(|| panic!("no row {method}: {:?}", o.rows));
+    f(row).unwrap_or_else(|| panic!("{method}: value missing in {row:?}"))
+}
+
+#[test]
+fn paper000_table1_shape_active_perception_between_eif5_and_eif3_with_fewer_measurements() {
+    let o = run("paper000-table1", 3, None);
+    let err = |m: &str| col(&o, m, |r| r.mean_error_m);
+    let meas = |m: &str| col(&o, m, |r| r.measurements);
+    let (lo, hi) = (p000::active(0.2), p000::active(1.0));
+    let table = deploy::experiment::table::to_text(&o);
+    // Error: EIF with five cameras < active perception < EIF with three < ML with three.
+    assert!(err(p000::EIF5) < err(&lo), "{table}");
+    assert!(err(&lo) < err(p000::EIF3), "{table}");
+    assert!(err(p000::EIF3) < err(p000::ML3), "{table}");
+    // Active perception uses at least 35% fewer measurements than EIF5, at either cost, and a
+    // higher cost means fewer.
+    assert!(meas(&lo) <= 0.65 * meas(p000::EIF5), "{table}");
+    assert!(meas(&hi) <= 0.65 * meas(p000::EIF5), "{table}");
+    assert!(meas(&hi) < meas(&lo), "{table}");
+    // The blackout of cameras 2 and 3 costs the three-camera methods measurements.
+    assert!(meas(p000::EIF3) < 0.8 * meas(p000::EIF5), "{table}");
+    // Every row is labelled with its level and the paper's figures ride along.
+    assert_eq!(o.level, Level::Measurement);
+    assert_eq!(o.paper.len(), 6);
+}
+
+#[test]
+fn paper002_table1_shape_power_falls_method1_to_proposed() {
+    let o = run("paper002-table1", 2, Some(40.0));
+    let power = |m: &str| col(&o, m, |r| r.power_mw);
+    let err = |m: &str| col(&o, m, |r| r.mean_error_m);
+    let table = deploy::experiment::table::to_text(&o);
+    assert!(power(p002::M1) > power(p002::M2), "{table}");
+    assert!(power(p002::M2) > power(p002::M3), "{table}");
+    assert!(power(p002::M3) > power(p002::PROPOSED), "{table}");
+    assert!(power(p002::PROPOSED) <= 0.25 * power(p002::M1), "{table}");
+    // The paper's bound, Proposed within 1.25x Method1's error, does NOT come out here (the
+    // outcome's shape check says so and docs/results.md discusses it): measured with these
+    // options 0.154 vs 0.109 m (1.42x); pixel level, 60 s, seeds 1-2: 1.53x. No energy weight
+    // gives both bounds (measurement level, 60 s, seeds 1-3: weight 3e-4 gives 1.15x error at
+    // 34% power, 1e-3 gives 1.40x at 20%). What is asserted is that the loss stays bounded.
+    assert!(
+        err(p002::PROPOSED) <= PROPOSED_ERROR_FACTOR * err(p002::M1),
+        "{table}"
+    );
+    let check = o
+        .shape
+        .iter()
+        .find(|c| c.claim.contains("1.25x"))
+        .expect("the error claim is checked");
+    assert_eq!(check.holds, err(p002::PROPOSED) <= 1.25 * err(p002::M1));
+    // RSSI is n/a for the camera-only methods and counted for the others.
+    assert!(o.row(p002::M1).is_some_and(|r| r.rssi_measurements.is_none()));
+    assert!(col(&o, p002::PROPOSED, |r| r.rssi_measurements) > 0.0);
+}
+
+#[test]
+fn rssi_only_trained_models_beat_the_default_model() {
+    let o = run("paper002-rssi-only", 1, Some(30.0));
+    let err = |m: &str| col(&o, m, |r| r.mean_error_m);
+    use deploy::experiment::paper002_rssi_only as p;
+    let table = deploy::experiment::table::to_text(&o);
+    assert!(err(p::TRAINED) < err(p::DEFAULT), "{table}");
+    assert!(o.rows.iter().all(|r| r.power_mw.is_none()), "{table}");
+}
+
+#[test]
+fn the_cli_prints_the_issue_json_labelled_with_its_level_and_writes_figures() {
+    let dir = std::env::temp_dir().join(format!("ocelli-experiment-plots-{}", std::process::id()));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ocelli"))
+        .args(["experiment", "paper000-table1", "--runs", "1", "--duration", "20"])
+        .args(["--level", "measurement", "--json", "--plot"])
+        .arg(&dir)
+        .env("RUST_LOG", "error")
+        .output()
+        .expect("ocelli runs");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(v["experiment"], "paper000-table1");
+    assert_eq!(v["level"], "measurement");
+    let rows = v["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 5);
+    for r in rows {
+        for k in [
+            "method",
+            "mean_error_m",
+            "std_m",
+            "measurements",
+            "active_cameras",
+            "rssi_measurements",
+            "power_mw",
+        ] {
+            assert!(r.get(k).is_some(), "{k} missing in {r}");
+        }
+        assert!(r["rssi_measurements"].is_null(), "camera-only methods: {r}");
+    }
+    let pngs = std::fs::read_dir(&dir).map(|d| d.count()).unwrap_or(0);
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(pngs, 5, "one figure per method");
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_ocelli"))
+        .args(["experiment", "no-such-thing"])
+        .output()
+        .expect("ocelli runs");
+    assert!(!bad.status.success());
+    assert!(
+        String::from_utf8_lossy(&bad.stderr).contains("paper000-table1"),
+        "the error lists the known names"
+    );
+}
