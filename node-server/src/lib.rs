@@ -11,6 +11,8 @@ pub mod core;
 mod core_tests;
 pub mod decision;
 pub mod export;
+#[cfg(test)]
+mod failover_tests;
 pub mod membership;
 pub mod process;
 pub mod record;
