@@ -21,6 +21,7 @@ pub mod replay;
 pub mod report;
 #[cfg(test)]
 mod report_tests;
+pub mod tail;
 #[cfg(test)]
 pub(crate) mod testkit;
 pub mod tracks;
