@@ -16,8 +16,9 @@
 //!   `TrackReport.power_mw` × step time.
 //!   `power_mw_mean` is the sum over nodes of their mean power.
 //! - **Messages**: `sent` = frames nodes sent to the server (received + sequence gaps) plus
-//!   frames the server sent; `dropped` = sequence gaps into the server plus the `dropped`
-//!   counters nodes report; `late` = contributions past their deadline as the heads report them;
+//!   frames the server sent; `dropped` = sequence gaps into the server (link control frames
+//!   such as TCP heartbeats take no sequence number, so a gap is a lost frame) plus the
+//!   `dropped` counters nodes report (cameras: undeliverable messages; heads: failed sends); `late` = contributions past their deadline as the heads report them;
 //!   `rejected` = inputs the server refused.
 //! - **Sync error**: the `sync_error_ns` each node (camera or head) last reported: the RMS of
 //!   its clock's error at the recent sync beacons (`proto::sync`); negative (not synchronized
