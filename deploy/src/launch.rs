@@ -2,18 +2,21 @@
 //!
 //! The launch writes the effective scenario (a domain of its own, free TCP ports) to a run
 //! directory, starts the server, the heads and the cameras as `ocelli server|head|camera`
-//! children, shows live progress read from the server's recording (an append-only file whose
-//! torn tail is skipped, so reading it while it grows is safe), and stops in order on Ctrl-C or
+//! children, shows live progress read incrementally from the server's recording as it grows
+//! (`node_server::tail::Tailer`: only the newly appended records, an incomplete last record
+//! waited on), and stops in order on Ctrl-C or
 //! after the duration. Whatever happened to the children, it reaps them all and removes the
 //! domain's iceoryx2 files from `/dev/shm`.
 
 use crate::supervisor::Supervisor;
 use anyhow::{Context, Result};
-use node_server::export::track_rows;
-use node_server::replay::Loaded;
-use node_server::{recording, report};
-use proto::ClusterTime;
+use node_server::export::{TrackRow, track_row};
+use node_server::report;
+use node_server::tail::Tailer;
+use node_server::{ServerConfig, ServerNode};
 use proto::scenario::{NodeRole, Scenario, TransportKind};
+use proto::{ClusterTime, NodeId};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -84,44 +87,72 @@ fn spawn_node(sup: &mut Supervisor, how: &Spawn<'_>, role: &str, id: u32) -> Res
     Ok(())
 }
 
-/// One progress line per global track: position, σ, sensors and, with truth, error.
-/// Reads and replays the whole recording each call: fine for runs of minutes, linear in the run's
-/// length; an incremental reader is the fix when hour-long launches matter.
-fn progress_lines(record: &Path, scenario: &Scenario, epoch: ClusterTime) -> Vec<String> {
-    let Ok(back) = recording::read_all(record) else {
-        return Vec::new();
-    };
-    let loaded = Loaded {
-        scenario: scenario.clone(),
-        records: back.records,
-        tail: back.tail,
-    };
-    let rows = track_rows(&loaded);
-    let mut latest: std::collections::BTreeMap<u32, &node_server::export::TrackRow> = Default::default();
-    for r in rows.iter().filter(|r| r.owner) {
-        latest.insert(r.global, r);
+/// Live progress: follows the recording as it grows ([`Tailer`] reads only what was appended
+/// since the last update) through a server core fed record by record, as `ocelli export` does
+/// over a whole file, and keeps each global track's latest owner row.
+struct Progress {
+    tail: Tailer,
+    node: ServerNode,
+    latest: BTreeMap<u32, TrackRow>,
+}
+
+impl Progress {
+    fn new(record: &Path, scenario: &Scenario) -> Self {
+        let server = scenario.server().map_or(NodeId(0), |n| NodeId(n.id));
+        let mut cfg = ServerConfig::from_scenario(scenario.clone(), server);
+        cfg.journal = false;
+        Progress {
+            tail: Tailer::new(record),
+            node: ServerNode::new(cfg),
+            latest: BTreeMap::new(),
+        }
     }
-    // Only tracks reported in the last two seconds are alive.
-    let newest = latest.values().map(|r| r.t).fold(f64::NEG_INFINITY, f64::max);
-    latest
-        .values()
-        .filter(|r| r.t >= newest - 2.0)
-        .map(|r| {
-            let err = scenario
-                .targets
-                .iter()
-                .map(|t| {
-                    let x = t.truth_at(r.t - epoch.as_secs_f64());
-                    ((x[0] - r.x).powi(2) + (x[1] - r.y).powi(2) + (x[2] - r.z).powi(2)).sqrt()
-                })
-                .min_by(f64::total_cmp)
-                .map_or(String::new(), |e| format!("  error {e:.2} m"));
-            format!(
-                "t={:6.1}s  target g{:<3} ({:6.2}, {:6.2}, {:5.2}) m  σ {:.2} m  cameras {:2}  rssi {:2}  head {}{err}",
-                r.t - epoch.as_secs_f64(), r.global, r.x, r.y, r.z, r.sigma_m, r.cameras, r.rssi_nodes, r.head
-            )
-        })
-        .collect()
+
+    /// Read what the server appended and take it in.
+    fn update(&mut self) {
+        let records = match self.tail.poll() {
+            Ok(r) => r,
+            Err(e) => {
+                tracing::debug!(error = %e, "progress: recording not readable yet");
+                return;
+            }
+        };
+        for s in &records {
+            self.node.feed(s);
+            if let Some(row) = track_row(&self.node, s).filter(|r| r.owner) {
+                self.latest.insert(row.global, row);
+            }
+        }
+    }
+
+    /// One line per global track reported in the last two seconds: position, σ, sensors and,
+    /// with truth, error.
+    fn lines(&self, scenario: &Scenario, epoch: ClusterTime) -> Vec<String> {
+        let newest = self
+            .latest
+            .values()
+            .map(|r| r.t)
+            .fold(f64::NEG_INFINITY, f64::max);
+        self.latest
+            .values()
+            .filter(|r| r.t >= newest - 2.0)
+            .map(|r| {
+                let err = scenario
+                    .targets
+                    .iter()
+                    .map(|t| {
+                        let x = t.truth_at(r.t - epoch.as_secs_f64());
+                        ((x[0] - r.x).powi(2) + (x[1] - r.y).powi(2) + (x[2] - r.z).powi(2)).sqrt()
+                    })
+                    .min_by(f64::total_cmp)
+                    .map_or(String::new(), |e| format!("  error {e:.2} m"));
+                format!(
+                    "t={:6.1}s  target g{:<3} ({:6.2}, {:6.2}, {:5.2}) m  σ {:.2} m  cameras {:2}  rssi {:2}  head {}{err}",
+                    r.t - epoch.as_secs_f64(), r.global, r.x, r.y, r.z, r.sigma_m, r.cameras, r.rssi_nodes, r.head
+                )
+            })
+            .collect()
+    }
 }
 
 /// Remove every iceoryx2 file of `domain` from `/dev/shm` (the domain is this launch's own,
@@ -191,6 +222,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
         .build()?;
     #[allow(clippy::disallowed_methods)] // the launcher is a runtime: it owns the clock
     let started = std::time::Instant::now();
+    let mut progress = opts.progress.then(|| Progress::new(&opts.record, &scenario));
     rt.block_on(async {
         let mut ctrl_c = std::pin::pin!(tokio::signal::ctrl_c());
         loop {
@@ -201,8 +233,9 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
             for (name, status) in sup.reap_ended() {
                 tracing::warn!(child = %name, %status, "a node process ended");
             }
-            if opts.progress {
-                for line in progress_lines(&opts.record, &scenario, epoch) {
+            if let Some(p) = progress.as_mut() {
+                p.update();
+                for line in p.lines(&scenario, epoch) {
                     eprintln!("{line}");
                 }
             }
@@ -235,4 +268,57 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
     let loaded = node_server::replay::load(&opts.record, Some(scenario.clone()))
         .with_context(|| format!("reading the recording {}", opts.record.display()))?;
     Ok(report::compute(&loaded, epoch))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::runtime::{Level, Sim, SimOptions};
+    use node_server::Recorder;
+    use node_server::export::track_rows;
+    use node_server::replay::Loaded;
+
+    /// Progress read in pieces while the recording grows ends where a reading of the whole
+    /// file does: the same latest owner row for every global track.
+    #[test]
+    fn progress_follows_the_growing_recording_like_a_whole_reading() {
+        let scenario = Scenario::default_scenario();
+        let opts = SimOptions {
+            seed: 4,
+            duration_s: 6.0,
+            level: Level::Measurement,
+            ..SimOptions::default()
+        };
+        let records = Sim::new(scenario.clone(), opts).unwrap().run().records;
+        let dir = std::env::temp_dir().join(format!("ocelli-launch-progress-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("rec.ocrec");
+        let mut progress = Progress::new(&path, &scenario);
+        progress.update();
+        assert!(progress.latest.is_empty(), "no file yet");
+        let mut rec = Recorder::create(&path, &scenario.name).unwrap();
+        let mut polls = 0;
+        for chunk in records.chunks(records.len() / 20 + 1) {
+            for s in chunk {
+                rec.append(s).unwrap();
+            }
+            progress.update();
+            polls += 1;
+        }
+        assert!(polls > 10);
+        let whole = Loaded {
+            scenario: scenario.clone(),
+            records,
+            tail: None,
+        };
+        let mut expected: BTreeMap<u32, TrackRow> = BTreeMap::new();
+        for r in track_rows(&whole).into_iter().filter(|r| r.owner) {
+            expected.insert(r.global, r);
+        }
+        assert!(!expected.is_empty(), "the sim tracked something");
+        assert_eq!(progress.latest, expected);
+        assert!(!progress.lines(&scenario, ClusterTime::ZERO).is_empty());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

@@ -60,6 +60,9 @@ pub struct CameraNode {
     mode_since: ClusterTime,
     time_in_mode_ns: [u64; 3],
     last_status: Option<ClusterTime>,
+    /// The runtime's time-sync estimate: offset to the leader and sync error, ns (error −1:
+    /// not synchronized yet).
+    sync: (i64, i64),
     counters: Counters,
 }
 
@@ -79,6 +82,7 @@ impl CameraNode {
             mode_since: now,
             time_in_mode_ns: [0; 3],
             last_status: None,
+            sync: (0, -1),
             counters: Counters::default(),
         }
     }
@@ -105,6 +109,12 @@ impl CameraNode {
         let mut t = self.time_in_mode_ns;
         t[self.mode.index()] += (now - self.mode_since).max(0) as u64;
         t
+    }
+
+    /// The runtime's time-sync estimate (`proto::sync::SyncEstimator`), reported in the next
+    /// `NodeStatus`: offset to the leader and sync error, ns; a negative error means unknown.
+    pub fn set_sync(&mut self, offset_ns: i64, error_ns: i64) {
+        self.sync = (offset_ns, error_ns);
     }
 
     /// The runtime reports messages it could not deliver.
@@ -388,8 +398,8 @@ impl CameraNode {
             detections: c.detections,
             dropped: c.dropped + c.unsent,
             rejected: c.rejected,
-            sync_offset_ns: 0,
-            sync_error_ns: 0,
+            sync_offset_ns: self.sync.0,
+            sync_error_ns: self.sync.1,
         };
         self.send_to_head(Message::NodeStatus(status.clone()), &mut out);
         match self.cfg.server {
@@ -603,11 +613,22 @@ mod tests {
         };
         assert_eq!(st.time_in_mode_ns, t);
         assert_eq!(st.mode, Mode::Active);
+        assert_eq!(
+            (st.sync_offset_ns, st.sync_error_ns),
+            (0, -1),
+            "not synchronized yet"
+        );
         assert!(
             node.tick(ClusterTime::from_secs_f64(8.5)).is_empty(),
             "once per period"
         );
-        assert_eq!(node.tick(ClusterTime::from_secs_f64(9.0)).len(), 2);
+        node.set_sync(-1_500_000, 40_000);
+        let status = node.tick(ClusterTime::from_secs_f64(9.0));
+        assert_eq!(status.len(), 2);
+        let Message::NodeStatus(st) = &status[1].body else {
+            panic!()
+        };
+        assert_eq!((st.sync_offset_ns, st.sync_error_ns), (-1_500_000, 40_000));
     }
 
     #[test]

@@ -6,6 +6,8 @@
 //! queue of two; frames that find the queue full are counted as lost. Synthetic scenarios also
 //! get RSSI readings of every tagged target at the frame rate ([`crate::radio`]). When the head
 //! or the server is away, messages to them are counted as dropped and the node keeps going.
+//! The server's sync beacons feed a [`SyncEstimator`] whose offset and error go out in the
+//! node's `NodeStatus`.
 //! `shutdown` stops the loop; the capture thread is joined and the transport shut down.
 
 use crate::config::{CameraConfig, ConfigError};
@@ -16,7 +18,9 @@ use crate::radio::{self, MultipathField};
 use crate::render::SyntheticSource;
 use crate::source::{FrameSource, ImageSequence, SourceError};
 use nalgebra::Vector3;
+use proto::msg::Message;
 use proto::scenario::{Scenario, TransportKind};
+use proto::sync::SyncEstimator;
 use proto::transport::{
     Clock, Delivery, Event, IpcConfig, StatsSnapshot, TcpConfig, TransportConfig, TransportError, open,
 };
@@ -207,6 +211,19 @@ fn capture_loop(
     }
 }
 
+/// Feed a beacon from the server to the sync estimator and hand its estimate to the core,
+/// which reports it in `NodeStatus`. The node's clock is the host's: processes on one host
+/// share it, and across hosts chrony keeps it; what the beacons show is how far it is from the
+/// server's.
+fn observe_beacon(sync: &mut SyncEstimator, node: &mut CameraNode, local_ns: i64, leader: ClusterTime) {
+    if let Err(e) = sync.observe(local_ns, leader) {
+        debug!(error = %e, "sync beacon not used");
+        return;
+    }
+    let error = sync.prediction_error_ns().map_or(-1, |e| e.round() as i64);
+    node.set_sync(sync.offset_ns(local_ns), error);
+}
+
 /// Run camera `cfg.id` until `shutdown` is cancelled.
 ///
 /// # Errors
@@ -264,6 +281,7 @@ pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<Summ
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     radio_tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let mut send_failures = 0u64;
+    let mut sync = SyncEstimator::default();
 
     loop {
         let outs = tokio::select! {
@@ -273,7 +291,14 @@ pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<Summ
                     warn!(node = cfg.id, "transport closed");
                     break;
                 }
-                Some(Event::Message(m)) => node.on_message(clock(), m.env),
+                Some(Event::Message(m)) => {
+                    if let Message::SyncBeacon(b) = &m.env.body
+                        && Some(m.from) == node.config().server
+                    {
+                        observe_beacon(&mut sync, &mut node, clock().0, b.leader_time);
+                    }
+                    node.on_message(clock(), m.env)
+                }
                 Some(Event::PeerUp(p)) => {
                     info!(node = cfg.id, peer = %p, "peer up");
                     Vec::new()

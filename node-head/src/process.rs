@@ -4,20 +4,22 @@
 //! transport event (a message, a peer up or down), and shutdown. Everything the core returns
 //! is sent with a bounded wait, so a vanished camera or server never stalls the loop: the head
 //! keeps stepping, predicting and counting (failed and timed-out sends are counted, peers that
-//! drop are reported to the core as down). Cluster time is the host's UNIX time plus the offset
-//! the last `SyncBeacon` from the server implied.
+//! drop are reported to the core as down). Cluster time is the host's UNIX time corrected by a
+//! [`SyncEstimator`] over the server's `SyncBeacon`s; every [`STATUS_PERIOD_MS`] the head sends
+//! the server a `NodeStatus` with that estimate's offset and error.
 
 use crate::config::{ConfigError, HeadConfig};
 use crate::head::HeadNode;
 use crate::stats::Counters;
-use proto::msg::Message;
+use proto::msg::{Message, Mode, NodeStatus};
 use proto::node::Outgoing;
 use proto::scenario::{NodeRole, Scenario, TransportKind};
+use proto::sync::SyncEstimator;
 use proto::transport::{Event, IpcConfig, TcpConfig, TransportConfig, TransportError, open};
 use proto::{ClusterTime, NodeId, Role};
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicI64, Ordering};
+use std::sync::Mutex;
 use std::time::Duration;
 use thiserror::Error;
 use tokio_util::sync::CancellationToken;
@@ -27,6 +29,8 @@ use tracing::{info, warn};
 pub const TICK_MS: u64 = 5;
 /// Longest a send may wait for room before it is counted as failed.
 pub const SEND_TIMEOUT_MS: u64 = 20;
+/// How often the head tells the server its sync estimate and failures in a `NodeStatus`, ms.
+pub const STATUS_PERIOD_MS: u64 = 1000;
 
 /// What the process needs.
 #[derive(Clone, Debug)]
@@ -62,10 +66,11 @@ pub struct Summary {
     pub peers_down: u64,
 }
 
-/// Cluster time: host UNIX time plus the leader offset.
+/// Cluster time: host UNIX time corrected by the offset and drift a [`SyncEstimator`] fits over
+/// the server's beacons (the host time itself before the first beacon).
 #[derive(Debug, Default)]
 pub struct Clock {
-    offset_ns: AtomicI64,
+    sync: Mutex<SyncEstimator>,
 }
 
 impl Clock {
@@ -75,14 +80,31 @@ impl Clock {
         ClusterTime::wall_clock().0
     }
 
-    pub fn now(&self) -> ClusterTime {
-        ClusterTime(Self::host_ns().saturating_add(self.offset_ns.load(Ordering::Relaxed)))
+    fn estimator(&self) -> std::sync::MutexGuard<'_, SyncEstimator> {
+        self.sync.lock().unwrap_or_else(|p| p.into_inner())
     }
 
-    /// Adopt the leader's time base from a beacon just received.
+    pub fn now(&self) -> ClusterTime {
+        let host = Self::host_ns();
+        self.estimator().to_cluster(host).unwrap_or(ClusterTime(host))
+    }
+
+    /// Feed a beacon just received from the leader.
     pub fn sync(&self, leader: ClusterTime) {
-        self.offset_ns
-            .store(leader.0.saturating_sub(Self::host_ns()), Ordering::Relaxed);
+        if let Err(e) = self.estimator().observe(Self::host_ns(), leader) {
+            tracing::debug!(error = %e, "sync beacon not used");
+        }
+    }
+
+    /// The estimate as a `NodeStatus` carries it: offset to the leader and sync error, ns
+    /// (error −1 before the first beacon).
+    pub fn estimate(&self) -> (i64, i64) {
+        let host = Self::host_ns();
+        let s = self.estimator();
+        (
+            s.offset_ns(host),
+            s.prediction_error_ns().map_or(-1, |e| e.round() as i64),
+        )
     }
 }
 
@@ -142,6 +164,22 @@ pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<Summ
     run_on(head_cfg, transport, clock, shutdown).await
 }
 
+/// The head's `NodeStatus`: always Active since it started, its send failures and rejected
+/// messages, and its sync estimate.
+fn status(clock: &Clock, started: ClusterTime, head: &HeadNode, summary: &Summary) -> NodeStatus {
+    let (sync_offset_ns, sync_error_ns) = clock.estimate();
+    NodeStatus {
+        mode: Mode::Active,
+        time_in_mode_ns: [u64::try_from(clock.now() - started).unwrap_or(0), 0, 0],
+        frames: 0,
+        detections: 0,
+        dropped: summary.send_failures,
+        rejected: head.counters().rejected,
+        sync_offset_ns,
+        sync_error_ns,
+    }
+}
+
 /// Run a head on an explicit transport (the in-process hub in tests).
 ///
 /// # Errors
@@ -160,10 +198,17 @@ pub async fn run_on(
     let mut summary = Summary::default();
     let mut interval = tokio::time::interval(Duration::from_millis(TICK_MS));
     interval.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let mut status_every = tokio::time::interval(Duration::from_millis(STATUS_PERIOD_MS));
+    status_every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let started = clock.now();
     loop {
         let out: Vec<Outgoing> = tokio::select! {
             () = shutdown.cancelled() => break,
             _ = interval.tick() => head.tick(clock.now()),
+            _ = status_every.tick(), if server.is_some() => {
+                let status = status(&clock, started, &head, &summary);
+                server.map(|s| Outgoing::new(s, Message::NodeStatus(status))).into_iter().collect()
+            }
             ev = inbox.recv() => match ev {
                 None => {
                     warn!("transport closed; head stops");

@@ -6,7 +6,8 @@
 //! track's posterior, i.e. came from its owner; one owner row per global and step), `cameras` and `rssi_nodes`
 //! (contributors with a camera measurement / an RSSI reading).
 
-use crate::record::Record;
+use crate::core::ServerNode;
+use crate::record::{Record, Stamped};
 use crate::replay::{Loaded, replay};
 use proto::msg::Message;
 use serde::Serialize;
@@ -43,41 +44,43 @@ pub enum Format {
 /// Track rows of a recording, in recording order.
 pub fn track_rows(loaded: &Loaded) -> Vec<TrackRow> {
     let mut rows = Vec::new();
-    replay(loaded, |node, s| {
-        let Record::Received(env) = &s.record else {
-            return;
-        };
-        let Message::TrackReport(r) = &env.body else {
-            return;
-        };
-        let Some(g) = node.global_of(env.source, r.target) else {
-            return;
-        };
-        // Owner rows are the ones that became the global's posterior (the owner's reports,
-        // including the one that triggered a handover away from it).
-        let owner = node
-            .globals()
-            .find(|(id, _)| *id == g)
-            .is_some_and(|(_, gt)| gt.time == r.time && gt.mean == r.mean);
-        rows.push(TrackRow {
-            t: r.time.as_secs_f64(),
-            global: g.0,
-            head: env.source.0,
-            local: r.target.0,
-            step: r.step,
-            x: r.mean[0],
-            y: r.mean[1],
-            z: r.mean[2],
-            vx: r.mean[3],
-            vy: r.mean[4],
-            vz: r.mean[5],
-            sigma_m: (r.cov[0][0] + r.cov[1][1] + r.cov[2][2]).max(0.0).sqrt(),
-            owner,
-            cameras: r.contributors.iter().filter(|c| c.camera).count() as u32,
-            rssi_nodes: r.contributors.iter().filter(|c| c.rssi).count() as u32,
-        });
-    });
+    replay(loaded, |node, s| rows.extend(track_row(node, s)));
     rows
+}
+
+/// The row of one record, if it is a track report `node` (a server that has just been fed that
+/// record) bound to a global id. For following a recording as it grows.
+pub fn track_row(node: &ServerNode, s: &Stamped) -> Option<TrackRow> {
+    let Record::Received(env) = &s.record else {
+        return None;
+    };
+    let Message::TrackReport(r) = &env.body else {
+        return None;
+    };
+    let g = node.global_of(env.source, r.target)?;
+    // Owner rows are the ones that became the global's posterior (the owner's reports,
+    // including the one that triggered a handover away from it).
+    let owner = node
+        .globals()
+        .find(|(id, _)| *id == g)
+        .is_some_and(|(_, gt)| gt.time == r.time && gt.mean == r.mean);
+    Some(TrackRow {
+        t: r.time.as_secs_f64(),
+        global: g.0,
+        head: env.source.0,
+        local: r.target.0,
+        step: r.step,
+        x: r.mean[0],
+        y: r.mean[1],
+        z: r.mean[2],
+        vx: r.mean[3],
+        vy: r.mean[4],
+        vz: r.mean[5],
+        sigma_m: (r.cov[0][0] + r.cov[1][1] + r.cov[2][2]).max(0.0).sqrt(),
+        owner,
+        cameras: r.contributors.iter().filter(|c| c.camera).count() as u32,
+        rssi_nodes: r.contributors.iter().filter(|c| c.rssi).count() as u32,
+    })
 }
 
 /// Write rows in a format.

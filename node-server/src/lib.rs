@@ -11,6 +11,8 @@ pub mod core;
 mod core_tests;
 pub mod decision;
 pub mod export;
+#[cfg(test)]
+mod failover_tests;
 pub mod membership;
 pub mod process;
 pub mod record;
@@ -19,6 +21,7 @@ pub mod replay;
 pub mod report;
 #[cfg(test)]
 mod report_tests;
+pub mod tail;
 #[cfg(test)]
 pub(crate) mod testkit;
 pub mod tracks;

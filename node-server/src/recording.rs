@@ -229,7 +229,7 @@ impl<R: Read> Iterator for Reader<R> {
 }
 
 /// Fill `buf`; `Ok(false)` if the input ended first.
-fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<bool> {
+pub(crate) fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<bool> {
     let mut got = 0;
     while got < buf.len() {
         match r.read(&mut buf[got..]) {

@@ -11,14 +11,18 @@
 //!   here, never by a filter.
 //! - **Active cameras / RSSI nodes per step**: contributors with a camera measurement / with an
 //!   RSSI reading, per owner track report.
-//! - **Energy per node**: from the latest `NodeStatus.time_in_mode_ns` with the node's power
-//!   figures; heads (or runs) without statuses fall back to `TrackReport.power_mw` × step time.
+//! - **Energy per node**: from the latest `NodeStatus.time_in_mode_ns` of each camera node with
+//!   its power figures; runs without camera statuses fall back to the heads'
+//!   `TrackReport.power_mw` × step time.
 //!   `power_mw_mean` is the sum over nodes of their mean power.
 //! - **Messages**: `sent` = frames nodes sent to the server (received + sequence gaps) plus
-//!   frames the server sent; `dropped` = sequence gaps into the server plus the `dropped`
-//!   counters nodes report; `late` = contributions past their deadline as the heads report them;
+//!   frames the server sent; `dropped` = sequence gaps into the server (link control frames
+//!   such as TCP heartbeats take no sequence number, so a gap is a lost frame) plus the
+//!   `dropped` counters nodes report (cameras: undeliverable messages; heads: failed sends); `late` = contributions past their deadline as the heads report them;
 //!   `rejected` = inputs the server refused.
-//! - **Sync error**: the `sync_error_ns` each node reports (its regression residual).
+//! - **Sync error**: the `sync_error_ns` each node (camera or head) last reported: the RMS of
+//!   its clock's error at the recent sync beacons (`proto::sync`); negative (not synchronized
+//!   yet) is left out.
 
 use crate::core::{ServerConfig, ServerNode};
 use crate::decision::Decision;
@@ -26,6 +30,7 @@ use crate::export::track_rows;
 use crate::record::Record;
 use crate::replay::Loaded;
 use proto::msg::{Message, NodeStatus};
+use proto::scenario::NodeRole;
 use proto::{ClusterTime, Mode, NodeId};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -249,7 +254,13 @@ pub fn compute_with(loaded: &Loaded, t0: ClusterTime, gate_m: f64) -> Report {
 
     let step_s = sc.method.step_ms as f64 * 1e-3;
     let mut energy = Vec::new();
-    for (node, st) in &status {
+    // Energy from camera nodes' statuses; heads report theirs in their track reports (their
+    // statuses carry sync and failures).
+    let cameras: Vec<(&NodeId, &NodeStatus)> = status
+        .iter()
+        .filter(|(n, _)| sc.node(n.0).is_some_and(|d| d.role == NodeRole::Camera))
+        .collect();
+    for &(node, st) in &cameras {
         let (e, secs) = status_energy(st, &sc.power_of(node.0));
         energy.push(NodeEnergy {
             node: node.0,
@@ -259,7 +270,7 @@ pub fn compute_with(loaded: &Loaded, t0: ClusterTime, gate_m: f64) -> Report {
             source: "node_status",
         });
     }
-    if status.is_empty() {
+    if cameras.is_empty() {
         for (head, (sum_mw, n)) in &head_power {
             let secs = *n as f64 * step_s;
             energy.push(NodeEnergy {

@@ -128,6 +128,25 @@ fn record_run(name: &str) -> PathBuf {
         Message::NodeStatus(status),
         2,
     );
+    // A head's status: its sync estimate counts, its energy comes from its track reports.
+    let head_status = NodeStatus {
+        mode: Mode::Active,
+        time_in_mode_ns: [10_000_000_000, 0, 0],
+        frames: 0,
+        detections: 0,
+        dropped: 0,
+        rejected: 0,
+        sync_offset_ns: -3_000,
+        sync_error_ns: 500_000,
+    };
+    send(
+        &mut server,
+        &mut rec,
+        ClusterTime::from_millis(10_000),
+        NodeId(3),
+        Message::NodeStatus(head_status),
+        0,
+    );
     path
 }
 
@@ -150,7 +169,8 @@ fn report_from_a_recorded_run() {
     assert_eq!(r.handovers, 1);
     assert!((r.active_cameras_mean - 2.0).abs() < 1e-12);
     assert!((r.rssi_nodes_mean - 3.0).abs() < 1e-12);
-    // 8 s Active (650 + 69 mW) + 2 s CameraOff (69 mW) = 5.89 J over 10 s.
+    // 8 s Active (650 + 69 mW) + 2 s CameraOff (69 mW) = 5.89 J over 10 s; the head's status
+    // adds no energy.
     assert_eq!(r.energy.len(), 1);
     assert!((r.energy[0].energy_j - 5.89).abs() < 1e-9);
     assert!((r.power_mw_mean - 589.0).abs() < 1e-9);
@@ -159,6 +179,8 @@ fn report_from_a_recorded_run() {
     assert_eq!(r.messages.late, 6);
     assert!(r.messages.sent > 150);
     assert_eq!(r.sync_error_ms_max, Some(2.0));
+    assert_eq!(r.sync_error_ms_mean, Some(1.25), "camera 2 ms, head 3 0.5 ms");
+    assert_eq!(r.sync.len(), 2);
     let json = serde_json::to_value(&r).unwrap();
     for key in [
         "mean_error_m",

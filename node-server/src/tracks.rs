@@ -32,19 +32,30 @@
 //! - On a handover the old head stops tracking the target, so its local tracks bound to the
 //!   global are released: a track it starts again on the target merges back into the global
 //!   instead of founding a new one (its old binding stays, so a late report of it still counts).
-//! - When the owner is down, on the next tick the track goes to the live head covering its last
-//!   position, else the nearest one (`Handover`, reason `Failover`).
+//! - When the owner is down, on the next tick the track goes to a live head that follows it (a
+//!   local track bound or pending on it that reported recently), which continues from its own
+//!   estimate when that is newer; else to the live head covering its last position, else the
+//!   nearest one (`Handover`, reason `Failover`).
+//! - While the owner is gone (down, or silent for the owner staleness) the global's posterior is
+//!   the owner's last word and ages: disagreeing with it is no evidence, so it is not counted,
+//!   and a head's track that follows the global (it carries the id, or lies within the gate)
+//!   is bound to it and its head takes the global over (`OwnerChanged`), pending or not. A
+//!   pending track of the head the global was handed to is bound on its next report. So the
+//!   surviving head keeps the id whether its reports reach the server before or after the
+//!   failover tick.
 //! - A global no head reported for the track timeout is dropped (`Lost`); a silent local track
 //!   is forgotten.
 //!
 //! The gate compares positions in metres after extrapolating the global's last posterior to the
 //! report's time with its velocity.
 
-use crate::decision::{Decision, HandoverReason};
+use crate::decision::Decision;
 use crate::membership::{Membership, distance_to_region};
 use proto::msg::{Mat6, TrackReport, Vec6};
 use proto::{ClusterTime, NodeId, TargetId};
 use std::collections::BTreeMap;
+
+mod moves;
 
 /// Tuning of merging and handover.
 #[derive(Clone, Debug, PartialEq)]
@@ -89,7 +100,10 @@ enum Binding {
 #[derive(Clone, Debug, PartialEq)]
 struct LocalTrack {
     binding: Binding,
+    /// Server time of its last report, and that report's posterior (a failover to its head
+    /// starts from it when it is newer than the dead owner's).
     last: ClusterTime,
+    posterior: (ClusterTime, Vec6, Mat6),
     agree: u32,
     disagree: u32,
     /// Its global was handed away from this head, which drops the track: it no longer counts
@@ -210,6 +224,25 @@ impl Tracks {
             && members.live_head_covering(x, y, 0.0, head).is_some()
     }
 
+    /// Whether `g`'s owner is down or has not reported it for the owner staleness: `g`'s
+    /// posterior is then that owner's last word, ageing.
+    fn owner_gone(&self, now: ClusterTime, g: TargetId, members: &Membership) -> bool {
+        self.globals
+            .get(&g)
+            .is_some_and(|gt| !members.is_up(gt.owner) || now - gt.owner_report > self.params.owner_stale_ns)
+    }
+
+    /// Whether `head` has another live local track bound to `g`.
+    fn feeds_other(&self, head: NodeId, local: TargetId, g: TargetId, now: ClusterTime) -> bool {
+        self.locals.iter().any(|((h, l), t)| {
+            *h == head
+                && *l != local
+                && t.binding == Binding::Bound(g)
+                && !t.released
+                && now - t.last <= self.params.owner_stale_ns
+        })
+    }
+
     /// Take one report from `head`; returns the decisions it caused.
     pub fn observe(
         &mut self,
@@ -231,7 +264,8 @@ impl Tracks {
                         local,
                         global: g,
                     });
-                    self.locals.insert(key, LocalTrack::new(Binding::Bound(g), now));
+                    self.locals
+                        .insert(key, LocalTrack::new(Binding::Bound(g), now, r));
                     Binding::Bound(g)
                 }
                 None => match self.candidate(now, head, r) {
@@ -241,11 +275,12 @@ impl Tracks {
                             local,
                             global: g,
                         });
-                        self.locals.insert(key, LocalTrack::new(Binding::Bound(g), now));
+                        self.locals
+                            .insert(key, LocalTrack::new(Binding::Bound(g), now, r));
                         Binding::Bound(g)
                     }
                     Some(g) => {
-                        let mut l = LocalTrack::new(Binding::Pending(g), now);
+                        let mut l = LocalTrack::new(Binding::Pending(g), now, r);
                         l.agree = 1;
                         self.locals.insert(key, l);
                         Binding::Pending(g)
@@ -260,23 +295,61 @@ impl Tracks {
                             local,
                             global: g,
                         });
-                        self.locals.insert(key, LocalTrack::new(Binding::Bound(g), now));
+                        self.locals
+                            .insert(key, LocalTrack::new(Binding::Bound(g), now, r));
                         Binding::Bound(g)
                     }
                 },
             },
             Some(Binding::Pending(g)) => {
                 let agrees = self.agrees(g, r);
+                let owner = self.globals.get(&g).map(|gt| gt.owner);
+                let gone = self.owner_gone(now, g, members);
+                // The head follows g: it was told this track is g, or it lies on g.
+                let follows = r.global == Some(g) || agrees;
+                let takes = follows
+                    && match owner {
+                        Some(o) if o == head => !self.feeds_other(head, local, g, now),
+                        Some(_) => gone,
+                        None => false,
+                    };
                 let l = self.locals.get_mut(&key).expect("present");
                 l.last = now;
+                l.posterior = (r.time, r.mean, r.cov);
                 if agrees {
                     l.agree += 1;
                     l.disagree = 0;
-                } else {
+                } else if !gone {
                     l.disagree += 1;
                     l.agree = 0;
                 }
-                if agrees && l.agree >= n {
+                // While g's owner is gone, g's posterior is its last word and ages: missing it
+                // is no evidence, so disagreement is not counted (above), and a track that
+                // follows g is g's best estimate: it is bound and its head takes g over. The
+                // same when g was handed to this very head (failover). Without this the order
+                // of the survivor's reports and the failover tick decides whether g lives on.
+                if takes {
+                    l.binding = Binding::Bound(g);
+                    l.agree = 0;
+                    l.disagree = 0;
+                    out.push(Decision::Merged {
+                        head,
+                        local,
+                        global: g,
+                    });
+                    if let Some(o) = owner.filter(|o| *o != head)
+                        && let Some(gt) = self.globals.get_mut(&g)
+                    {
+                        gt.owner = head;
+                        gt.entered = false;
+                        out.push(Decision::OwnerChanged {
+                            global: g,
+                            from: o,
+                            to: head,
+                        });
+                    }
+                    Binding::Bound(g)
+                } else if agrees && l.agree >= n {
                     l.binding = Binding::Bound(g);
                     out.push(Decision::Merged {
                         head,
@@ -290,7 +363,7 @@ impl Tracks {
                 } else if !foreign && (!self.globals.contains_key(&g) || (!agrees && l.disagree >= n)) {
                     let g = self.new_global(now, head, r);
                     let l = self.locals.get_mut(&key).expect("present");
-                    *l = LocalTrack::new(Binding::Bound(g), now);
+                    *l = LocalTrack::new(Binding::Bound(g), now, r);
                     out.push(Decision::NewGlobal {
                         head,
                         local,
@@ -304,10 +377,7 @@ impl Tracks {
             Some(Binding::Bound(g)) => {
                 let owner = self.globals.get(&g).map(|gt| gt.owner);
                 let agrees = self.agrees(g, r);
-                let stale = self
-                    .globals
-                    .get(&g)
-                    .is_some_and(|gt| now - gt.owner_report > self.params.owner_stale_ns);
+                let stale = self.owner_gone(now, g, members);
                 // A member head whose own region covers the target, while the owner's does not,
                 // takes the track over: it is the cluster responsible for that area and already
                 // tracks it, so no posterior needs to move.
@@ -324,11 +394,12 @@ impl Tracks {
                     });
                 let l = self.locals.get_mut(&key).expect("present");
                 l.last = now;
+                l.posterior = (r.time, r.mean, r.cov);
                 match owner {
                     None => {
                         let g = self.new_global(now, head, r);
                         *self.locals.get_mut(&key).expect("present") =
-                            LocalTrack::new(Binding::Bound(g), now);
+                            LocalTrack::new(Binding::Bound(g), now, r);
                         out.push(Decision::NewGlobal {
                             head,
                             local,
@@ -362,7 +433,7 @@ impl Tracks {
                                 // it disagrees); only a track of its own region splits off.
                                 if let Some(c) = self.candidate(now, head, r) {
                                     *self.locals.get_mut(&key).expect("present") =
-                                        LocalTrack::new(Binding::Bound(c), now);
+                                        LocalTrack::new(Binding::Bound(c), now, r);
                                     out.push(Decision::Merged {
                                         head,
                                         local,
@@ -371,12 +442,12 @@ impl Tracks {
                                     Binding::Bound(c)
                                 } else if foreign {
                                     *self.locals.get_mut(&key).expect("present") =
-                                        LocalTrack::new(Binding::Pending(g), now);
+                                        LocalTrack::new(Binding::Pending(g), now, r);
                                     return out;
                                 } else {
                                     let ng = self.new_global(now, head, r);
                                     *self.locals.get_mut(&key).expect("present") =
-                                        LocalTrack::new(Binding::Bound(ng), now);
+                                        LocalTrack::new(Binding::Bound(ng), now, r);
                                     out.push(Decision::Split {
                                         head,
                                         local,
@@ -412,160 +483,14 @@ impl Tracks {
         }
         out
     }
-
-    /// Two global tracks that stay together are one target (paper 004 §3.3.3): after the
-    /// younger one's owner reported it within the gate of an older live global for
-    /// `hysteresis` consecutive reports, it is absorbed into the older one and its local tracks
-    /// rebound to it.
-    fn merge_globals(&mut self, now: ClusterTime, g: TargetId) -> Vec<Decision> {
-        let Some(gt) = self.globals.get(&g) else {
-            return Vec::new();
-        };
-        let p = [gt.mean[0], gt.mean[1], gt.mean[2]];
-        let t = gt.time;
-        let near = self
-            .globals
-            .range(..g)
-            .filter(|(_, o)| now - o.last_report <= self.params.owner_stale_ns)
-            .map(|(id, o)| {
-                let q = o.position_at(t);
-                (
-                    *id,
-                    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt(),
-                )
-            })
-            .filter(|(_, d)| *d <= self.params.merge_gate_m)
-            .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
-            .map(|(id, _)| id);
-        self.close.retain(|(a, b), _| *b != g || Some(*a) == near);
-        let Some(keep) = near else {
-            return Vec::new();
-        };
-        let count = self.close.entry((keep, g)).or_insert(0);
-        *count += 1;
-        if *count < self.params.hysteresis.max(1) {
-            return Vec::new();
-        }
-        let mut out = Vec::new();
-        for ((head, local), l) in &mut self.locals {
-            if matches!(l.binding, Binding::Bound(x) | Binding::Pending(x) if x == g) {
-                l.binding = Binding::Bound(keep);
-                l.agree = 0;
-                l.disagree = 0;
-                out.push(Decision::Merged {
-                    head: *head,
-                    local: *local,
-                    global: keep,
-                });
-            }
-        }
-        self.globals.remove(&g);
-        self.close.retain(|(a, b), _| *a != g && *b != g);
-        out.push(Decision::Absorbed {
-            global: g,
-            into: keep,
-        });
-        out
-    }
-
-    /// Hand `g` to the head whose region it entered, if it left its owner's.
-    fn region_handover(&mut self, g: TargetId, members: &Membership) -> Option<Decision> {
-        let gt = self.globals.get_mut(&g)?;
-        let region = members.region(gt.owner)?;
-        let (x, y) = (gt.mean[0], gt.mean[1]);
-        if distance_to_region(region, x, y) <= self.params.handover_margin_m {
-            gt.entered = true;
-            return None;
-        }
-        if !gt.entered {
-            return None;
-        }
-        let to = members.live_head_covering(x, y, 0.0, gt.owner)?;
-        let from = gt.owner;
-        gt.owner = to;
-        gt.entered = true; // `to` covers the estimate
-        for ((h, _), l) in self.locals.iter_mut() {
-            if *h == from && l.binding == Binding::Bound(g) {
-                l.released = true;
-            }
-        }
-        Some(Decision::Handover {
-            global: g,
-            from: Some(from),
-            to,
-            reason: HandoverReason::Region,
-        })
-    }
-
-    /// Time-driven changes: lost globals, forgotten local tracks, failover away from dead heads.
-    pub fn tick(&mut self, now: ClusterTime, members: &Membership) -> Vec<Decision> {
-        let mut out = Vec::new();
-        let timeout = self.params.track_timeout_ns;
-        let lost: Vec<TargetId> = self
-            .globals
-            .iter()
-            .filter(|(_, gt)| now - gt.last_report > timeout)
-            .map(|(g, _)| *g)
-            .collect();
-        for g in lost {
-            self.globals.remove(&g);
-            self.close.retain(|(a, b), _| *a != g && *b != g);
-            self.locals
-                .retain(|_, l| !matches!(l.binding, Binding::Bound(x) | Binding::Pending(x) if x == g));
-            out.push(Decision::Lost { global: g });
-        }
-        let stale: Vec<(NodeId, TargetId)> = self
-            .locals
-            .iter()
-            .filter(|(_, l)| now - l.last > timeout)
-            .map(|(k, _)| *k)
-            .collect();
-        for (head, local) in stale {
-            self.locals.remove(&(head, local));
-            out.push(Decision::Forgotten { head, local });
-        }
-        for (g, gt) in &mut self.globals {
-            if members.is_up(gt.owner) {
-                continue;
-            }
-            let (x, y) = (gt.mean[0], gt.mean[1]);
-            let to = members
-                .live_head_covering(x, y, 0.0, gt.owner)
-                .or_else(|| members.nearest_live_head(x, y, gt.owner));
-            if let Some(to) = to {
-                out.push(Decision::Handover {
-                    global: *g,
-                    from: Some(gt.owner),
-                    to,
-                    reason: HandoverReason::Failover,
-                });
-                gt.owner = to;
-                // A stand-in owner hands the track back as soon as a live head covers it.
-                gt.entered = true;
-                gt.owner_report = now;
-                gt.last_report = now;
-            }
-        }
-        out
-    }
-
-    /// After a server restart: every track gets a fresh timeout window from `now`.
-    pub fn refresh_all(&mut self, now: ClusterTime) {
-        for gt in self.globals.values_mut() {
-            gt.last_report = now;
-            gt.owner_report = now;
-        }
-        for l in self.locals.values_mut() {
-            l.last = now;
-        }
-    }
 }
 
 impl LocalTrack {
-    fn new(binding: Binding, now: ClusterTime) -> Self {
+    fn new(binding: Binding, now: ClusterTime, r: &TrackReport) -> Self {
         LocalTrack {
             binding,
             last: now,
+            posterior: (r.time, r.mean, r.cov),
             agree: 0,
             disagree: 0,
             released: false,

@@ -37,6 +37,8 @@ pub struct SyncEstimator {
     reset_threshold_ns: i64,
     /// `(local_ns, leader_ns)` pairs, oldest first.
     pairs: VecDeque<(i64, i64)>,
+    /// `leader − predicted` at each of the last `window` beacons, ns.
+    innovations: VecDeque<f64>,
     fit: Option<Fit>,
     resets: u64,
     rejected: u64,
@@ -64,6 +66,7 @@ impl SyncEstimator {
             window: window.max(2),
             reset_threshold_ns: DEFAULT_RESET_THRESHOLD_NS,
             pairs: VecDeque::new(),
+            innovations: VecDeque::new(),
             fit: None,
             resets: 0,
             rejected: 0,
@@ -122,9 +125,12 @@ impl SyncEstimator {
                 });
             }
         }
-        if let Some(predicted) = self.predict(local_ns)
-            && (leader.0 - predicted.0).abs() > self.reset_threshold_ns
-        {
+        let predicted = self.predict(local_ns).unwrap_or(ClusterTime(local_ns));
+        self.innovations.push_back((leader.0 - predicted.0) as f64);
+        while self.innovations.len() > self.window {
+            self.innovations.pop_front();
+        }
+        if self.fit.is_some() && (leader.0 - predicted.0).abs() > self.reset_threshold_ns {
             self.pairs.clear();
             self.resets += 1;
         }
@@ -191,8 +197,17 @@ impl SyncEstimator {
         self.fit.map_or(0.0, |f| f.drift)
     }
 
-    /// The visible sync error: RMS residual of the regression, ns. `None` until three beacons
-    /// are in the window.
+    /// The visible sync error: RMS over the last window of beacons of the node's cluster time
+    /// minus the leader's at each beacon's arrival, before that beacon was fitted, ns. `None`
+    /// before the first beacon.
+    pub fn prediction_error_ns(&self) -> Option<f64> {
+        (!self.innovations.is_empty()).then(|| {
+            let ss: f64 = self.innovations.iter().map(|e| e * e).sum();
+            (ss / self.innovations.len() as f64).sqrt()
+        })
+    }
+
+    /// RMS residual of the regression, ns. `None` until three beacons are in the window.
     pub fn error_ns(&self) -> Option<f64> {
         self.fit.and_then(|f| f.rms_residual_ns)
     }
@@ -262,6 +277,23 @@ mod tests {
         let naive = clock.local(t) + offset_first;
         assert!((naive - t).abs() > 1_000_000);
         assert!((est.to_cluster(clock.local(t)).unwrap().0 - t).abs() < 100_000);
+    }
+
+    #[test]
+    fn prediction_error_is_the_offset_at_first_and_the_jitter_once_converged() {
+        let jitter = 100_000.0;
+        let (est, _, _) = run(80e-6, jitter, 1, 3);
+        // Unsynchronized: the local clock is 3.7 s behind.
+        let first = est.prediction_error_ns().unwrap();
+        assert!((first - 3.7e9).abs() < 1e6, "first {first}");
+        let (est, _, _) = run(80e-6, jitter, 4, 3);
+        let early = est.prediction_error_ns().unwrap();
+        assert!(early > 1e8, "still carries the first offset: {early}");
+        // Once the window holds only fitted predictions, the error is of the jitter's order.
+        let (est, _, _) = run(80e-6, jitter, 30, 3);
+        let late = est.prediction_error_ns().unwrap();
+        assert!(late > 0.05 * jitter && late < 2.0 * jitter, "late {late}");
+        assert_eq!(SyncEstimator::default().prediction_error_ns(), None);
     }
 
     #[test]

@@ -545,7 +545,12 @@ impl Sim {
             && self.server.as_ref().is_none_or(|s| s.id() != to)
         {
             let local = tb.clock.local(t);
-            let _ = tb.sync.observe(local, b.leader_time);
+            if tb.sync.observe(local, b.leader_time).is_ok()
+                && let Some(c) = self.cameras.get_mut(&to)
+            {
+                let error = tb.sync.prediction_error_ns().map_or(-1, |e| e.round() as i64);
+                c.core.set_sync(tb.sync.offset_ns(local), error);
+            }
             return;
         }
         let now = self.now_of(to, t);
@@ -600,6 +605,7 @@ fn apply_rssi(slot: &mut CameraSlot, now: ClusterTime, dbm: f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use node_server::Record;
 
     fn short(seed: u64) -> Vec<Stamped> {
         let opts = SimOptions {
@@ -611,6 +617,51 @@ mod tests {
             .unwrap()
             .run()
             .records
+    }
+
+    /// Skewed node clocks: each camera's reported sync error starts at its clock offset (the
+    /// first beacon finds the unsynchronized clock) and falls to the delivery jitter's order
+    /// once the regression has converged.
+    #[test]
+    fn cameras_report_their_sync_error_falling_as_the_estimate_converges() {
+        let opts = SimOptions {
+            seed: 3,
+            duration_s: 14.0,
+            level: Level::Measurement,
+            network: NetworkModel {
+                latency_ms: 2.0,
+                jitter_ms: 1.0,
+                clock_offset_ms: 50.0,
+                clock_drift_ppm: 100.0,
+                ..Default::default()
+            },
+            ..SimOptions::default()
+        };
+        let records = Sim::new(Scenario::default_scenario(), opts)
+            .unwrap()
+            .run()
+            .records;
+        let mut per_node: BTreeMap<NodeId, Vec<i64>> = BTreeMap::new();
+        for s in &records {
+            if let Record::Received(env) = &s.record
+                && let Message::NodeStatus(st) = &env.body
+                && st.sync_error_ns >= 0
+            {
+                per_node.entry(env.source).or_default().push(st.sync_error_ns);
+            }
+        }
+        assert!(per_node.len() >= 10, "statuses from {} cameras", per_node.len());
+        let mut fell = 0;
+        for (node, errs) in &per_node {
+            let (first, last) = (errs[0], errs[errs.len() - 1]);
+            assert!(errs.len() >= 10, "{node}: {} statuses", errs.len());
+            assert!(last > 0 && last < 2_000_000, "{node}: converged error {last} ns");
+            if first > 5_000_000 {
+                assert!(last < first / 5, "{node}: error {first} ns → {last} ns");
+                fell += 1;
+            }
+        }
+        assert!(fell >= 5, "only {fell} cameras started more than 5 ms off");
     }
 
     #[test]

@@ -184,3 +184,73 @@ async fn head_process_tracks_and_survives_cameras_and_server_vanishing() {
         "reports to the vanished server should fail: {summary:?}"
     );
 }
+
+/// The server's beacons say its clock is 5 ms ahead of this host's: the head's cluster time
+/// follows them, and its `NodeStatus` to the server carries the offset and a sync error.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn head_process_syncs_to_the_beacons_and_reports_its_sync_error() {
+    #[allow(clippy::disallowed_methods)] // the test plays the server's runtime
+    fn host() -> proto::ClusterTime {
+        proto::ClusterTime::wall_clock()
+    }
+    const AHEAD_NS: i64 = 5_000_000;
+    let scenario = ring_scenario(4, "distributed-eif", "all-on", 0.0, ONE_TARGET);
+    let cfg = HeadConfig::from_scenario(&scenario, 2).unwrap();
+    let hub = InProcessHub::new();
+    let token = CancellationToken::new();
+    let clock = Arc::new(Clock::default());
+    let head = {
+        let (hub, clock, token) = (hub.clone(), clock.clone(), token.clone());
+        std::thread::spawn(move || {
+            let rt = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .unwrap();
+            rt.block_on(run_on(cfg, inproc(&hub, 2, Role::Head), clock, token))
+        })
+    };
+    let (server, mut server_in, _, server_handle) = open(inproc(&hub, 1, Role::Server)).await.unwrap();
+    // Beacons every 100 ms; statuses every second.
+    let mut statuses = Vec::new();
+    while statuses.len() < 2 {
+        let beacon = proto::msg::SyncBeacon {
+            leader: NodeId(1),
+            round: 0,
+            leader_time: proto::ClusterTime(host().0 + AHEAD_NS),
+        };
+        let _ = server
+            .send(Outgoing::new(NodeId(2), Message::SyncBeacon(beacon)), host())
+            .await;
+        let ev = tokio::time::timeout(Duration::from_millis(100), server_in.recv()).await;
+        if let Ok(Some(Event::Message(m))) = ev
+            && let Message::NodeStatus(s) = m.env.body
+            && s.sync_error_ns >= 0
+        {
+            statuses.push(s);
+        }
+    }
+    // In-process delivery takes micro- to milliseconds, and the drift fitted over a few
+    // beacons moves the estimate either way: 5 ms within 3 ms. The first beacons found the
+    // host clock 5 ms off; a second later the beacons arrive where the head expects them.
+    let (first, later) = (&statuses[0], &statuses[1]);
+    assert!(
+        (first.sync_error_ns - AHEAD_NS).abs() < 3_000_000,
+        "first {first:?}"
+    );
+    let off = later.sync_offset_ns;
+    assert!((off - AHEAD_NS).abs() < 3_000_000, "offset {off} ns");
+    assert!(
+        later.sync_error_ns < first.sync_error_ns / 3,
+        "sync error {} ns after {} ns",
+        later.sync_error_ns,
+        first.sync_error_ns
+    );
+    let ahead = clock.now().0 - host().0;
+    assert!(
+        (ahead - AHEAD_NS).abs() < 3_000_000,
+        "cluster time {ahead} ns ahead"
+    );
+    token.cancel();
+    head.join().unwrap().unwrap();
+    server_handle.shutdown().await;
+}

@@ -165,6 +165,14 @@ impl Seqs {
         peers
     }
 
+    /// The number the next data frame to `to` will carry, without taking it: link control
+    /// frames (handshake, heartbeats) carry it, so data sequence numbers have no gaps but lost
+    /// data frames.
+    pub(crate) fn peek(&self, to: NodeId) -> u64 {
+        let m = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        m.get(&to).copied().unwrap_or(0)
+    }
+
     pub(crate) fn next(&self, to: NodeId) -> u64 {
         let mut m = self.0.lock().unwrap_or_else(|p| p.into_inner());
         let s = m.entry(to).or_insert(0);

@@ -5,7 +5,8 @@
 //! routes frames for that node id over the accepted connection. Frames are length-prefixed
 //! ([`super::codec::FrameCodec`], limit [`MAX_FRAME_BYTES`]); oversized, malformed and
 //! wrong-version frames are counted and skipped, the link stays up. Each side sends a
-//! `Heartbeat` every `heartbeat` and drops a link silent for `liveness_timeout`. Dialed links
+//! `Heartbeat` every `heartbeat` and drops a link silent for `liveness_timeout`; these control
+//! frames repeat the next data sequence number instead of taking one. Dialed links
 //! reconnect with exponential backoff and jitter; their outgoing queue survives reconnects.
 //! On shutdown every link writes what is queued, flushes and closes.
 
@@ -148,10 +149,12 @@ struct Ctx {
 }
 
 impl Ctx {
+    /// A link control frame (hello, hello-ack, heartbeat). It never reaches the peer's node
+    /// logic, so it takes no sequence number: a gap in what the peer records is a lost frame.
     fn frame(&self, to: NodeId, body: Message) -> Result<Bytes, LinkError> {
         let env = Envelope {
             source: self.me,
-            seq: self.seqs.next(to),
+            seq: self.seqs.peek(to),
             time: (self.clock)(),
             body,
         };

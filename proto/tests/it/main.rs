@@ -7,4 +7,5 @@
 mod camera;
 mod models;
 mod scenario;
+mod tcp_seq;
 mod wire;
