@@ -38,6 +38,7 @@ async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
         clock: clock.clone(),
         tick: Duration::from_millis(100),
         reference: ReferencePoint::Centre,
+        record_measurements: false,
     };
     let stop = CancellationToken::new();
     // The camera's future is driven on this task: `proto::transport::open`'s future holds a
