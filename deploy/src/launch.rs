@@ -30,6 +30,8 @@ pub struct LaunchOptions {
     pub record: PathBuf,
     /// Print live progress lines on standard error.
     pub progress: bool,
+    /// A logging run: every camera measures every frame and the server records it.
+    pub record_measurements: bool,
 }
 
 /// A free loopback port (bound then released; the child binds it right after).
@@ -78,6 +80,9 @@ fn spawn_node(sup: &mut Supervisor, how: &Spawn<'_>, role: &str, id: u32) -> Res
         // Scenario time 0 for the synthetic world, the same for every camera.
         "camera" => {
             cmd.arg("--epoch-ns").arg(how.epoch.0.to_string());
+            if opts.record_measurements {
+                cmd.arg("--record-measurements");
+            }
         }
         _ => {}
     }

@@ -8,12 +8,16 @@
 //! or the server is away, messages to them are counted as dropped and the node keeps going.
 //! The server's sync beacons feed a [`SyncEstimator`] whose offset and error go out in the
 //! node's `NodeStatus`.
+//! With `record_measurements` (a logging run, [`crate::logging`]) the source captures whatever
+//! the mode, and every frame's measurements also go to the server; those the transport drops
+//! under backpressure are counted apart (`Summary::measured_dropped`).
 //! `shutdown` stops the loop; the capture thread is joined and the transport shut down.
 
 use crate::config::{CameraConfig, ConfigError};
 use crate::core::{CameraNode, Counters};
 use crate::detect::ReferencePoint;
 use crate::frame::Frame;
+use crate::logging::{FrameLogger, LogCounters};
 use crate::radio::{self, MultipathField};
 use crate::render::SyntheticSource;
 use crate::source::{FrameSource, ImageSequence, SourceError};
@@ -63,6 +67,9 @@ pub struct ProcessConfig {
     pub tick: Duration,
     /// Which point of a region stands for the target (the foot point for people).
     pub reference: ReferencePoint,
+    /// A logging run: capture and measure every frame whatever the mode, and send each
+    /// frame's measurements to the server for its recording.
+    pub record_measurements: bool,
 }
 
 impl std::fmt::Debug for ProcessConfig {
@@ -71,6 +78,7 @@ impl std::fmt::Debug for ProcessConfig {
             .field("id", &self.id)
             .field("transport", &self.transport)
             .field("source", &self.source)
+            .field("record_measurements", &self.record_measurements)
             .finish()
     }
 }
@@ -99,6 +107,10 @@ pub struct Summary {
     pub frames_lost: u64,
     /// Messages the transport refused (no link to the peer, shut down).
     pub send_failures: u64,
+    /// A logging run's frames: measured, refused, truncated (all zero otherwise).
+    pub logged: LogCounters,
+    /// A logging run's frames that did not reach the transport or that it dropped.
+    pub measured_dropped: u64,
 }
 
 /// The transport configuration of camera `id`: iceoryx2 in the scenario's domain, or TCP
@@ -224,6 +236,33 @@ fn observe_beacon(sync: &mut SyncEstimator, node: &mut CameraNode, local_ns: i64
     node.set_sync(sync.offset_ns(local_ns), error);
 }
 
+/// The RSSI of the scenario's tag at this node at cluster time `at`, dBm, when exactly one
+/// target carries a tag (as the simulation's logging runs record it).
+fn tag_dbm(
+    cfg: &ProcessConfig,
+    field: &MultipathField,
+    node_pos: &Vector3<f64>,
+    at: ClusterTime,
+) -> Option<f64> {
+    let mut tagged = cfg.scenario.targets.iter().filter(|t| t.rssi_tag);
+    let (Some(tag), None) = (tagged.next(), tagged.next()) else {
+        return None;
+    };
+    let t = at.secs_since(cfg.epoch);
+    let x = tag.truth_at(t);
+    let pos = Vector3::new(x[0], x[1], x[2]);
+    Some(radio::reading(
+        &cfg.scenario.world,
+        field,
+        cfg.id,
+        node_pos,
+        tag.id,
+        &pos,
+        t,
+        cfg.seed,
+    ))
+}
+
 /// Run camera `cfg.id` until `shutdown` is cancelled.
 ///
 /// # Errors
@@ -238,7 +277,10 @@ pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<Summ
     let mut node = CameraNode::new(core_cfg, clock());
     info!(node = cfg.id, fps, source = ?cfg.source, "camera running");
 
-    let camera_on = Arc::new(AtomicBool::new(node.mode().camera_on()));
+    // A logging run captures whatever the mode.
+    let mut logger = cfg.record_measurements.then(|| FrameLogger::new(node.config()));
+    let capture_now = |node: &CameraNode| cfg.record_measurements || node.mode().camera_on();
+    let camera_on = Arc::new(AtomicBool::new(capture_now(&node)));
     let stop = Arc::new(AtomicBool::new(false));
     let lost = Arc::new(AtomicU64::new(0));
     let (tx, rx) = mpsc::channel::<Frame>(2);
@@ -282,6 +324,7 @@ pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<Summ
     radio_tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let mut send_failures = 0u64;
     let mut sync = SyncEstimator::default();
+    let mut measured_dropped = 0u64;
 
     loop {
         let outs = tokio::select! {
@@ -314,7 +357,16 @@ pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<Summ
                     None => std::future::pending().await,
                 }
             } => match f {
-                Some(frame) => node.on_frame(clock(), &frame),
+                Some(frame) => match logger.as_mut() {
+                    None => node.on_frame(clock(), &frame),
+                    Some(l) => {
+                        let dbm = if synthetic { tag_dbm(&cfg, &field, &node_pos, frame.captured) } else { None };
+                        l.log(&mut node, clock(), &frame, dbm).unwrap_or_else(|e| {
+                            warn!(node = cfg.id, error = %e, "logging run: frame refused");
+                            Vec::new()
+                        })
+                    }
+                },
                 None => {
                     frames = None;
                     Vec::new()
@@ -333,14 +385,19 @@ pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<Summ
                 Vec::new()
             }
         };
-        camera_on.store(node.mode().camera_on(), Ordering::Relaxed);
+        camera_on.store(capture_now(&node), Ordering::Relaxed);
         for out in outs {
             let to = out.to;
+            let measured = matches!(out.body, Message::MeasuredFrame(_));
             match endpoint.send(out, clock()).await {
                 Ok(Delivery::Queued) => {}
-                Ok(Delivery::Dropped) => node.record_dropped(1),
+                Ok(Delivery::Dropped) => {
+                    node.record_dropped(1);
+                    measured_dropped += u64::from(measured);
+                }
                 Err(e) => {
                     node.record_dropped(1);
+                    measured_dropped += u64::from(measured);
                     send_failures += 1;
                     debug!(node = cfg.id, to = %to, error = %e, "not delivered");
                 }
@@ -359,6 +416,8 @@ pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<Summ
         transport: stats.snapshot(),
         frames_lost: lost.load(Ordering::Relaxed),
         send_failures,
+        logged: logger.map(|l| l.counters()).unwrap_or_default(),
+        measured_dropped,
     };
     info!(
         node = cfg.id,

@@ -151,6 +151,31 @@ fn unexpected_messages_are_rejected_without_state_change() {
     assert_eq!(s.counters().rejected, 3);
 }
 
+/// A camera's logging-run frame is recorded as `Record::Measured` and changes nothing else
+/// (not even who is a member); from a head it is an input, rejected and recorded as received.
+#[test]
+fn a_cameras_measured_frame_is_recorded_and_nothing_else() {
+    let mut s = server();
+    let frame = proto::msg::MeasuredFrame {
+        captured: ms(40),
+        rssi_dbm: Some(-60.0),
+        detections: Vec::new(),
+    };
+    let out = s.on_message(ms(42), env(CAM, Message::MeasuredFrame(frame.clone())));
+    assert!(out.is_empty());
+    assert!(s.membership().member(CAM).is_none());
+    let records = s.take_records();
+    assert_eq!(records.len(), 1, "{records:?}");
+    assert_eq!(records[0].at, ms(42));
+    assert_eq!(
+        records[0].record,
+        Record::Measured(crate::record::MeasuredFrame::from_wire(CAM, &frame))
+    );
+    s.on_message(ms(43), env(H2, Message::MeasuredFrame(frame)));
+    assert_eq!(s.counters().rejected, 1);
+    assert!(matches!(s.take_records()[0].record, Record::Received(_)));
+}
+
 #[test]
 fn a_silent_camera_is_reported_down_to_its_head_and_readmitted() {
     let mut s = started();

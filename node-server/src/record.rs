@@ -6,7 +6,8 @@
 //! `u8 kind | i64 LE at | body`, where the body is the scenario's TOML text, an encoded
 //! envelope (`proto::wire::encode`), `u32 LE destination` + encoded envelope, nothing, a
 //! decision as JSON, `u32 LE node` + `u8 up` for a link event, or a postcard-encoded
-//! [`MeasuredFrame`] (a logging run's camera measurement; kind 6, added later: recordings
+//! [`MeasuredFrame`] (a logging run's camera measurement, written by the simulation or mapped
+//! from a camera process's `Message::MeasuredFrame`; kind 6, added later: recordings
 //! without it read as before).
 
 use crate::decision::Decision;
@@ -62,6 +63,29 @@ pub struct MeasuredDetection {
 }
 
 impl MeasuredFrame {
+    /// The record of a camera's `proto::msg::MeasuredFrame` (a logging run over real
+    /// processes): the same numbers, the covariance written out as its symmetric 2×2.
+    pub fn from_wire(camera: NodeId, m: &proto::msg::MeasuredFrame) -> MeasuredFrame {
+        MeasuredFrame {
+            camera,
+            captured: m.captured,
+            rssi_dbm: m.rssi_dbm,
+            detections: m
+                .detections
+                .iter()
+                .map(|d| MeasuredDetection {
+                    centre: d.centre,
+                    foot: d.foot,
+                    pixel_box: d.pixel_box,
+                    area: d.area,
+                    colour: d.colour,
+                    point: d.point,
+                    cov: [d.cov[0], d.cov[1], d.cov[1], d.cov[2]],
+                })
+                .collect(),
+        }
+    }
+
     /// Why the frame cannot be used, if it cannot: a non-finite number or a covariance that is
     /// not symmetric positive semi-definite on its diagonal.
     pub fn problem(&self) -> Option<String> {
@@ -283,6 +307,31 @@ mod tests {
                 cov: [1e-6 / 3.0, 1e-9, 1e-9, 2e-6 / 7.0],
             }],
         }
+    }
+
+    /// A camera's wire frame becomes the record the simulation would have written for the
+    /// same detection, bit for bit, and survives the recording.
+    #[test]
+    fn a_wire_frame_maps_to_the_same_record() {
+        let want = frame();
+        let d = want.detections[0];
+        let wire = proto::msg::MeasuredFrame {
+            captured: want.captured,
+            rssi_dbm: want.rssi_dbm,
+            detections: vec![proto::msg::MeasuredDetection {
+                centre: d.centre,
+                foot: d.foot,
+                pixel_box: d.pixel_box,
+                area: d.area,
+                colour: d.colour,
+                point: d.point,
+                cov: [d.cov[0], d.cov[1], d.cov[3]],
+            }],
+        };
+        let got = MeasuredFrame::from_wire(want.camera, &wire);
+        assert_eq!(got, want);
+        let s = Stamped::new(ClusterTime(3), Record::Measured(got));
+        assert_eq!(Stamped::decode(&s.encode().unwrap()).unwrap(), s);
     }
 
     #[test]

@@ -36,5 +36,9 @@ pub const MAX_FRAME_BYTES: usize = 16 * 1024;
 /// Most node ids a single `TrackReport` may name.
 pub const MAX_CONTRIBUTORS: usize = 1024;
 
+/// Most detections one `MeasuredFrame` may carry (segmenters keep at most 32 regions; 64 of
+/// them encode to about 6 KiB, well inside [`MAX_FRAME_BYTES`]).
+pub const MAX_MEASURED_DETECTIONS: usize = 64;
+
 /// Most nodes a scenario may declare.
 pub const MAX_NODES: usize = 4096;

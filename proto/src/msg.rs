@@ -233,6 +233,37 @@ pub struct Liveness {
     pub up: bool,
 }
 
+// ---------------------------------------------------------------- camera → server
+
+/// One undistorted detection of a [`MeasuredFrame`]: the segmented region and its normalized
+/// pin-hole point with covariance, as the camera computed them.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MeasuredDetection {
+    /// Region centroid and foot point, pixels.
+    pub centre: [f32; 2],
+    pub foot: [f32; 2],
+    pub pixel_box: PixelBox,
+    /// Region area in pixels.
+    pub area: u32,
+    pub colour: ColourSignature,
+    /// Undistorted normalized point of the camera's reference point.
+    pub point: [f64; 2],
+    /// Covariance of `point`, `[σxx, σxy, σyy]` in normalized units².
+    pub cov: [f64; 3],
+}
+
+/// Everything a camera measured in one frame of a *logging run*, whatever its mode (paper 002
+/// logged every measurement once and processed it offline with each method). Sent to the
+/// server, which records it; at most [`crate::MAX_MEASURED_DETECTIONS`] detections.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MeasuredFrame {
+    /// Capture time, the camera's cluster time.
+    pub captured: ClusterTime,
+    /// RSSI of the scenario's tag at the camera's radio at capture time, dBm.
+    pub rssi_dbm: Option<f64>,
+    pub detections: Vec<MeasuredDetection>,
+}
+
 // ---------------------------------------------------------------- every link
 
 /// First frame on every link.
@@ -266,6 +297,7 @@ pub enum Message {
     Handover(Handover),
     SyncBeacon(SyncBeacon),
     Liveness(Liveness),
+    MeasuredFrame(MeasuredFrame),
 }
 
 impl Message {
@@ -285,11 +317,13 @@ impl Message {
             Message::Handover(_) => "handover",
             Message::SyncBeacon(_) => "sync_beacon",
             Message::Liveness(_) => "liveness",
+            Message::MeasuredFrame(_) => "measured_frame",
         }
     }
 
     /// Whether a transport may drop this message when a queue is full. Measurements and
-    /// reports are superseded by the next step; control messages never are.
+    /// reports are superseded by the next step (a logging run's dropped frames are counted
+    /// by the camera); control messages never are.
     pub fn droppable(&self) -> bool {
         matches!(
             self,
@@ -298,6 +332,7 @@ impl Message {
                 | Message::NodeStatus(_)
                 | Message::TrackReport(_)
                 | Message::Heartbeat
+                | Message::MeasuredFrame(_)
         )
     }
 }

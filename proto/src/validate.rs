@@ -4,7 +4,7 @@
 //! indefinite beyond [`PSD_TOLERANCE`]; sane sizes; plausible ranges.
 
 use crate::msg::*;
-use crate::{MAX_CONTRIBUTORS, PROTOCOL_VERSION};
+use crate::{MAX_CONTRIBUTORS, MAX_MEASURED_DETECTIONS, PROTOCOL_VERSION};
 use nalgebra::{Matrix6, SymmetricEigen};
 use thiserror::Error;
 
@@ -127,11 +127,7 @@ impl Validate for Message {
                     finite("measurement.prev_point", &p)?;
                 }
                 check_cov2("measurement.cov", &m.cov)?;
-                let b = &m.pixel_box;
-                finite32("measurement.pixel_box", &[b.xmin, b.ymin, b.xmax, b.ymax])?;
-                if b.xmax < b.xmin || b.ymax < b.ymin {
-                    return Err(err("measurement.pixel_box", "max is below min"));
-                }
+                check_box("measurement.pixel_box", &m.pixel_box)?;
                 finite32(
                     "measurement.colour",
                     &[m.colour.hue, m.colour.saturation, m.colour.intensity],
@@ -185,14 +181,53 @@ impl Validate for Message {
             }
             Message::SyncBeacon(_) => Ok(()),
             Message::Liveness(_) => Ok(()),
+            Message::MeasuredFrame(f) => {
+                if f.detections.len() > MAX_MEASURED_DETECTIONS {
+                    return Err(err(
+                        "measured_frame.detections",
+                        format!(
+                            "{} entries exceed the maximum of {MAX_MEASURED_DETECTIONS}",
+                            f.detections.len()
+                        ),
+                    ));
+                }
+                if let Some(dbm) = f.rssi_dbm {
+                    check_dbm("measured_frame.rssi_dbm", dbm)?;
+                }
+                for d in &f.detections {
+                    finite32("measured_frame.detections.centre", &d.centre)?;
+                    finite32("measured_frame.detections.foot", &d.foot)?;
+                    check_box("measured_frame.detections.pixel_box", &d.pixel_box)?;
+                    let c = &d.colour;
+                    finite32(
+                        "measured_frame.detections.colour",
+                        &[c.hue, c.saturation, c.intensity],
+                    )?;
+                    finite("measured_frame.detections.point", &d.point)?;
+                    check_cov2("measured_frame.detections.cov", &d.cov)?;
+                }
+                Ok(())
+            }
         }
     }
 }
 
 fn check_rssi(field: &'static str, r: &RssiReading) -> Result<(), ValidationError> {
-    finite(field, &[r.dbm])?;
-    if !(-200.0..=30.0).contains(&r.dbm) {
-        return Err(err(field, format!("{} dBm is outside -200..30 dBm", r.dbm)));
+    check_dbm(field, r.dbm)
+}
+
+fn check_dbm(field: &'static str, dbm: f64) -> Result<(), ValidationError> {
+    finite(field, &[dbm])?;
+    if !(-200.0..=30.0).contains(&dbm) {
+        return Err(err(field, format!("{dbm} dBm is outside -200..30 dBm")));
+    }
+    Ok(())
+}
+
+fn check_box(field: &'static str, b: &PixelBox) -> Result<(), ValidationError> {
+    finite32(field, &[b.xmin, b.ymin, b.xmax, b.ymax])?;
+    if b.xmax < b.xmin || b.ymax < b.ymin {
+        return Err(err(field, "max is below min"));
     }
     Ok(())
 }

@@ -81,7 +81,7 @@ pub fn decode(frame: &[u8]) -> Result<Envelope, WireError> {
 
 /// Kind names of [`crate::Message`] by wire tag (variant index). A test pins it to
 /// [`crate::Message::kind`].
-pub const MESSAGE_KINDS: [&str; 13] = [
+pub const MESSAGE_KINDS: [&str; 14] = [
     "hello",
     "hello_ack",
     "heartbeat",
@@ -95,6 +95,7 @@ pub const MESSAGE_KINDS: [&str; 13] = [
     "handover",
     "sync_beacon",
     "liveness",
+    "measured_frame",
 ];
 
 /// Turn a postcard failure into an error that names the message kind and the problem

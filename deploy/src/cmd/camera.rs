@@ -39,6 +39,10 @@ pub struct Args {
     /// The region point that stands for the target: its centre (solids) or foot (people).
     #[arg(long, value_enum, default_value_t = Reference::Centre)]
     pub reference: Reference,
+    /// A logging run: measure every frame whatever the mode and send its measurements to the
+    /// server's recording (for `ocelli replay`).
+    #[arg(long)]
+    pub record_measurements: bool,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -86,6 +90,7 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
             Reference::Centre => ReferencePoint::Centre,
             Reference::Foot => ReferencePoint::Foot,
         },
+        record_measurements: args.record_measurements,
     };
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -128,6 +133,8 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
                 "rejected": summary.counters.rejected,
                 "frames_lost": summary.frames_lost,
                 "send_failures": summary.send_failures,
+                "measured_frames": summary.logged.frames,
+                "measured_dropped": summary.measured_dropped,
                 "transport": summary.transport,
             })
         );

@@ -29,6 +29,10 @@ pub struct Args {
     /// No live progress lines.
     #[arg(long)]
     pub quiet: bool,
+    /// A logging run: every camera measures every frame whatever its mode and the server
+    /// records it, so `ocelli replay` can re-run the recording with any method and policy.
+    #[arg(long)]
+    pub record_measurements: bool,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -39,6 +43,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         run_dir: args.run_dir,
         record: args.record,
         progress: !args.quiet,
+        record_measurements: args.record_measurements,
     };
     let report = launch(scenario, &opts)?;
     if args.json {

@@ -10,7 +10,7 @@ use super::common::NetArgs;
 use crate::replay::cameras::Cameras;
 use crate::replay::detections::read_detections;
 use crate::replay::ml::{Estimate, MlOptions, replay_ml};
-use crate::replay::rerun::{RerunOptions, rerun};
+use crate::replay::rerun::{RerunOptions, recording_t0, rerun};
 use crate::replay::track::{RssiNodes, TrackOptions, track_with_rssi};
 use crate::sim::net::NetworkModel;
 use crate::sim::runtime::SimOptions;
@@ -87,9 +87,10 @@ pub struct RecordingArgs {
     /// No latency, jitter, loss or clock error (overrides the network flags).
     #[arg(long)]
     pub ideal_network: bool,
-    /// Cluster time (ns) of scenario time 0 in the recording.
-    #[arg(long, default_value_t = 0)]
-    pub t0_ns: i64,
+    /// Cluster time (ns) of scenario time 0 in the recording (default: its first record's
+    /// time — 0 for `ocelli sim`, the server's start for `ocelli launch`).
+    #[arg(long)]
+    pub t0_ns: Option<i64>,
     /// Print the report as one JSON line (`{"report": …}`) after the estimates instead of a
     /// table on standard error.
     #[arg(long)]
@@ -111,8 +112,8 @@ impl Default for RecordingArgs {
 #[derive(clap::Args, Debug)]
 #[command(group(clap::ArgGroup::new("input").required(true).args(["recording", "detections"])))]
 pub struct Args {
-    /// A logging run's recording (`ocelli sim --record-measurements --record FILE`) to re-run
-    /// through the heads.
+    /// A logging run's recording (`ocelli sim --record-measurements --record FILE`, or
+    /// `ocelli launch --record-measurements`) to re-run through the heads.
     pub recording: Option<PathBuf>,
     /// JSON Lines detections, `-` for standard input.
     #[arg(long)]
@@ -274,7 +275,7 @@ pub fn replay_recording(path: &std::path::Path, args: &Args) -> Result<(Vec<Trac
             network,
             ..SimOptions::default()
         },
-        t0: ClusterTime(rec.t0_ns),
+        t0: rec.t0_ns.map_or_else(|| recording_t0(&loaded), ClusterTime),
     };
     let replay = rerun(&loaded, &opts)?;
     tracing::info!(
@@ -287,7 +288,8 @@ pub fn replay_recording(path: &std::path::Path, args: &Args) -> Result<(Vec<Trac
     );
     let replayed = replay.loaded();
     let rows = track_rows(&replayed).into_iter().filter(|r| r.owner).collect();
-    Ok((rows, node_server::report::compute(&replayed, opts.t0)))
+    // The replay's records are on its own virtual clock, where scenario time 0 is 0.
+    Ok((rows, node_server::report::compute(&replayed, ClusterTime(0))))
 }
 
 fn write_lines<T: serde::Serialize>(items: &[T], out: &mut impl Write) -> Result<bool> {

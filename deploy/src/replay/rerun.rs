@@ -13,6 +13,21 @@
 //! With the run's scenario, method, policy, seed and network options, the replay's records
 //! equal the run's (less the measurements): every input a core sees is bit for bit the
 //! same, at the same virtual time, in the same order.
+//!
+//! Recorded times map onto the replay's virtual clock by subtracting `t0`, the cluster time
+//! of scenario time 0 ([`recording_t0`]: the first record's time, 0 for `ocelli sim`). The
+//! replay's own records, estimates and report are in virtual time, i.e. seconds since `t0`.
+//!
+//! A logging run of real processes (`ocelli launch --record-measurements`) replays only
+//! approximately: its records are stamped with the server's wall clock when each frame
+//! *arrived*, so the replay sees every frame shifted by its transport and scheduling delay
+//! and re-quantized onto its own frame ticks (a recorded frame is used at the first replayed
+//! frame event of that camera at or after it; two in one period supersede each other); the
+//! heads step on the replay's simulated network and clocks rather than the run's; frames the
+//! run's transport dropped under backpressure are missing; and `t0` (the server's start) is
+//! a little later than the launch's epoch for the synthetic world, so truth is compared a few
+//! tens of milliseconds off. The live run's decisions are not reproduced record for record —
+//! the methods and policies are compared on the same measurements, which is what matters.
 
 use crate::sim::logged::Recorded;
 use crate::sim::runtime::{NetCounters, Sim, SimOptions};
@@ -32,7 +47,8 @@ pub struct RerunOptions {
     /// Seed, network model and tick periods of the replay's simulated network and clocks.
     /// `duration_s` is ignored: the replay runs to the recording's last record.
     pub sim: SimOptions,
-    /// Cluster time of scenario time 0 in the recording (0 for `ocelli sim`).
+    /// Cluster time of scenario time 0 in the recording (0 for `ocelli sim`; see
+    /// [`recording_t0`]).
     pub t0: ClusterTime,
 }
 
@@ -61,6 +77,16 @@ impl Rerun {
             tail: None,
         }
     }
+}
+
+/// Longest recording a replay re-runs, ns (a week): more means a wrong `t0`.
+pub const MAX_REPLAY_NS: i64 = 7 * 24 * 3600 * 1_000_000_000;
+
+/// The cluster time of scenario time 0 in a recording when nobody says otherwise: its first
+/// record's (the scenario, written at 0 by `ocelli sim` and at the server's start, wall-clock
+/// ns, by `ocelli launch`).
+pub fn recording_t0(loaded: &Loaded) -> ClusterTime {
+    loaded.records.first().map_or(ClusterTime(0), |s| s.at)
 }
 
 /// Re-run `loaded`'s recorded measurements through fresh cores.
@@ -93,7 +119,7 @@ pub fn rerun(loaded: &Loaded, opts: &RerunOptions) -> Result<Rerun> {
     anyhow::ensure!(
         frames > 0,
         "the recording holds no camera measurements: make a logging run (`ocelli sim \
-         --record-measurements --record FILE`)"
+         --record-measurements --record FILE` or `ocelli launch --record-measurements`)"
     );
     if unknown > 0 {
         tracing::warn!(
@@ -108,6 +134,13 @@ pub fn rerun(loaded: &Loaded, opts: &RerunOptions) -> Result<Rerun> {
         .max()
         .unwrap_or(0)
         .max(recorded.last_ns().unwrap_or(0));
+    anyhow::ensure!(
+        last_ns <= MAX_REPLAY_NS,
+        "the recording ends {:.0} s after t0 = {} ns: is t0 right? (default: the first \
+         record's time)",
+        last_ns as f64 * 1e-9,
+        opts.t0.0
+    );
     let sim_opts = SimOptions {
         duration_s: last_ns as f64 * 1e-9,
         ..opts.sim.clone()
@@ -130,4 +163,52 @@ pub fn without_measurements(records: &[Stamped]) -> Vec<&Stamped> {
         .iter()
         .filter(|s| !matches!(s.record, Record::Measured(_)))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::runtime::Level;
+
+    /// A logging run whose records are stamped in wall-clock time (as a launch's are) replays
+    /// exactly like the same run stamped from 0, with `t0` taken from its first record.
+    #[test]
+    fn wall_clock_recordings_replay_from_their_first_record() {
+        let scenario = Scenario::default_scenario();
+        let sim = SimOptions {
+            duration_s: 4.0,
+            level: Level::Measurement,
+            record_measurements: true,
+            ..SimOptions::default()
+        };
+        let run = Sim::new(scenario.clone(), sim.clone()).unwrap().run();
+        let first = Stamped::new(ClusterTime(0), Record::Scenario(scenario.to_toml()));
+        let at_zero: Vec<Stamped> = std::iter::once(first).chain(run.records).collect();
+        let wall = 1_763_740_000_123_456_789;
+        let shifted = at_zero
+            .iter()
+            .map(|s| Stamped::new(ClusterTime(s.at.0 + wall), s.record.clone()))
+            .collect();
+        let loaded = |records| Loaded {
+            scenario: scenario.clone(),
+            records,
+            tail: None,
+        };
+        let (from_zero, from_wall) = (loaded(at_zero), loaded(shifted));
+        assert_eq!(recording_t0(&from_zero), ClusterTime(0));
+        assert_eq!(recording_t0(&from_wall), ClusterTime(wall));
+        let opts = |t0| RerunOptions {
+            fusion: None,
+            activation: Some(Activation::AllOn),
+            sim: sim.clone(),
+            t0,
+        };
+        let a = rerun(&from_zero, &opts(recording_t0(&from_zero))).unwrap();
+        let b = rerun(&from_wall, &opts(recording_t0(&from_wall))).unwrap();
+        assert!(a.records.len() > 100, "{} records", a.records.len());
+        assert_eq!(a.records, b.records);
+        // Without the shift the recording would end decades after scenario time 0.
+        let e = rerun(&from_wall, &opts(ClusterTime(0))).unwrap_err().to_string();
+        assert!(e.contains("is t0 right?"), "{e}");
+    }
 }

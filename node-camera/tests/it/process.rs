@@ -38,6 +38,7 @@ async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
         clock: clock.clone(),
         tick: Duration::from_millis(100),
         reference: ReferencePoint::Centre,
+        record_measurements: false,
     };
     let stop = CancellationToken::new();
     // The camera's future is driven on this task: `proto::transport::open`'s future holds a
@@ -107,4 +108,89 @@ async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
     );
     assert!(summary.counters.contributions >= 1);
     handle.shutdown().await;
+}
+
+/// A logging run: switched Inactive by its head, the camera still captures and measures every
+/// frame and sends each to the server as a `MeasuredFrame`, while its core stays asleep.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_logging_camera_sends_every_frame_to_the_server_whatever_its_mode() {
+    let scenario = Scenario::default_scenario();
+    let hub = InProcessHub::new();
+    let clock = wall_clock();
+    let (server, mut inbox, _stats, server_handle) = open(TransportConfig::InProcess {
+        hub: hub.clone(),
+        me: NodeId(1),
+        role: Role::Server,
+        queue_len: 256,
+    })
+    .await
+    .unwrap();
+    let cfg = ProcessConfig {
+        scenario: scenario.clone(),
+        id: 10,
+        transport: TransportConfig::InProcess {
+            hub: hub.clone(),
+            me: NodeId(10),
+            role: Role::Camera,
+            queue_len: 64,
+        },
+        source: SourceSpec::Synthetic,
+        seed: 1,
+        epoch: ClusterTime::ZERO,
+        clock: clock.clone(),
+        tick: Duration::from_millis(100),
+        reference: ReferencePoint::Centre,
+        record_measurements: true,
+    };
+    let stop = CancellationToken::new();
+    let camera = run(cfg, stop.clone());
+    let driver = async {
+        // The server's stand-in sends the command a head would (the camera takes commands
+        // from anyone addressed to it), then counts the frames that keep coming.
+        let sleep = proto::msg::Command {
+            node: NodeId(10),
+            mode: proto::Mode::Inactive,
+        };
+        let mut frames = 0u32;
+        let deadline = tokio::time::Instant::now() + Duration::from_secs(20);
+        let mut commanded = false;
+        while frames < 5 && tokio::time::Instant::now() < deadline {
+            if !commanded {
+                commanded = server
+                    .send(
+                        Outgoing::new(NodeId(10), Message::Command(sleep.clone())),
+                        clock(),
+                    )
+                    .await
+                    .is_ok();
+            }
+            tokio::select! {
+                () = tokio::time::sleep(Duration::from_millis(200)) => {}
+                ev = inbox.recv() => if let Some(Event::Message(m)) = ev
+                    && let Message::MeasuredFrame(f) = m.env.body
+                {
+                    assert_eq!(m.from, NodeId(10));
+                    assert!(f.detections.len() <= proto::MAX_MEASURED_DETECTIONS);
+                    frames += commanded as u32;
+                },
+            }
+        }
+        stop.cancel();
+        frames
+    };
+    let (summary, frames) =
+        tokio::time::timeout(Duration::from_secs(30), async { tokio::join!(camera, driver) })
+            .await
+            .expect("the camera logs frames and stops when told");
+    assert!(
+        frames >= 5,
+        "only {frames} measured frames after the camera went inactive"
+    );
+    let summary = summary.unwrap();
+    assert!(summary.logged.frames >= 5, "{summary:?}");
+    assert!(
+        summary.counters.frames_skipped > 0,
+        "the sleeping core still used frames: {summary:?}"
+    );
+    server_handle.shutdown().await;
 }

@@ -38,12 +38,24 @@ struct Launch {
 
 impl Launch {
     fn start(name: &str, transport: &str, seconds: f64, scenario: Option<&Path>) -> Launch {
+        Launch::start_with(name, transport, seconds, scenario, &[])
+    }
+
+    /// As [`Launch::start`], with more `ocelli launch` flags.
+    fn start_with(
+        name: &str,
+        transport: &str,
+        seconds: f64,
+        scenario: Option<&Path>,
+        extra: &[&str],
+    ) -> Launch {
         let dir = scratch(name);
         let mut cmd = Command::new(EXE);
         cmd.arg("launch");
         if let Some(s) = scenario {
             cmd.arg(s);
         }
+        cmd.args(extra);
         cmd.args([
             "--transport",
             transport,
@@ -356,4 +368,73 @@ fn killing_and_restarting_the_server_loses_no_recorded_data() {
     );
     // The launch removed the domain's files; the restarted server was ours to stop.
     run.assert_clean();
+}
+
+/// `ocelli replay RECORDING --activation POLICY --json`: the replay's report (its last line).
+fn replay_report(record: &Path, activation: &str) -> Value {
+    let out = Command::new(EXE)
+        .arg("replay")
+        .arg(record)
+        .args(["--activation", activation, "--json"])
+        .env("RUST_LOG", "warn")
+        .stdin(Stdio::null())
+        .output()
+        .expect("ocelli replay");
+    assert!(
+        out.status.success(),
+        "replay --activation {activation} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    let last = text.lines().last().unwrap_or_default();
+    let v: Value = serde_json::from_str(last).unwrap_or_else(|e| panic!("no report line ({e}): {text}"));
+    v["report"].clone()
+}
+
+/// A logging run over real processes (`ocelli launch --record-measurements`): every camera
+/// measures every frame whatever its mode and the server records it, so the recording
+/// re-runs through the heads with any policy. Both policies track within the bound of a live
+/// run (the replay only approximates the live timing; see `deploy::replay::rerun`), and on
+/// the same measurements all-on uses more cameras and more power than three-mode.
+#[test]
+fn a_launch_logging_run_replays_with_any_policy() {
+    let run = Launch::start_with("logging", "ipc", 14.0, None, &["--record-measurements"]);
+    let (_report, run) = run.finish(Duration::from_secs(60));
+    run.assert_clean();
+    let frames = node_server::recording::read_all(&run.record())
+        .expect("reading the recording")
+        .records
+        .iter()
+        .filter(|s| matches!(s.record, node_server::Record::Measured(_)))
+        .count();
+    // 21 cameras at 5 fps for about 14 s, whatever their mode (start-up and drops aside).
+    assert!(frames >= 21 * 5 * 5, "only {frames} measured frames recorded");
+    let all_on = replay_report(&run.record(), "all-on");
+    let three = replay_report(&run.record(), "three-mode");
+    for (policy, report) in [("all-on", &all_on), ("three-mode", &three)] {
+        let targets = report["targets"].as_array().expect("targets");
+        assert_eq!(targets.len(), 1, "{policy}: {report}");
+        assert!(
+            f(&targets[0], "samples") >= 20.0,
+            "{policy}: too few samples: {report}"
+        );
+        let err = f(report, "mean_error_m");
+        assert!(
+            err < MEAN_ERROR_BOUND_M,
+            "{policy}: mean error {err} m ≥ {MEAN_ERROR_BOUND_M} m: {report}"
+        );
+    }
+    let (cams_all, cams_three) = (
+        f(&all_on, "active_cameras_mean"),
+        f(&three, "active_cameras_mean"),
+    );
+    assert!(
+        cams_all > cams_three,
+        "all-on {cams_all} cameras vs three-mode {cams_three}"
+    );
+    let (mw_all, mw_three) = (f(&all_on, "power_mw_mean"), f(&three, "power_mw_mean"));
+    assert!(
+        mw_all > mw_three,
+        "all-on {mw_all} mW vs three-mode {mw_three} mW"
+    );
 }

@@ -11,7 +11,7 @@ fn hex(bytes: &[u8]) -> String {
 }
 
 /// `(kind, hex of the encoded frame of samples()[tag])`.
-const GOLDEN: [(&str, &str); 13] = [
+const GOLDEN: [(&str, &str); 14] = [
     ("hello", "01072af6bdc1960b00010103"),
     ("hello_ack", "01072af6bdc1960b01000869642074616b656e"),
     ("heartbeat", "01072af6bdc1960b02"),
@@ -43,6 +43,10 @@ const GOLDEN: [(&str, &str); 13] = [
     ),
     ("sync_beacon", "01072af6bdc1960b0b014dc08be6960b"),
     ("liveness", "01072af6bdc1960b0c0b00"),
+    (
+        "measured_frame",
+        "01072af6bdc1960b0de09fc0960b010000000000604dc0010000cb4200404a430080cf4200807a430000b542004034430080e14200807b4389063d0a573e0ad7a33ef628dc3e000000000000da3f000000000000e3bf000000000000a83f000000000000603f000000000000a43f",
+    ),
 ];
 
 #[test]

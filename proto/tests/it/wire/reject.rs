@@ -5,7 +5,8 @@ use proto::ids::{NodeId, TargetId};
 use proto::msg::*;
 use proto::validate::PSD_TOLERANCE;
 use proto::{
-    Envelope, MAX_CONTRIBUTORS, MAX_FRAME_BYTES, Message, PROTOCOL_VERSION, WireError, decode, encode,
+    Envelope, MAX_CONTRIBUTORS, MAX_FRAME_BYTES, MAX_MEASURED_DETECTIONS, Message, PROTOCOL_VERSION,
+    WireError, decode, encode,
 };
 
 /// Encode without validating, as a faulty or hostile peer would.
@@ -179,6 +180,14 @@ fn sample_f64s(m: &Message) -> Vec<f64> {
         Message::Prior(p) => [mat(&p.cov), p.mean.to_vec()].concat(),
         Message::TrackReport(r) => [mat(&r.cov), r.mean.to_vec(), vec![r.power_mw]].concat(),
         Message::Handover(h) => [mat(&h.cov), h.mean.to_vec()].concat(),
+        Message::MeasuredFrame(f) => {
+            let mut v = vec![f.rssi_dbm.unwrap()];
+            for d in &f.detections {
+                v.extend(d.point);
+                v.extend(d.cov);
+            }
+            v
+        }
         _ => Vec::new(),
     }
 }
@@ -197,6 +206,26 @@ fn sample_f32s(m: &Message) -> Vec<f32> {
                 x.colour.intensity,
             ]
         }
+        Message::MeasuredFrame(f) => f
+            .detections
+            .iter()
+            .flat_map(|d| {
+                let b = d.pixel_box;
+                [
+                    d.centre[0],
+                    d.centre[1],
+                    d.foot[0],
+                    d.foot[1],
+                    b.xmin,
+                    b.ymin,
+                    b.xmax,
+                    b.ymax,
+                    d.colour.hue,
+                    d.colour.saturation,
+                    d.colour.intensity,
+                ]
+            })
+            .collect(),
         _ => Vec::new(),
     }
 }
@@ -269,13 +298,54 @@ fn negated_diag(k: usize, eps: f64, m: &Mat6) -> Mat6 {
     out
 }
 
+/// A measured frame's limits: detection count, box order, RSSI range and a covariance that is
+/// not positive definite are each rejected naming the field; exactly the maximum count is fine.
+#[test]
+fn measured_frame_checks_name_the_field() {
+    let sample = samples()[13].clone();
+    let with = |f: &dyn Fn(&mut MeasuredFrame)| {
+        let mut env = sample.clone();
+        let Message::MeasuredFrame(m) = &mut env.body else {
+            panic!("sample 13 is a measured frame")
+        };
+        f(m);
+        env
+    };
+    let too_many = with(&|m| m.detections = vec![m.detections[0]; MAX_MEASURED_DETECTIONS + 1]);
+    let frame = raw(&too_many);
+    assert!(
+        frame.len() <= MAX_FRAME_BYTES,
+        "the size limit must not be what rejects it"
+    );
+    let (field, e) = invalid(&frame);
+    assert_eq!(field, "measured_frame.detections");
+    assert!(e.contains("exceed the maximum of 64"), "{e}");
+    assert!(matches!(encode(&too_many), Err(WireError::Invalid(_))));
+    let most = with(&|m| m.detections = vec![m.detections[0]; MAX_MEASURED_DETECTIONS]);
+    assert_eq!(decode(&encode(&most).unwrap()).unwrap(), most);
+    let flipped = with(&|m| m.detections[0].pixel_box.ymax = m.detections[0].pixel_box.ymin - 1.0);
+    assert_eq!(invalid(&raw(&flipped)).0, "measured_frame.detections.pixel_box");
+    let loud = with(&|m| m.rssi_dbm = Some(31.0));
+    let (field, e) = invalid(&raw(&loud));
+    assert_eq!(field, "measured_frame.rssi_dbm");
+    assert!(e.contains("outside"), "{e}");
+    let singular = with(&|m| m.detections[0].cov = [1.0, 1.0, 1.0]);
+    assert_eq!(invalid(&raw(&singular)).0, "measured_frame.detections.cov");
+    // No detections and no RSSI: a camera that saw nothing still logs the frame.
+    let empty = with(&|m| {
+        m.detections.clear();
+        m.rssi_dbm = None;
+    });
+    assert_eq!(decode(&encode(&empty).unwrap()).unwrap(), empty);
+}
+
 #[test]
 fn unknown_enum_tags() {
     // Top-level message tag: `MESSAGE_KINDS.len()` is one past the last kind.
     let mut frame = encode(&samples()[2]).unwrap();
-    *frame.last_mut().unwrap() = 13;
+    *frame.last_mut().unwrap() = 14;
     let e = malformed(&frame);
-    assert!(e.contains("unknown message kind tag 13"), "{e}");
+    assert!(e.contains("unknown message kind tag 14"), "{e}");
     // A nested enum: the mode of a command (last byte), tag 3 of 3 modes.
     let mut frame = encode(&samples()[7]).unwrap();
     *frame.last_mut().unwrap() = 3;

@@ -3,7 +3,9 @@
 use proptest::prelude::*;
 use proto::ids::{NodeId, Role, TargetId};
 use proto::msg::*;
-use proto::{ClusterTime, Envelope, MAX_CONTRIBUTORS, Message, Mode, decode, encode};
+use proto::{
+    ClusterTime, Envelope, MAX_CONTRIBUTORS, MAX_MEASURED_DETECTIONS, Message, Mode, decode, encode,
+};
 
 fn finite() -> impl Strategy<Value = f64> {
     prop_oneof![
@@ -102,6 +104,52 @@ fn measurement() -> impl Strategy<Value = Message> {
                 })
             },
         )
+}
+
+fn measured_detection() -> impl Strategy<Value = MeasuredDetection> {
+    (
+        (
+            prop::array::uniform4(finite32()),
+            prop::array::uniform4(finite32()),
+            any::<u32>(),
+            prop::array::uniform3(finite32()),
+        ),
+        prop::array::uniform2(finite()),
+        (0.001..10.0f64, -0.99..0.99f64, 0.001..10.0f64),
+    )
+        .prop_map(|((cf, b, area, c), point, (xx, rho, yy))| MeasuredDetection {
+            centre: [cf[0], cf[1]],
+            foot: [cf[2], cf[3]],
+            pixel_box: PixelBox {
+                xmin: b[0].min(b[1]),
+                ymin: b[2].min(b[3]),
+                xmax: b[0].max(b[1]),
+                ymax: b[2].max(b[3]),
+            },
+            area,
+            colour: ColourSignature {
+                hue: c[0],
+                saturation: c[1],
+                intensity: c[2],
+            },
+            point,
+            cov: [xx, rho * (xx * yy).sqrt(), yy],
+        })
+}
+
+fn measured_frame() -> impl Strategy<Value = Message> {
+    (
+        time(),
+        prop::option::of(-200.0..=30.0f64),
+        prop::collection::vec(measured_detection(), 0..=MAX_MEASURED_DETECTIONS),
+    )
+        .prop_map(|(captured, rssi_dbm, detections)| {
+            Message::MeasuredFrame(MeasuredFrame {
+                captured,
+                rssi_dbm,
+                detections,
+            })
+        })
 }
 
 fn contributors() -> impl Strategy<Value = Vec<Contributor>> {
@@ -234,6 +282,7 @@ fn message() -> impl Strategy<Value = Message> {
             }
         )),
         (any::<u32>(), any::<bool>()).prop_map(|(n, up)| Message::Liveness(Liveness { node: NodeId(n), up })),
+        measured_frame(),
     ]
 }
 

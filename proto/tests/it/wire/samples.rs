@@ -40,7 +40,7 @@ fn env(body: Message) -> Envelope {
 }
 
 /// The number of f64 and f32 slots of each sample, by tag (what the poison test must find).
-pub const FLOAT_SLOTS: [(usize, usize); 13] = [
+pub const FLOAT_SLOTS: [(usize, usize); 14] = [
     (0, 0),  // hello
     (0, 0),  // hello_ack
     (0, 0),  // heartbeat
@@ -54,6 +54,7 @@ pub const FLOAT_SLOTS: [(usize, usize); 13] = [
     (42, 0), // handover
     (0, 0),  // sync_beacon
     (0, 0),  // liveness
+    (6, 11), // measured_frame: rssi 1, point 2, cov 3; centre 2, foot 2, box 4, colour 3
 ];
 
 pub fn samples() -> Vec<Envelope> {
@@ -173,6 +174,28 @@ pub fn samples() -> Vec<Envelope> {
         env(Message::Liveness(Liveness {
             node: NodeId(11),
             up: false,
+        })),
+        env(Message::MeasuredFrame(MeasuredFrame {
+            captured: ClusterTime(1_499_990_000),
+            rssi_dbm: Some(-58.75),
+            detections: vec![MeasuredDetection {
+                centre: [101.5, 202.25],
+                foot: [103.75, 250.5],
+                pixel_box: PixelBox {
+                    xmin: 90.5,
+                    ymin: 180.25,
+                    xmax: 112.75,
+                    ymax: 251.5,
+                },
+                area: 777,
+                colour: ColourSignature {
+                    hue: 0.21,
+                    saturation: 0.32,
+                    intensity: 0.43,
+                },
+                point: [0.40625, -0.59375],
+                cov: [0.046875, 0.001953125, 0.0390625],
+            }],
         })),
     ]
 }
