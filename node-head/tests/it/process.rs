@@ -193,7 +193,10 @@ async fn head_process_syncs_to_the_beacons_and_reports_its_sync_error() {
     fn host() -> proto::ClusterTime {
         proto::ClusterTime::wall_clock()
     }
-    const AHEAD_NS: i64 = 5_000_000;
+    // Far larger than any delivery delay a loaded machine adds, so the test judges the estimator,
+    // not the scheduler.
+    const AHEAD_NS: i64 = 200_000_000;
+    const TOLERANCE_NS: i64 = 40_000_000;
     let scenario = ring_scenario(4, "distributed-eif", "all-on", 0.0, ONE_TARGET);
     let cfg = HeadConfig::from_scenario(&scenario, 2).unwrap();
     let hub = InProcessHub::new();
@@ -229,16 +232,19 @@ async fn head_process_syncs_to_the_beacons_and_reports_its_sync_error() {
             statuses.push(s);
         }
     }
-    // In-process delivery takes micro- to milliseconds, and the drift fitted over a few
-    // beacons moves the estimate either way: 5 ms within 3 ms. The first beacons found the
-    // host clock 5 ms off; a second later the beacons arrive where the head expects them.
+    // In-process delivery takes micro- to (under load) tens of milliseconds, and the drift
+    // fitted over a few beacons moves the estimate either way: 200 ms within 40 ms. The first
+    // beacons found the host clock 200 ms off; a second later they arrive where the head
+    // expects them.
     let (first, later) = (&statuses[0], &statuses[1]);
+    // The visible error is the RMS over the last 8 beacons' innovations, of which the first
+    // (200 ms) dominates: between 200/√8 and 200 ms, however many beacons preceded the status.
     assert!(
-        (first.sync_error_ns - AHEAD_NS).abs() < 3_000_000,
+        first.sync_error_ns > AHEAD_NS / 3 && first.sync_error_ns < AHEAD_NS + TOLERANCE_NS,
         "first {first:?}"
     );
     let off = later.sync_offset_ns;
-    assert!((off - AHEAD_NS).abs() < 3_000_000, "offset {off} ns");
+    assert!((off - AHEAD_NS).abs() < TOLERANCE_NS, "offset {off} ns");
     assert!(
         later.sync_error_ns < first.sync_error_ns / 3,
         "sync error {} ns after {} ns",
@@ -247,7 +253,7 @@ async fn head_process_syncs_to_the_beacons_and_reports_its_sync_error() {
     );
     let ahead = clock.now().0 - host().0;
     assert!(
-        (ahead - AHEAD_NS).abs() < 3_000_000,
+        (ahead - AHEAD_NS).abs() < TOLERANCE_NS,
         "cluster time {ahead} ns ahead"
     );
     token.cancel();
