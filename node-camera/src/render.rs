@@ -422,7 +422,14 @@ mod tests {
     fn blocked_noise_equals_the_per_pixel_form() {
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         // Odd lengths end in a partial block; gains cover dark, bright, and the wide path.
-        for (pixels, gain) in [(352 * 288, 236), (1000, 256), (131, 277), (64, 200), (65, 700), (7, 10)] {
+        for (pixels, gain) in [
+            (352 * 288, 236),
+            (1000, 256),
+            (131, 277),
+            (64, 200),
+            (65, 700),
+            (7, 10),
+        ] {
             let mut a = vec![0u8; pixels * 3];
             rng.fill_bytes(&mut a);
             a[0] = 255;

@@ -120,6 +120,9 @@ pub struct Paper004 {
     d_bg: Vec<u16>,
     d_old: Vec<u16>,
     take: Vec<u8>,
+    /// One row's byte-wise distances (full-resolution grid only).
+    abs_bg: Vec<u8>,
+    abs_old: Vec<u8>,
     frames: u64,
     last_captured: Option<proto::ClusterTime>,
     restarts: u64,
@@ -142,6 +145,8 @@ impl Paper004 {
             d_bg: Vec::new(),
             d_old: Vec::new(),
             take: Vec::new(),
+            abs_bg: Vec::new(),
+            abs_old: Vec::new(),
             frames: 0,
             last_captured: None,
             restarts: 0,
@@ -195,6 +200,8 @@ impl Paper004 {
         self.d_bg = vec![0; g.width];
         self.d_old = vec![0; g.width];
         self.take = vec![0; g.width];
+        self.abs_bg = vec![0; g.width * 3];
+        self.abs_old = vec![0; g.width * 3];
         self.grid = Some(g);
         self.fill_from(frame, &g);
         Ok(g)
@@ -312,17 +319,25 @@ impl Paper004 {
             let conf = &mut self.confidence[a..a + w];
             let mask = &mut self.mask[a..a + w];
             if g.step == 1 {
+                // Byte-wise distances over the flat row first (vectorized), then per pixel.
                 let px = &src[..w * 3];
-                let pixels = px
-                    .chunks_exact(3)
-                    .zip(bg.chunks_exact(3))
-                    .zip(old.chunks_exact(3))
-                    .zip(d_bg.iter_mut().zip(d_old.iter_mut()));
-                for (((q, b), o), (db, dold)) in pixels {
-                    *db = q[0].abs_diff(b[0]) as u16 + q[1].abs_diff(b[1]) as u16 + q[2].abs_diff(b[2]) as u16;
-                    *dold = q[0].abs_diff(o[0]) as u16 + q[1].abs_diff(o[1]) as u16 + q[2].abs_diff(o[2]) as u16;
+                let (ab, ao) = (&mut self.abs_bg[..w * 3], &mut self.abs_old[..w * 3]);
+                let bytes = px
+                    .iter()
+                    .zip(bg.iter())
+                    .zip(old.iter_mut())
+                    .zip(ab.iter_mut().zip(ao.iter_mut()));
+                for (((q, b), o), (x, y)) in bytes {
+                    *x = q.abs_diff(*b);
+                    *y = q.abs_diff(*o);
+                    *o = *q;
                 }
-                old.copy_from_slice(px);
+                for (t, d) in ab.chunks_exact(3).zip(d_bg.iter_mut()) {
+                    *d = t[0] as u16 + t[1] as u16 + t[2] as u16;
+                }
+                for (t, d) in ao.chunks_exact(3).zip(d_old.iter_mut()) {
+                    *d = t[0] as u16 + t[1] as u16 + t[2] as u16;
+                }
             } else {
                 let pixels = src
                     .chunks_exact(step3)
@@ -330,8 +345,10 @@ impl Paper004 {
                     .zip(old.chunks_exact_mut(3))
                     .zip(d_bg.iter_mut().zip(d_old.iter_mut()));
                 for (((q, b), o), (db, dold)) in pixels {
-                    *db = q[0].abs_diff(b[0]) as u16 + q[1].abs_diff(b[1]) as u16 + q[2].abs_diff(b[2]) as u16;
-                    *dold = q[0].abs_diff(o[0]) as u16 + q[1].abs_diff(o[1]) as u16 + q[2].abs_diff(o[2]) as u16;
+                    *db =
+                        q[0].abs_diff(b[0]) as u16 + q[1].abs_diff(b[1]) as u16 + q[2].abs_diff(b[2]) as u16;
+                    *dold =
+                        q[0].abs_diff(o[0]) as u16 + q[1].abs_diff(o[1]) as u16 + q[2].abs_diff(o[2]) as u16;
                     o.copy_from_slice(&q[..3]);
                 }
             }
@@ -418,7 +435,11 @@ mod tests {
             for gx in 0..g.width {
                 let k = gy * g.width + gx;
                 let px = g.rgb(frame, gx, gy);
-                let l1 = |q: &[u8]| (0..3).map(|c| (px[c] as i32 - q[c] as i32).unsigned_abs()).sum::<u32>();
+                let l1 = |q: &[u8]| {
+                    (0..3)
+                        .map(|c| (px[c] as i32 - q[c] as i32).unsigned_abs())
+                        .sum::<u32>()
+                };
                 let d_bg = l1(&bg[k * 3..k * 3 + 3]);
                 let d_old = l1(&slot[k * 3..k * 3 + 3]);
                 let eta = noise[k];
