@@ -115,6 +115,14 @@ pub struct Paper004 {
     confidence: Vec<u8>,
     mask: Vec<u8>,
     eroded: Vec<u8>,
+    /// One row's L1 distances to the background and to the ring slot, and which pixels'
+    /// background takes the current colour.
+    d_bg: Vec<u16>,
+    d_old: Vec<u16>,
+    take: Vec<u8>,
+    /// One row's byte-wise distances (full-resolution grid only).
+    abs_bg: Vec<u8>,
+    abs_old: Vec<u8>,
     frames: u64,
     last_captured: Option<proto::ClusterTime>,
     restarts: u64,
@@ -134,6 +142,11 @@ impl Paper004 {
             confidence: Vec::new(),
             mask: Vec::new(),
             eroded: Vec::new(),
+            d_bg: Vec::new(),
+            d_old: Vec::new(),
+            take: Vec::new(),
+            abs_bg: Vec::new(),
+            abs_old: Vec::new(),
             frames: 0,
             last_captured: None,
             restarts: 0,
@@ -184,6 +197,11 @@ impl Paper004 {
         self.confidence = vec![0; n];
         self.mask = vec![0; n];
         self.eroded = vec![0; n];
+        self.d_bg = vec![0; g.width];
+        self.d_old = vec![0; g.width];
+        self.take = vec![0; g.width];
+        self.abs_bg = vec![0; g.width * 3];
+        self.abs_old = vec![0; g.width * 3];
         self.grid = Some(g);
         self.fill_from(frame, &g);
         Ok(g)
@@ -276,7 +294,11 @@ impl Paper004 {
         Ok(())
     }
 
-    /// The per-pixel model update and moving test, one pass.
+    /// The per-pixel model update and moving test, row by row in three passes that the
+    /// compiler vectorizes: L1 distances of each pixel to its background and to its colour
+    /// `n` frames ago (and the ring slot takes the new colour); the thresholds, confidence and
+    /// noise counters over the row's pixel arrays, branch-free; then the (rare) pixels whose
+    /// background takes the current colour.
     fn update(&mut self, frame: &Frame, g: &Grid) {
         let p = &self.params;
         let (c1, c2, c3) = (self.c1_q8, p.c2 as u32, p.c3 as u32);
@@ -285,45 +307,73 @@ impl Paper004 {
         let n3 = g.len() * 3;
         let slot = &mut self.ring[self.ring_head * n3..(self.ring_head + 1) * n3];
         let step3 = g.step * 3;
+        let w = g.width;
+        let (d_bg, d_old, take) = (&mut self.d_bg[..w], &mut self.d_old[..w], &mut self.take[..w]);
         for gy in 0..g.height {
             let row_off = gy * g.step * g.frame_width * 3;
             let src = &frame.data[row_off..row_off + g.frame_width * 3];
-            let a = gy * g.width;
-            let bg = &mut self.background[a * 3..(a + g.width) * 3];
-            let old = &mut slot[a * 3..(a + g.width) * 3];
-            let noise = &mut self.noise[a..a + g.width];
-            let conf = &mut self.confidence[a..a + g.width];
-            let mask = &mut self.mask[a..a + g.width];
-            // Zipped exact chunks: no bounds checks, and every decision is a select, not a
-            // branch, so moving and still pixels cost the same.
-            let pixels = src
-                .chunks_exact(step3)
-                .zip(bg.chunks_exact_mut(3))
-                .zip(old.chunks_exact_mut(3))
-                .zip(noise.iter_mut())
+            let a = gy * w;
+            let bg = &mut self.background[a * 3..(a + w) * 3];
+            let old = &mut slot[a * 3..(a + w) * 3];
+            let noise = &mut self.noise[a..a + w];
+            let conf = &mut self.confidence[a..a + w];
+            let mask = &mut self.mask[a..a + w];
+            if g.step == 1 {
+                // Byte-wise distances over the flat row first (vectorized), then per pixel.
+                let px = &src[..w * 3];
+                let (ab, ao) = (&mut self.abs_bg[..w * 3], &mut self.abs_old[..w * 3]);
+                let bytes = px
+                    .iter()
+                    .zip(bg.iter())
+                    .zip(old.iter_mut())
+                    .zip(ab.iter_mut().zip(ao.iter_mut()));
+                for (((q, b), o), (x, y)) in bytes {
+                    *x = q.abs_diff(*b);
+                    *y = q.abs_diff(*o);
+                    *o = *q;
+                }
+                for (t, d) in ab.chunks_exact(3).zip(d_bg.iter_mut()) {
+                    *d = t[0] as u16 + t[1] as u16 + t[2] as u16;
+                }
+                for (t, d) in ao.chunks_exact(3).zip(d_old.iter_mut()) {
+                    *d = t[0] as u16 + t[1] as u16 + t[2] as u16;
+                }
+            } else {
+                let pixels = src
+                    .chunks_exact(step3)
+                    .zip(bg.chunks_exact(3))
+                    .zip(old.chunks_exact_mut(3))
+                    .zip(d_bg.iter_mut().zip(d_old.iter_mut()));
+                for (((q, b), o), (db, dold)) in pixels {
+                    *db =
+                        q[0].abs_diff(b[0]) as u16 + q[1].abs_diff(b[1]) as u16 + q[2].abs_diff(b[2]) as u16;
+                    *dold =
+                        q[0].abs_diff(o[0]) as u16 + q[1].abs_diff(o[1]) as u16 + q[2].abs_diff(o[2]) as u16;
+                    o.copy_from_slice(&q[..3]);
+                }
+            }
+            let counters = noise
+                .iter_mut()
                 .zip(conf.iter_mut())
-                .zip(mask.iter_mut());
-            for (((((px, bgp), oldp), n), c), m) in pixels {
-                let (r, gg, b) = (px[0] as i32, px[1] as i32, px[2] as i32);
-                let d_bg = ((r - bgp[0] as i32).abs()
-                    + (gg - bgp[1] as i32).abs()
-                    + (b - bgp[2] as i32).abs()) as u32;
-                let d_old = ((r - oldp[0] as i32).abs()
-                    + (gg - oldp[1] as i32).abs()
-                    + (b - oldp[2] as i32).abs()) as u32;
+                .zip(mask.iter_mut())
+                .zip(take.iter_mut())
+                .zip(d_bg.iter().zip(d_old.iter()));
+            for ((((n, c), m), t), (&db, &dold)) in counters {
+                let (db, dold) = (db as u32, dold as u32);
                 let eta = *n;
                 let base = (c1 * eta as u32) >> 8;
-                *m = u8::from(d_bg > base + c2);
-                let counted = (*c + 1) * u8::from(d_old < base + c3);
+                *m = u8::from(db > base + c2);
+                let counted = (*c + 1) * u8::from(dold < base + c3);
                 let update = counted >= tau;
-                bgp[0] = if update { px[0] } else { bgp[0] };
-                bgp[1] = if update { px[1] } else { bgp[1] };
-                bgp[2] = if update { px[2] } else { bgp[2] };
+                *t = u8::from(update);
                 *c = if update { 0 } else { counted };
                 let up = eta.saturating_add(nstep).min(nmax);
                 let down = eta.saturating_sub(1).max(nmin);
-                *n = if d_old > eta as u32 { up } else { down };
-                oldp.copy_from_slice(&px[..3]);
+                *n = if dold > eta as u32 { up } else { down };
+            }
+            for (k, _) in take.iter().enumerate().filter(|(_, t)| **t != 0) {
+                let o = k * step3;
+                bg[k * 3..k * 3 + 3].copy_from_slice(&src[o..o + 3]);
             }
         }
         self.ring_head = (self.ring_head + 1) % p.history.max(1);
@@ -364,6 +414,91 @@ mod tests {
             }
         }
         f
+    }
+
+    /// The model update as one per-pixel loop: what the row passes of `update` must equal.
+    /// Returns (background, ring, noise, confidence, mask).
+    #[allow(clippy::type_complexity)]
+    fn reference_update(seg: &Paper004, frame: &Frame) -> (Vec<u8>, Vec<u8>, Vec<u8>, Vec<u8>, Vec<u8>) {
+        let p = &seg.params;
+        let g = seg.grid.unwrap();
+        let (mut bg, mut ring, mut noise, mut conf, mut mask) = (
+            seg.background.clone(),
+            seg.ring.clone(),
+            seg.noise.clone(),
+            seg.confidence.clone(),
+            seg.mask.clone(),
+        );
+        let n3 = g.len() * 3;
+        let slot = &mut ring[seg.ring_head * n3..(seg.ring_head + 1) * n3];
+        for gy in 0..g.height {
+            for gx in 0..g.width {
+                let k = gy * g.width + gx;
+                let px = g.rgb(frame, gx, gy);
+                let l1 = |q: &[u8]| {
+                    (0..3)
+                        .map(|c| (px[c] as i32 - q[c] as i32).unsigned_abs())
+                        .sum::<u32>()
+                };
+                let d_bg = l1(&bg[k * 3..k * 3 + 3]);
+                let d_old = l1(&slot[k * 3..k * 3 + 3]);
+                let eta = noise[k];
+                let base = (seg.c1_q8 * eta as u32) >> 8;
+                mask[k] = u8::from(d_bg > base + p.c2 as u32);
+                let counted = (conf[k] + 1) * u8::from(d_old < base + p.c3 as u32);
+                if counted >= p.tau {
+                    bg[k * 3..k * 3 + 3].copy_from_slice(&px);
+                    conf[k] = 0;
+                } else {
+                    conf[k] = counted;
+                }
+                noise[k] = if d_old > eta as u32 {
+                    eta.saturating_add(p.noise_step).min(p.noise_max)
+                } else {
+                    eta.saturating_sub(1).max(p.noise_min)
+                };
+                slot[k * 3..k * 3 + 3].copy_from_slice(&px);
+            }
+        }
+        (bg, ring, noise, conf, mask)
+    }
+
+    #[test]
+    fn row_passes_equal_the_per_pixel_update() {
+        for step in [1, 2] {
+            let params = Paper004Params {
+                tau: 4,
+                history: 3,
+                step,
+                ..Paper004Params::default()
+            };
+            let mut seg = Paper004::new(params);
+            let mut out = Vec::new();
+            let mut updates = 0;
+            for t in 0..30 {
+                let mut f = scene(t, (t % 7 != 0).then_some(5 + 3 * t));
+                // Strong noise in one corner drives the noise counters both ways.
+                for (i, v) in f.data.iter_mut().enumerate().take(3 * 120 * 20) {
+                    *v = v.wrapping_add(((i * 31 + t * 17) % 61) as u8);
+                }
+                if seg.grid.is_none() {
+                    seg.process(&f, &mut out).unwrap();
+                    continue;
+                }
+                let want = reference_update(&seg, &f);
+                updates += usize::from(want.0 != seg.background);
+                seg.process(&f, &mut out).unwrap();
+                let got = (
+                    seg.background.clone(),
+                    seg.ring.clone(),
+                    seg.noise.clone(),
+                    seg.confidence.clone(),
+                    seg.mask.clone(),
+                );
+                assert!(got == want, "step {step}, frame {t}");
+            }
+            assert!(updates > 0, "step {step}: the background never took a colour");
+        }
     }
 
     #[test]

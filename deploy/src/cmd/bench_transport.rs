@@ -46,6 +46,8 @@ struct Phase {
     received: usize,
     dropped: u64,
     latencies_ns: Vec<u64>,
+    /// How long each measured `Endpoint::send` call took (stamp to return).
+    send_call_ns: Vec<u64>,
     /// Time the sender took to offer every message.
     send_wall: Duration,
     /// From the first to the last measured message received.
@@ -69,8 +71,12 @@ impl Phase {
         } else {
             l.iter().sum::<u64>() as f64 / l.len() as f64 / 1000.0
         };
+        let mut c = self.send_call_ns.clone();
+        c.sort_unstable();
         json!({
             "sent": self.sent,
+            "send_call_p50_us": percentile(&c, 0.50),
+            "send_call_p99_us": percentile(&c, 0.99),
             "received": self.received,
             "dropped": self.dropped,
             "p50_us": percentile(&l, 0.50),
@@ -190,7 +196,7 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
     let addr = addr_rx
         .recv_timeout(Duration::from_secs(10))
         .map_err(|_| anyhow!("receiver did not start"))?;
-    let sender = std::thread::spawn(move || -> Result<(usize, u64, Duration)> {
+    let sender = std::thread::spawn(move || -> Result<(usize, u64, Duration, Vec<u64>)> {
         let rt = tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()?;
@@ -230,26 +236,26 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
             #[allow(clippy::disallowed_methods)] // a benchmark runtime owns its clock
             let start = Instant::now();
             let mut next = tokio::time::Instant::now();
+            let mut calls = Vec::with_capacity(count);
             for _ in 0..count {
                 if let Some(iv) = interval {
                     next += iv;
                     tokio::time::sleep_until(next).await;
                 }
-                ep.send(
-                    Outgoing::new(NodeId(1), measurement(1)),
-                    ClusterTime(now_ns(base)),
-                )
-                .await?;
+                let stamp = now_ns(base);
+                ep.send(Outgoing::new(NodeId(1), measurement(1)), ClusterTime(stamp))
+                    .await?;
+                calls.push((now_ns(base) - stamp).max(0) as u64);
             }
             let wall = start.elapsed();
             // Let the link drain before stopping it.
             tokio::time::sleep(Duration::from_millis(200)).await;
             let dropped = dropped_of(stats.snapshot()) - dropped_before;
             shutdown.shutdown().await;
-            Ok((count, dropped, wall))
+            Ok((count, dropped, wall, calls))
         })
     });
-    let (sent, dropped, wall) = sender.join().map_err(|_| anyhow!("sender panicked"))??;
+    let (sent, dropped, wall, send_call_ns) = sender.join().map_err(|_| anyhow!("sender panicked"))??;
     let _ = done_tx.send(());
     let (latencies_ns, received, dropped_inbox, span) =
         receiver.join().map_err(|_| anyhow!("receiver panicked"))??;
@@ -258,6 +264,7 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
         received,
         dropped: dropped + dropped_inbox,
         latencies_ns,
+        send_call_ns,
         send_wall: wall,
         receive_span: span,
     })
@@ -286,6 +293,43 @@ fn thread_wake_baseline(count: usize, interval: Duration) -> Value {
     let mut lat = waiter.join().unwrap_or_default();
     lat.sort_unstable();
     json!({"p50_us": percentile(&lat, 0.5), "p99_us": percentile(&lat, 0.99), "samples": lat.len()})
+}
+
+/// The floor under the transports' latency: one current-thread tokio runtime (timer-driven,
+/// like the bench's sender) waking another, parked on its reactor, through a tokio channel
+/// at the fixed rate. Every message over either transport pays at least this one wake.
+fn tokio_wake_baseline(count: usize, interval: Duration) -> Result<Value> {
+    #[allow(clippy::disallowed_methods)] // a benchmark owns its clock
+    let base = Instant::now();
+    let (tx, mut rx) = tokio::sync::mpsc::channel::<i64>(16);
+    let waiter = std::thread::spawn(move || -> Result<Vec<u64>> {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()?;
+        Ok(rt.block_on(async move {
+            let mut lat = Vec::with_capacity(count);
+            while let Ok(Some(t)) = tokio::time::timeout(Duration::from_secs(10), rx.recv()).await {
+                lat.push((now_ns(base) - t).max(0) as u64);
+            }
+            lat
+        }))
+    });
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    rt.block_on(async move {
+        let mut next = tokio::time::Instant::now();
+        for _ in 0..count {
+            next += interval;
+            tokio::time::sleep_until(next).await;
+            if tx.try_send(now_ns(base)).is_err() {
+                break;
+            }
+        }
+    });
+    let mut lat = waiter.join().map_err(|_| anyhow!("waiter panicked"))??;
+    lat.sort_unstable();
+    Ok(json!({"p50_us": percentile(&lat, 0.5), "p99_us": percentile(&lat, 0.99), "samples": lat.len()}))
 }
 
 fn samples() -> Vec<Message> {
@@ -412,6 +456,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let interval = Duration::from_secs_f64(1.0 / args.rate_hz.max(0.1));
     let codec = codec_costs(args.codec_iterations.max(1))?;
     let baseline = thread_wake_baseline(args.rate_messages, interval);
+    let tokio_baseline = tokio_wake_baseline(args.rate_messages, interval)?;
     let mut transports = serde_json::Map::new();
     let mut p99 = serde_json::Map::new();
     for (kind, name) in [(Kind::Ipc, "ipc"), (Kind::Tcp, "tcp")] {
@@ -440,13 +485,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
         "p99_of": "fixed_rate phase",
         "full_rate": "measurements offered back to back; droppable, so beyond the queues they are dropped and counted (sender queue + receiver inbox); latency of those delivered",
         "hops": {
-            "ipc": "sender task publishes (iceoryx2 thread-safe service) -> shared memory + event -> iceoryx2 rx thread (decode) -> receiver task",
+            "ipc": "sender task publishes (iceoryx2 thread-safe service) + notifies -> shared memory + unix datagram -> receiver runtime's reactor wakes its receive task (decode) -> receiver task (same runtime)",
             "tcp": "sender task -> link task (same runtime) -> loopback socket -> reader task (decode) -> receiver task (same runtime)"
         },
         "goals": {"ipc_p99_us": 20, "tcp_p99_us": 200},
         "transports": transports,
         "codec": codec,
         "thread_wake_baseline": baseline,
+        "tokio_wake_baseline": tokio_baseline,
     });
     if let Some(o) = report.as_object_mut() {
         for (k, v) in p99 {
