@@ -7,16 +7,15 @@
 //! never see each other's services and a test can check that nothing of its domain is left in
 //! `/dev/shm`.
 //!
-//! Receiving runs on the caller's tokio runtime, without a thread of its own: the inbox
-//! listener's unix datagram socket is registered with tokio's reactor (`AsyncFd`), and a task
-//! drains the subscriber, decodes and forwards to the inbox channel (waiting for room only for
-//! messages that must not be dropped). Sending uses iceoryx2's thread-safe service flavour, so
-//! `Endpoint::send` publishes straight from the caller's task. A message thus wakes one thread,
-//! the receiving runtime's: each thread hop costs tens of microseconds on an idle machine.
-//! iceoryx2's own signal handling is disabled (tokio owns SIGINT/SIGTERM). Each iceoryx2 node is created with dead-node cleanup, so resources left by a crashed node of the
+//! Receiving runs on a dedicated thread that blocks on the inbox listener, drains the
+//! subscriber, decodes and forwards to the tokio inbox (blocking only for messages that must
+//! not be dropped). Sending uses iceoryx2's thread-safe service flavour, so `Endpoint::send`
+//! publishes straight from the caller's task: a thread hop costs tens of microseconds on an
+//! idle machine. iceoryx2's own signal handling is disabled (tokio owns SIGINT/SIGTERM). Each
+//! iceoryx2 node is created with dead-node cleanup, so resources left by a crashed node of the
 //! domain are removed at start; dropping the nodes on shutdown removes this node's files.
 
-use super::common::{accept, push};
+use super::common::{accept, push_blocking};
 use super::stats::{TransportStats, bump};
 use super::{Delivery, Event, Incoming, OutFrame, SendError, ShutdownHandle, TransportError};
 use crate::MAX_FRAME_BYTES;
@@ -27,11 +26,9 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use std::collections::{HashMap, HashSet};
-use std::os::fd::{AsRawFd, RawFd};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
-use tokio::io::Interest;
-use tokio::io::unix::AsyncFd;
 use tokio::sync::mpsc;
 
 /// iceoryx2's thread-safe flavour of its IPC service: its ports may be used from tokio tasks,
@@ -45,6 +42,8 @@ const SLOT_SLACK: usize = 64;
 /// buffer is full, before giving up on it (counted in `dropped_undelivered`): a crashed
 /// receiver's buffer never drains, and the sender thread serves every other link too.
 const MUST_DELIVER_PATIENCE: Duration = Duration::from_secs(2);
+/// How often the receiver thread looks at the stop flag when nothing arrives.
+const STOP_POLL: Duration = Duration::from_millis(50);
 
 /// Per-service iceoryx2 limits. The library's defaults (2 publishers, 8 subscribers, a
 /// buffer of 2 that silently overwrites) are far too small for a cluster.
@@ -318,12 +317,28 @@ pub(crate) fn start(
     handle: &mut ShutdownHandle,
 ) -> Result<Sender, TransportError> {
     check_domain(&cfg.domain)?;
-    let inbox = open_own_inbox(&cfg)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<(), TransportError>>();
+
+    let rcfg = cfg.clone();
+    let (rstats, rstop) = (stats.clone(), stop.clone());
+    let receiver = std::thread::Builder::new()
+        .name(format!("iox2-rx-{}", cfg.me.0))
+        .spawn(move || receiver_thread(rcfg, events, rstats, rstop, ready_tx))
+        .map_err(TransportError::Io)?;
+    handle.threads.push(receiver);
+
     let domain = cfg.domain.clone();
     handle.after_join.push(Box::new(move || release_domain(&domain)));
-    handle
-        .tracker
-        .spawn(receive_loop(inbox, events, stats, handle.token()));
+    match ready_rx.recv_timeout(Duration::from_secs(10)) {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => return Err(e),
+        Err(_) => {
+            return Err(TransportError::Ipc(
+                "iceoryx2 receiver thread did not start".into(),
+            ));
+        }
+    }
 
     let node = iox_node(&iox_config(&cfg.domain)?)?;
     let sender = Sender {
@@ -336,70 +351,52 @@ pub(crate) fn start(
     let on_stop = Sender {
         inner: sender.inner.clone(),
     };
-    handle.on_stop.push(Box::new(move || on_stop.stop()));
+    handle.on_stop.push(Box::new(move || {
+        stop.store(true, Ordering::Release);
+        on_stop.stop();
+    }));
     Ok(sender)
 }
 
-/// The inbox listener as something tokio's reactor can watch: its unix datagram socket
-/// becomes readable when a sender notifies.
-struct WakeFd(Listener<Svc>);
-
-impl AsRawFd for WakeFd {
-    #[allow(unsafe_code)]
-    fn as_raw_fd(&self) -> RawFd {
-        // SAFETY: only the number is read; the descriptor lives as long as the listener,
-        // which this wrapper (owned by the `AsyncFd` that registers it) keeps alive.
-        unsafe { self.0.file_descriptor().native_handle() }
-    }
-}
-
-#[allow(unsafe_code)]
-fn register(fd: WakeFd) -> Result<AsyncFd<WakeFd>, TransportError> {
-    // SAFETY: the descriptor is the listener's socket, open for as long as the listener lives;
-    // the `AsyncFd` owns the listener, and the listener's descriptor never changes.
-    unsafe { AsyncFd::register_with_interest(fd, Interest::READABLE) }
-        .map_err(|e| ipc_err("registering the inbox listener with tokio", e.to_string()))
-}
-
-/// This node's own inbox: the iceoryx2 node, the subscriber and the registered listener.
-struct OwnInbox {
-    wake: AsyncFd<WakeFd>,
-    sub: Subscriber<Svc, [u8], ()>,
-    node: Node<Svc>,
-}
-
-fn open_own_inbox(cfg: &IpcConfig) -> Result<OwnInbox, TransportError> {
-    let config = iox_config(&cfg.domain)?;
-    let node = iox_node(&config)?;
-    let (data, wake) = open_inbox(&node, &inbox_name(&cfg.domain, cfg.me)?, &cfg.limits)?;
-    let sub = data
-        .subscriber_builder()
-        .buffer_size(cfg.limits.buffer)
-        .create()
-        .map_err(|e| ipc_err("subscriber", e))?;
-    let listener = wake
-        .listener_builder()
-        .create()
-        .map_err(|e| ipc_err("listener", e))?;
-    let wake = register(WakeFd(listener))?;
-    Ok(OwnInbox { wake, sub, node })
-}
-
-/// Receive on the runtime's own thread: wait until the listener's socket is readable (tokio's
-/// reactor, no thread of our own in between), consume the notifications, drain the
-/// subscriber, decode and hand each envelope to the inbox channel. One thread wake per burst:
-/// the sender's notify wakes the runtime that runs the node.
-async fn receive_loop(
-    inbox: OwnInbox,
+fn receiver_thread(
+    cfg: IpcConfig,
     events: mpsc::Sender<Event>,
     stats: Arc<TransportStats>,
-    stop: tokio_util::sync::CancellationToken,
+    stop: Arc<AtomicBool>,
+    ready: std::sync::mpsc::Sender<Result<(), TransportError>>,
 ) {
-    let OwnInbox { wake, sub, node } = inbox;
+    type Ports = (Node<Svc>, Subscriber<Svc, [u8], ()>, Listener<Svc>);
+    let setup = || -> Result<Ports, TransportError> {
+        let config = iox_config(&cfg.domain)?;
+        let node = iox_node(&config)?;
+        let (data, wake) = open_inbox(&node, &inbox_name(&cfg.domain, cfg.me)?, &cfg.limits)?;
+        let sub = data
+            .subscriber_builder()
+            .buffer_size(cfg.limits.buffer)
+            .create()
+            .map_err(|e| ipc_err("subscriber", e))?;
+        let listener = wake
+            .listener_builder()
+            .create()
+            .map_err(|e| ipc_err("listener", e))?;
+        Ok((node, sub, listener))
+    };
+    let (node, sub, listener) = match setup() {
+        Ok(v) => {
+            let _ = ready.send(Ok(()));
+            v
+        }
+        Err(e) => {
+            let _ = ready.send(Err(e));
+            return;
+        }
+    };
     let mut known: HashSet<NodeId> = HashSet::new();
-    'run: loop {
-        // Frames may already wait (published before this loop started, or while the last
-        // batch was handed on): drain first, then sleep.
+    while !stop.load(Ordering::Acquire) {
+        if let Err(e) = listener.timed_wait(|_| {}, STOP_POLL) {
+            tracing::warn!(error = ?e, "iceoryx2 listener wait failed");
+            std::thread::sleep(STOP_POLL);
+        }
         loop {
             let sample = match sub.receive() {
                 Ok(Some(s)) => s,
@@ -416,39 +413,19 @@ async fn receive_loop(
             let from = env.source;
             if known.insert(from) {
                 bump(&stats.peers_up);
-                if events.send(Event::PeerUp(from)).await.is_err() {
-                    break 'run;
+                if events.blocking_send(Event::PeerUp(from)).is_err() {
+                    return;
                 }
             }
             bump(&stats.received);
             let droppable = env.body.droppable();
             let ev = Event::Message(Incoming { from, env });
-            if push(&events, ev, droppable, &stats.dropped_inbox_full)
-                .await
-                .is_err()
-            {
-                break 'run;
+            if push_blocking(&events, ev, droppable, &stats.dropped_inbox_full).is_err() {
+                return;
             }
         }
-        let mut ready = tokio::select! {
-            () = stop.cancelled() => break 'run,
-            r = wake.readable() => match r {
-                Ok(g) => g,
-                Err(e) => {
-                    tracing::warn!(error = %e, "waiting on the iceoryx2 listener failed");
-                    tokio::time::sleep(Duration::from_millis(50)).await;
-                    continue;
-                }
-            },
-        };
-        // Clear readiness before consuming, so a notification that lands in between raises
-        // it again instead of being lost.
-        ready.clear_ready();
-        if let Err(e) = wake.get_ref().0.try_wait(|_| {}) {
-            tracing::warn!(error = ?e, "iceoryx2 listener wait failed");
-        }
     }
-    drop((sub, wake));
+    drop((sub, listener));
     drop(node);
 }
 
