@@ -13,8 +13,8 @@
 //! stable tie-breaking and seeded random streams. Every message goes through
 //! `proto::wire::{encode, decode}` on its way, as it would between processes.
 
-use super::logged::{self, Recorded};
 use super::faults::{self, Faults};
+use super::logged::{self, Recorded};
 use super::net::{Fate, NetworkModel, SimNetwork, SkewedClock};
 use super::queue::EventQueue;
 use node_camera::config::CameraConfig;
