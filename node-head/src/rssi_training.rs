@@ -35,10 +35,6 @@ pub struct RssiTrainer {
     sigma_u2: VecDeque<f64>,
     model: RssiModel,
     choice: Choice,
-    /// The last fit (a, b, σ̂²_v), kept to re-run Algorithm 1 as σ²_u changes.
-    fit: Option<(f64, f64, f64)>,
-    /// σ²_u of the auxiliary EIF now (see [`RssiTrainer::assess`]).
-    sigma_u2_now: f64,
 }
 
 impl RssiTrainer {
@@ -53,8 +49,6 @@ impl RssiTrainer {
             epsilon: epsilon.abs().max(f64::MIN_POSITIVE),
             model: default,
             choice: Choice::Untrained,
-            fit: None,
-            sigma_u2_now: 0.0,
         }
     }
 
@@ -86,33 +80,13 @@ impl RssiTrainer {
         self.refit();
     }
 
-    /// Re-run Algorithm 1 with the auxiliary EIF's current σ²_u along this node's line (paper
-    /// 002 §IV, §VI-B): the camera-only filter only predicts while no camera sees the target,
-    /// its uncertainty grows, and once a²σ²_u + σ²_v exceeds σ²_D the default model is used
-    /// ("occlusions originated high uncertainties in the RSSI training method and the default
-    /// RSSI model was selected"). Eq. 7 takes the larger of the window's mean σ²_u and this
-    /// one. Non-finite input is ignored.
-    pub fn assess(&mut self, sigma_u2: f64) {
-        if !sigma_u2.is_finite() {
-            return;
-        }
-        self.sigma_u2_now = sigma_u2.max(0.0);
-        self.choose();
-    }
-
     fn refit(&mut self) {
-        self.fit = fit(self.window.iter().copied(), self.epsilon);
-        self.choose();
-    }
-
-    fn choose(&mut self) {
-        let Some((a, b, sigma_v2)) = self.fit else {
+        let Some((a, b, sigma_v2)) = fit(self.window.iter().copied(), self.epsilon) else {
             self.model = self.default;
             self.choice = Choice::Untrained;
             return;
         };
-        let window_u2 = self.sigma_u2.iter().sum::<f64>() / self.sigma_u2.len().max(1) as f64;
-        let sigma_u2 = window_u2.max(self.sigma_u2_now);
+        let sigma_u2 = self.sigma_u2.iter().sum::<f64>() / self.sigma_u2.len() as f64;
         let sigma_tm2 = a * a * sigma_u2 + sigma_v2;
         if sigma_tm2 > self.default.variance() {
             self.model = self.default;
@@ -218,26 +192,5 @@ mod tests {
         // The window keeps the last M.
         good.push(3.0, -70.0, 0.01);
         assert_eq!(good.pairs(), 10);
-    }
-
-    #[test]
-    fn a_trained_model_gives_way_to_the_default_when_the_camera_filter_grows_uncertain() {
-        let default = RssiModel::default();
-        let mut t = RssiTrainer::new(default, 10, 1e-3);
-        for i in 0..10 {
-            let d = 2.0 + 0.1 * i as f64;
-            t.push(d, -50.0 - 6.0 * d + if i % 2 == 0 { 0.5 } else { -0.5 }, 0.01);
-        }
-        t.assess(0.02);
-        assert!(matches!(t.choice(), Choice::Trained { .. }), "{:?}", t.choice());
-        // Occluded: the auxiliary EIF only predicts, 1 m² along the line: 36 > 16.
-        t.assess(1.0);
-        assert!(matches!(t.choice(), Choice::Default { .. }), "{:?}", t.choice());
-        assert_eq!(t.model(), default);
-        // Seen again: the trained model is back.
-        t.assess(0.01);
-        assert!(matches!(t.model(), RssiModel::Linear { .. }));
-        t.assess(f64::NAN);
-        assert!(matches!(t.model(), RssiModel::Linear { .. }));
     }
 }

@@ -191,9 +191,9 @@ impl HeadNode {
             self.counters.numeric_failures += 1;
         }
         // Algorithm 1: pairs (distance from the camera-only filter, RSSI).
-        let aux_pos: Vector3<f64> = track.aux.mean().fixed_rows::<3>(0).into_owned();
-        let aux_cov = track.aux.cov().fixed_view::<3, 3>(0, 0).into_owned();
         if trained_from_cameras {
+            let aux_pos: Vector3<f64> = track.aux.mean().fixed_rows::<3>(0).into_owned();
+            let aux_cov = track.aux.cov().fixed_view::<3, 3>(0, 0).into_owned();
             for &(slot, dbm) in &track.rssi {
                 let diff = aux_pos - self.nodes[slot].info.position;
                 let d = diff.norm();
@@ -201,16 +201,6 @@ impl HeadNode {
                     let u = diff / d;
                     track.trainers[slot].push(d, dbm, u.dot(&(aux_cov * u)));
                 }
-            }
-        }
-        // Every node's choice follows the camera-only filter's current uncertainty, so models
-        // trained before an occlusion give way to the default once it has grown.
-        for (slot, trainer) in track.trainers.iter_mut().enumerate() {
-            let diff = aux_pos - self.nodes[slot].info.position;
-            let d = diff.norm();
-            if d > 1e-6 {
-                let u = diff / d;
-                trainer.assess(u.dot(&(aux_cov * u)));
             }
         }
         track.detections = dets;
