@@ -61,94 +61,31 @@ pub struct Expected {
     pub rssi: Option<(SMatrix<f64, 1, 6>, f64)>,
 }
 
-/// Where a track may be next step: a deterministic set of sigma points of the predicted
-/// position (the unscented transform's 2n + 1 points for n = 3 with κ = 1: the mean, and the
-/// mean ± 2σ along each principal axis of the position covariance), so the planner judges a
-/// camera's view over the prediction's uncertainty rather than at its mean alone.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Reach {
-    /// The mean first, then the ± pairs along the axes by decreasing variance.
-    points: [Vector3<f64>; 7],
-}
-
-impl Reach {
-    /// √(n + κ) for n = 3, κ = 1.
-    const SPREAD: f64 = 2.0;
-    /// κ / (n + κ) for the mean, 1 / (2(n + κ)) for each other point.
-    const WEIGHTS: [f64; 7] = [0.25, 0.125, 0.125, 0.125, 0.125, 0.125, 0.125];
-
-    /// A target known exactly at the position of `mean`.
-    pub fn point(mean: &State) -> Self {
-        Reach {
-            points: [mean.fixed_rows::<3>(0).into_owned(); 7],
-        }
-    }
-
-    /// Sigma points of the position of `mean` under the state covariance `cov`; the mean alone
-    /// when the position block is not a covariance (non-finite or negative variances are
-    /// clamped to zero).
-    pub fn new(mean: &State, cov: &Matrix6<f64>) -> Self {
-        let centre = mean.fixed_rows::<3>(0).into_owned();
-        let p = cov.fixed_view::<3, 3>(0, 0).into_owned();
-        if !p.iter().all(|v| v.is_finite()) {
-            return Reach::point(mean);
-        }
-        let eig = nalgebra::SymmetricEigen::new((p + p.transpose()) * 0.5);
-        let mut order = [0usize, 1, 2];
-        order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
-        let mut points = [centre; 7];
-        for (i, &a) in order.iter().enumerate() {
-            let step = eig.eigenvectors.column(a) * (Self::SPREAD * eig.eigenvalues[a].max(0.0).sqrt());
-            points[1 + 2 * i] = centre + step;
-            points[2 + 2 * i] = centre - step;
-        }
-        Reach { points }
-    }
-
-    /// The sigma points, the mean first.
-    pub fn points(&self) -> &[Vector3<f64>; 7] {
-        &self.points
-    }
-}
-
 impl Expected {
-    /// Expected measurements of a node of a track with predicted `mean` that may be anywhere in
-    /// `reach`. The camera sees a sigma point when it projects inside the image in front of it
-    /// and no wall of `walls` stands between the camera and the point (paper 002 §VI-B: an
-    /// occluded camera contributes nothing, while its radio still hears the tag). Its expected
-    /// information is that of a view at the first point it sees (the mean when it sees the
-    /// mean) times the sigma-point weight of the points it sees: the probability of a view.
-    /// So a camera that may see the target as it comes out from behind a wall is still worth
-    /// waking, and one that can see none of the prediction's reach is not. The RSSI model is
-    /// linearized at the mean.
+    /// Expected measurements of a node at the predicted `mean`: the camera's only when the
+    /// point projects inside the image in front of it and no wall of `walls` stands between the
+    /// camera and the point (paper 002 §VI-B: an occluded camera contributes nothing, while its
+    /// radio still hears the tag).
     pub fn at(
         camera: Option<&CameraModel>,
         walls: &[Wall],
         pixel_sigma: f64,
         rssi: Option<(&RssiModel, &Vector3<f64>)>,
         mean: &State,
-        reach: &Reach,
     ) -> Self {
         let camera = camera.and_then(|cam| {
+            let world = mean.fixed_rows::<3>(0).into_owned();
+            let px = cam.project(&world)?;
             let k = &cam.intrinsics;
-            let centre = cam.pose.centre();
-            let sees = |world: &Vector3<f64>| {
-                cam.project(world).is_some_and(|px| {
-                    px.x >= 0.0 && px.y >= 0.0 && px.x < k.width as f64 && px.y < k.height as f64
-                }) && !walls.iter().any(|w| w.crosses(&centre, world))
-            };
-            let mut seen = 0.0;
-            let mut first: Option<&Vector3<f64>> = None;
-            for (p, w) in reach.points.iter().zip(Reach::WEIGHTS) {
-                if sees(p) {
-                    seen += w;
-                    first = first.or(Some(p));
-                }
+            if !(px.x >= 0.0 && px.y >= 0.0 && px.x < k.width as f64 && px.y < k.height as f64) {
+                return None;
             }
-            let mut at = *mean;
-            at.fixed_rows_mut::<3>(0).copy_from(first?);
-            let (h, jac) = pinhole(cam, &at)?;
-            Some((jac, cam.normalized_covariance(&h, pixel_sigma) / seen))
+            let centre = cam.pose.centre();
+            if walls.iter().any(|w| w.crosses(&centre, &world)) {
+                return None;
+            }
+            let (h, jac) = pinhole(cam, mean)?;
+            Some((jac, cam.normalized_covariance(&h, pixel_sigma)))
         });
         let rssi = rssi.map(|(model, node)| {
             let (_, jac) = model.measurement(node, mean);
@@ -322,7 +259,6 @@ mod tests {
             18.0,
             Some((&RssiModel::default(), &Vector3::zeros())),
             &mean,
-            &Reach::point(&mean),
         );
         assert!(e.camera.is_some());
         let sigma = crate::eif::spd_inverse(&omega, "t").unwrap();
@@ -347,8 +283,7 @@ mod tests {
             })
             .collect();
         let mut p = Planner::default();
-        let expect =
-            |n: usize, _t: usize| Expected::at(Some(&cams[n]), &[], 18.0, None, &mean, &Reach::point(&mean));
+        let expect = |n: usize, _t: usize| Expected::at(Some(&cams[n]), &[], 18.0, None, &mean);
         let d = p
             .decide(Variant::CameraOnly, 1e-3, &nodes, &[omega], expect)
             .unwrap();
@@ -377,16 +312,8 @@ mod tests {
             variance: 0.25,
         };
         let pos: Vec<_> = cams.iter().map(|c| c.pose.centre()).collect();
-        let expect = |n: usize, _t: usize| {
-            Expected::at(
-                Some(&cams[n]),
-                &[],
-                18.0,
-                Some((&model, &pos[n])),
-                &mean,
-                &Reach::point(&mean),
-            )
-        };
+        let expect =
+            |n: usize, _t: usize| Expected::at(Some(&cams[n]), &[], 18.0, Some((&model, &pos[n])), &mean);
         let mut p = Planner::default();
         let d = p
             .decide(Variant::ThreeMode, 5e-4, &nodes, &[omega], expect)
@@ -414,16 +341,7 @@ mod tests {
             height: 3.0,
             attenuation_db: 0.0,
         }];
-        let e = |n: usize| {
-            Expected::at(
-                Some(&cams[n]),
-                &walls,
-                18.0,
-                Some((&model, &pos[n])),
-                &mean,
-                &Reach::point(&mean),
-            )
-        };
+        let e = |n: usize| Expected::at(Some(&cams[n]), &walls, 18.0, Some((&model, &pos[n])), &mean);
         assert!(e(0).camera.is_none(), "seen through the wall");
         assert!(e(0).rssi.is_some(), "the radio is not a camera");
         assert!(e(1).camera.is_some() && e(2).camera.is_some());
@@ -448,77 +366,5 @@ mod tests {
             .decide(Variant::ThreeMode, 1e-4, &nodes[..1], &[omega], |n, _| e(n))
             .unwrap();
         assert_eq!((d.node, d.to), (NodeId(10), Mode::CameraOff));
-    }
-
-    /// A state covariance with position variance `major` along the horizontal direction
-    /// (1, −1)/√2 and `minor` across it and in z; velocities 1 (m/s)².
-    fn spread_cov(major: f64, minor: f64) -> Matrix6<f64> {
-        let u = Vector3::new(1.0, -1.0, 0.0) / 2f64.sqrt();
-        let v = Vector3::new(1.0, 1.0, 0.0) / 2f64.sqrt();
-        let w = Vector3::z();
-        let p = u * u.transpose() * major + (v * v.transpose() + w * w.transpose()) * minor;
-        let mut cov = Matrix6::identity();
-        cov.fixed_view_mut::<3, 3>(0, 0).copy_from(&p);
-        cov
-    }
-
-    #[test]
-    fn reach_spreads_two_sigma_along_the_principal_axes() {
-        let (_, mean, _) = setup();
-        let r = Reach::new(&mean, &spread_cov(1.0, 0.04));
-        let m = Vector3::new(3.0, 3.0, 0.2);
-        assert_eq!(r.points()[0], m);
-        // The largest axis first: ±2σ = ±2 m along (1, −1)/√2.
-        let d = r.points()[1] - m;
-        assert!((d.norm() - 2.0).abs() < 1e-9, "{d}");
-        assert!((d.x + d.y).abs() < 1e-9 && d.z.abs() < 1e-9, "{d}");
-        assert!((r.points()[2] - m + d).norm() < 1e-9);
-        for p in &r.points()[3..] {
-            assert!(((p - m).norm() - 0.4).abs() < 1e-9, "{p}");
-        }
-        assert_eq!(Reach::point(&mean).points(), &[m; 7]);
-    }
-
-    #[test]
-    fn an_uncertain_target_behind_a_wall_is_worth_a_camera_a_precise_one_is_not() {
-        let (cams, mean, _) = setup();
-        // A short wall across camera 0's line of sight to the mean at (3, 3): its shadow at the
-        // target is about ±0.85 m wide.
-        let walls = [Wall {
-            from: [1.2, 1.8],
-            to: [1.8, 1.2],
-            height: 3.0,
-            attenuation_db: 0.0,
-        }];
-        let nodes = [Candidate {
-            node: NodeId(10),
-            mode: Mode::Inactive,
-            power: PowerFigures::default(),
-            cost_factor: 1.0,
-        }];
-        let mut p = Planner::default();
-        let mut wake = |cov: &Matrix6<f64>, walls: &[Wall]| {
-            let reach = Reach::new(&mean, cov);
-            let e = Expected::at(Some(&cams[0]), walls, 18.0, None, &mean, &reach);
-            let omega = crate::eif::spd_inverse(cov, "t").unwrap();
-            (e, p.decide(Variant::CameraOnly, 1e-4, &nodes, &[omega], |_, _| e))
-        };
-        // Precise (σ = 0.1 m): every sigma point is in the wall's shadow.
-        let precise = spread_cov(0.01, 0.01);
-        let (e, d) = wake(&precise, &walls);
-        assert!(e.camera.is_none(), "seen through the wall");
-        assert!(d.is_none(), "woke a camera that cannot see: {d:?}");
-        // Uncertain along the wall (σ = 1 m): the ±2σ points lie beyond the shadow, in view.
-        let uncertain = spread_cov(1.0, 0.01);
-        let (e, d) = wake(&uncertain, &walls);
-        assert!(e.camera.is_some(), "the reach beyond the wall is not seen");
-        let d = d.expect("a camera that may see the target is worth waking");
-        assert_eq!((d.node, d.to), (NodeId(10), Mode::Active));
-        // Worth less than the same camera without the wall, which sees the mean and all the
-        // reach.
-        let (open, open_d) = wake(&uncertain, &[]);
-        assert!(open.camera.is_some());
-        let open_d = open_d.expect("an open view is worth waking");
-        assert!(d.reward < open_d.reward, "{} vs {}", d.reward, open_d.reward);
     }
 }

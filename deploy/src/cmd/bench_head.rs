@@ -16,7 +16,7 @@
 
 use anyhow::{Context, Result};
 use nalgebra::{DMatrix, DVector, Matrix6, Vector2, Vector3, Vector6};
-use node_head::activation::{Candidate, Expected, Planner, Reach, Variant};
+use node_head::activation::{Candidate, Expected, Planner, Variant};
 use node_head::config::NodeInfo;
 use node_head::eif::{Accumulator, Eif};
 use node_head::ekf::{Block, Ekf};
@@ -156,8 +156,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let mut planner = Planner::default();
         let act_reps = reps_for(n, args.scale) / 4 + 11;
         let us = median_us(act_reps, || {
-            // Per track and decision, as the head does.
-            let reach = Reach::new(&mean_bar, predicted.cov());
             let d = planner.decide(Variant::ThreeMode, 1e-3, &candidates, &[omega_bar], |k, _| {
                 Expected::at(
                     Some(&cams[k]),
@@ -165,7 +163,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
                     sigma_px,
                     Some((&model, &positions[k])),
                     &mean_bar,
-                    &reach,
                 )
             });
             black_box(d);

@@ -2,7 +2,7 @@
 //! linearization or ML), RSSI linearization and training, reports, births, activation.
 
 use super::HeadNode;
-use crate::activation::{Candidate, Expected, Reach, Variant};
+use crate::activation::{Candidate, Expected, Variant};
 use crate::association::{Detection, associate, births};
 use crate::eif::Eif;
 use crate::ml;
@@ -320,12 +320,10 @@ impl HeadNode {
         let motion = self.cfg.method.motion;
         let mut predicted: Vec<Info> = Vec::with_capacity(self.tracks.len());
         let mut means: Vec<State> = Vec::with_capacity(self.tracks.len());
-        let mut reaches: Vec<Reach> = Vec::with_capacity(self.tracks.len());
         for t in &self.tracks {
             let p = t.filter.predicted(&motion, dt).ok()?;
             predicted.push(*p.omega());
             means.push(*p.mean());
-            reaches.push(Reach::new(p.mean(), p.cov()));
         }
         let slots: Vec<usize> = (0..self.nodes.len())
             .filter(|&s| self.nodes[s].member && self.nodes[s].up)
@@ -355,7 +353,7 @@ impl HeadNode {
                 let model = tracks[t].trainers[slots[n]].model();
                 let heard = node.rssi && tracks[t].rssi_heard[slots[n]];
                 let rssi = heard.then_some((&model, &node.position));
-                Expected::at(Some(&node.camera), walls, sigma, rssi, &means[t], &reaches[t])
+                Expected::at(Some(&node.camera), walls, sigma, rssi, &means[t])
             },
         )?;
         let slot = self.slots[&decision.node];
