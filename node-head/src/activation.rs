@@ -17,7 +17,7 @@ use proto::Mode;
 use proto::NodeId;
 use proto::camera::CameraModel;
 use proto::models::{Info, RssiModel, State, pinhole};
-use proto::scenario::PowerFigures;
+use proto::scenario::{PowerFigures, Wall};
 
 /// Which actions are available and which measurements a mode yields.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -63,9 +63,12 @@ pub struct Expected {
 
 impl Expected {
     /// Expected measurements of a node at the predicted `mean`: the camera's only when the
-    /// point projects inside the image in front of it.
+    /// point projects inside the image in front of it and no wall of `walls` stands between the
+    /// camera and the point (paper 002 §VI-B: an occluded camera contributes nothing, while its
+    /// radio still hears the tag).
     pub fn at(
         camera: Option<&CameraModel>,
+        walls: &[Wall],
         pixel_sigma: f64,
         rssi: Option<(&RssiModel, &Vector3<f64>)>,
         mean: &State,
@@ -75,6 +78,10 @@ impl Expected {
             let px = cam.project(&world)?;
             let k = &cam.intrinsics;
             if !(px.x >= 0.0 && px.y >= 0.0 && px.x < k.width as f64 && px.y < k.height as f64) {
+                return None;
+            }
+            let centre = cam.pose.centre();
+            if walls.iter().any(|w| w.crosses(&centre, &world)) {
                 return None;
             }
             let (h, jac) = pinhole(cam, mean)?;
@@ -248,6 +255,7 @@ mod tests {
         let (cams, mean, omega) = setup();
         let e = Expected::at(
             Some(&cams[0]),
+            &[],
             18.0,
             Some((&RssiModel::default(), &Vector3::zeros())),
             &mean,
@@ -275,7 +283,7 @@ mod tests {
             })
             .collect();
         let mut p = Planner::default();
-        let expect = |n: usize, _t: usize| Expected::at(Some(&cams[n]), 18.0, None, &mean);
+        let expect = |n: usize, _t: usize| Expected::at(Some(&cams[n]), &[], 18.0, None, &mean);
         let d = p
             .decide(Variant::CameraOnly, 1e-3, &nodes, &[omega], expect)
             .unwrap();
@@ -304,7 +312,8 @@ mod tests {
             variance: 0.25,
         };
         let pos: Vec<_> = cams.iter().map(|c| c.pose.centre()).collect();
-        let expect = |n: usize, _t: usize| Expected::at(Some(&cams[n]), 18.0, Some((&model, &pos[n])), &mean);
+        let expect =
+            |n: usize, _t: usize| Expected::at(Some(&cams[n]), &[], 18.0, Some((&model, &pos[n])), &mean);
         let mut p = Planner::default();
         let d = p
             .decide(Variant::ThreeMode, 5e-4, &nodes, &[omega], expect)
@@ -313,5 +322,49 @@ mod tests {
         assert_eq!(d.node, NodeId(12));
         assert_eq!(d.to, Mode::CameraOff);
         assert!(d.cost < 0.0 && d.reward < 0.0);
+    }
+
+    #[test]
+    fn a_camera_behind_a_wall_expects_no_view_but_its_radio_still_counts() {
+        let (cams, mean, omega) = setup();
+        let model = RssiModel::Linear {
+            a: -10.0,
+            b: -40.0,
+            variance: 0.25,
+        };
+        let pos: Vec<_> = cams.iter().map(|c| c.pose.centre()).collect();
+        // A wall across the room between camera 0 (at the origin) and the target at (3, 3);
+        // cameras 1 and 2 look past its ends.
+        let walls = [Wall {
+            from: [0.5, 2.0],
+            to: [2.5, 0.5],
+            height: 3.0,
+            attenuation_db: 0.0,
+        }];
+        let e = |n: usize| Expected::at(Some(&cams[n]), &walls, 18.0, Some((&model, &pos[n])), &mean);
+        assert!(e(0).camera.is_none(), "seen through the wall");
+        assert!(e(0).rssi.is_some(), "the radio is not a camera");
+        assert!(e(1).camera.is_some() && e(2).camera.is_some());
+        // Three-mode, all Inactive, energy cheap: the hidden node is worth only its radio, so
+        // the planner wakes a camera that can see, and never wakes the hidden one's camera.
+        let nodes: Vec<_> = (0..3)
+            .map(|i| Candidate {
+                node: NodeId(10 + i),
+                mode: Mode::Inactive,
+                power: PowerFigures::default(),
+                cost_factor: 1.0,
+            })
+            .collect();
+        let mut p = Planner::default();
+        let d = p
+            .decide(Variant::ThreeMode, 1e-4, &nodes, &[omega], |n, _| e(n))
+            .unwrap();
+        assert_ne!(d.node, NodeId(10));
+        // Only the hidden node left to act on: RSSI only, not Active (its camera adds
+        // nothing but cost).
+        let d = p
+            .decide(Variant::ThreeMode, 1e-4, &nodes[..1], &[omega], |n, _| e(n))
+            .unwrap();
+        assert_eq!((d.node, d.to), (NodeId(10), Mode::CameraOff));
     }
 }

@@ -6,7 +6,7 @@ use crate::ml::DepthHandling;
 use nalgebra::Vector3;
 use proto::NodeId;
 use proto::camera::CameraModel;
-use proto::scenario::{Method, NodeRole, PowerFigures, Scenario, ScenarioError};
+use proto::scenario::{Method, NodeRole, PowerFigures, Scenario, ScenarioError, Wall};
 use thiserror::Error;
 
 /// A head that cannot be configured.
@@ -43,6 +43,8 @@ pub struct HeadConfig {
     pub nodes: Vec<NodeInfo>,
     /// World box, for rejecting ghost births.
     pub bounds: ([f64; 3], [f64; 3]),
+    /// The world's occluding walls: activation expects no camera measurement through them.
+    pub walls: Vec<Wall>,
     /// Fewest cameras that must agree to start a track (1 allows a wide single-camera prior).
     pub birth_min_cameras: usize,
     /// Height assumed for single-camera priors and for ML's known plane, metres.
@@ -86,6 +88,7 @@ impl HeadConfig {
             method: scenario.method.clone(),
             nodes,
             bounds: (scenario.world.min, scenario.world.max),
+            walls: scenario.world.walls.clone(),
             birth_min_cameras: if member_count <= 1 { 1 } else { 2 },
             target_plane_z,
             ml_depth: DepthHandling::KnownPlane {

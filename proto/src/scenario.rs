@@ -68,6 +68,31 @@ fn default_wall_attenuation() -> f64 {
     6.0
 }
 
+impl Wall {
+    /// Whether the straight segment `a → b` passes through this wall below its top.
+    pub fn crosses(&self, a: &Vector3<f64>, b: &Vector3<f64>) -> bool {
+        let (px, py) = (self.from[0], self.from[1]);
+        let (ex, ey) = (self.to[0] - px, self.to[1] - py);
+        let (dx, dy) = (b.x - a.x, b.y - a.y);
+        let denom = dx * ey - dy * ex;
+        if denom.abs() < 1e-12 {
+            return false;
+        }
+        let (apx, apy) = (px - a.x, py - a.y);
+        let s = (apx * ey - apy * ex) / denom;
+        let u = (apx * dy - apy * dx) / denom;
+        let z = a.z + (b.z - a.z) * s;
+        (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&u) && z <= self.height
+    }
+}
+
+impl World {
+    /// Whether a wall hides `b` from `a` (line of sight crosses a wall below its top).
+    pub fn occluded(&self, a: &Vector3<f64>, b: &Vector3<f64>) -> bool {
+        self.walls.iter().any(|w| w.crosses(a, b))
+    }
+}
+
 /// How the simulated world treats radio: log-distance path loss plus a location-dependent
 /// multipath field, wall attenuation and noise.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

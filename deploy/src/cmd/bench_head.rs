@@ -157,7 +157,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let act_reps = reps_for(n, args.scale) / 4 + 11;
         let us = median_us(act_reps, || {
             let d = planner.decide(Variant::ThreeMode, 1e-3, &candidates, &[omega_bar], |k, _| {
-                Expected::at(Some(&cams[k]), sigma_px, Some((&model, &positions[k])), &mean_bar)
+                Expected::at(
+                    Some(&cams[k]),
+                    &[],
+                    sigma_px,
+                    Some((&model, &positions[k])),
+                    &mean_bar,
+                )
             });
             black_box(d);
         });
@@ -221,6 +227,7 @@ fn head_step_us(n: usize, scale: f64) -> Result<f64> {
         method,
         nodes,
         bounds: ([0.0, 0.0, 0.0], [12.0, 8.0, 3.0]),
+        walls: Vec::new(),
         birth_min_cameras: 2,
         target_plane_z: 0.3,
         ml_depth: node_head::ml::DepthHandling::default(),

@@ -338,7 +338,7 @@ impl HeadNode {
             })
             .collect();
         let sigma = self.cfg.method.pixel_sigma;
-        let (nodes, tracks) = (&self.nodes, &self.tracks);
+        let (nodes, tracks, walls) = (&self.nodes, &self.tracks, &self.cfg.walls);
         let decision = self.planner.decide(
             variant,
             // Paper 002 §V: the cost is the difference in *energy*, set against the information
@@ -353,7 +353,7 @@ impl HeadNode {
                 let model = tracks[t].trainers[slots[n]].model();
                 let heard = node.rssi && tracks[t].rssi_heard[slots[n]];
                 let rssi = heard.then_some((&model, &node.position));
-                Expected::at(Some(&node.camera), sigma, rssi, &means[t])
+                Expected::at(Some(&node.camera), walls, sigma, rssi, &means[t])
             },
         )?;
         let slot = self.slots[&decision.node];

@@ -320,3 +320,21 @@ fn opencv_camera_in_a_scenario() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn walls_hide_only_what_is_behind_them_and_below_their_top() {
+    use nalgebra::Vector3;
+    let mut w = Scenario::default_scenario().world;
+    w.walls = vec![proto::scenario::Wall {
+        from: [0.0, 1.0],
+        to: [2.0, 1.0],
+        height: 2.0,
+        attenuation_db: 0.0,
+    }];
+    let a = Vector3::new(1.0, 0.0, 1.0);
+    assert!(w.occluded(&a, &Vector3::new(1.0, 2.0, 1.0)));
+    // Beside the wall, in front of it, or over its top: seen.
+    assert!(!w.occluded(&a, &Vector3::new(5.0, 2.0, 1.0)));
+    assert!(!w.occluded(&a, &Vector3::new(1.0, 0.5, 1.0)));
+    assert!(!w.occluded(&Vector3::new(1.0, 0.0, 3.0), &Vector3::new(1.0, 2.0, 2.5)));
+}
