@@ -1,5 +1,5 @@
-//! Logging runs and their replay: a camera's undistorted detections as recorded
-//! ([`node_server::MeasuredFrame`]) and back, bit for bit, and the per-camera queues a replay
+//! Logging runs and their replay: a recorded detection ([`node_server::MeasuredFrame`], written
+//! through the camera's wire form) back as the camera core takes it, bit for bit, and the per-camera queues a replay
 //! draws its frames from.
 
 use node_camera::detect::Detection;
@@ -7,20 +7,6 @@ use node_camera::measure::Measured;
 use node_server::{MeasuredDetection, MeasuredFrame};
 use proto::{ClusterTime, NodeId};
 use std::collections::{BTreeMap, VecDeque};
-
-/// The recorded form of a measured detection.
-pub fn to_record(m: &Measured) -> MeasuredDetection {
-    let d = &m.detection;
-    MeasuredDetection {
-        centre: d.centre,
-        foot: d.foot,
-        pixel_box: d.bbox,
-        area: d.area,
-        colour: d.colour,
-        point: [m.point.x, m.point.y],
-        cov: [m.cov[(0, 0)], m.cov[(0, 1)], m.cov[(1, 0)], m.cov[(1, 1)]],
-    }
-}
 
 /// A recorded detection as the camera core takes it.
 pub fn from_record(d: &MeasuredDetection) -> Measured {
@@ -112,7 +98,13 @@ mod tests {
             point: nalgebra::Vector2::new(0.1 + 0.2, -1.0 / 3.0),
             cov: nalgebra::Matrix2::new(1e-6 / 3.0, 1e-9, 1e-9, 2e-6 / 7.0),
         };
-        assert_eq!(from_record(&to_record(&m)), m);
+        let wire = proto::msg::MeasuredFrame {
+            captured: ClusterTime(5),
+            rssi_dbm: None,
+            detections: vec![node_camera::logging::to_wire(&m)],
+        };
+        let recorded = MeasuredFrame::from_wire(NodeId(3), &wire);
+        assert_eq!(from_record(&recorded.detections[0]), m);
     }
 
     #[test]

@@ -424,12 +424,15 @@ impl Sim {
         );
         self.records.push(Stamped::new(
             ClusterTime(t),
-            Record::Measured(MeasuredFrame {
-                camera: id,
-                captured: now,
-                rssi_dbm: dbm,
-                detections: slot.logged.iter().map(logged::to_record).collect(),
-            }),
+            // Recorded as a camera process sends it, so sim and launch logging runs agree.
+            Record::Measured(MeasuredFrame::from_wire(
+                id,
+                &proto::msg::MeasuredFrame {
+                    captured: now,
+                    rssi_dbm: dbm,
+                    detections: slot.logged.iter().map(node_camera::logging::to_wire).collect(),
+                },
+            )),
         ));
         slot.core.on_measured(now, now, &slot.logged)
     }
