@@ -79,7 +79,7 @@ pub struct Reader<R> {
     records: u64,
 }
 
-fn io(path: &Path) -> impl FnOnce(std::io::Error) -> RecordingError + '_ {
+pub(crate) fn io(path: &Path) -> impl FnOnce(std::io::Error) -> RecordingError + '_ {
     move |source| RecordingError::Io {
         path: path.into(),
         source,
@@ -113,29 +113,14 @@ impl<R: Read> Reader<R> {
     /// # Errors
     /// As [`Reader::open`].
     pub fn new(mut inner: R, len: u64, path: &Path) -> Result<Self, RecordingError> {
-        let mut fixed = [0u8; 12];
-        if !read_full(&mut inner, &mut fixed).map_err(io(path))? {
+        let Some((name, offset)) = read_header(&mut inner, path)? else {
             return Err(RecordingError::TruncatedHeader { path: path.into() });
-        }
-        if fixed[..8] != MAGIC {
-            return Err(RecordingError::BadMagic { path: path.into() });
-        }
-        let version = u16::from_le_bytes([fixed[8], fixed[9]]);
-        if version != FORMAT_VERSION {
-            return Err(RecordingError::Version {
-                path: path.into(),
-                got: version,
-            });
-        }
-        let mut name = vec![0u8; usize::from(u16::from_le_bytes([fixed[10], fixed[11]]))];
-        if !read_full(&mut inner, &mut name).map_err(io(path))? {
-            return Err(RecordingError::TruncatedHeader { path: path.into() });
-        }
+        };
         Ok(Reader {
             inner,
             path: path.into(),
-            name: String::from_utf8_lossy(&name).into_owned(),
-            offset: 12 + name.len() as u64,
+            name,
+            offset,
             len,
             tail: None,
             records: 0,
@@ -407,6 +392,35 @@ impl Recorder {
     pub fn path(&self) -> &Path {
         &self.path
     }
+}
+
+/// The header's scenario name and byte length; `None` while it is not all written.
+pub(crate) fn read_header(
+    input: &mut impl Read,
+    path: &Path,
+) -> Result<Option<(String, u64)>, RecordingError> {
+    let mut fixed = [0u8; 12];
+    if !read_full(input, &mut fixed).map_err(io(path))? {
+        return Ok(None);
+    }
+    if fixed[..8] != MAGIC {
+        return Err(RecordingError::BadMagic { path: path.into() });
+    }
+    let version = u16::from_le_bytes([fixed[8], fixed[9]]);
+    if version != FORMAT_VERSION {
+        return Err(RecordingError::Version {
+            path: path.into(),
+            got: version,
+        });
+    }
+    let mut name = vec![0u8; usize::from(u16::from_le_bytes([fixed[10], fixed[11]]))];
+    if !read_full(input, &mut name).map_err(io(path))? {
+        return Ok(None);
+    }
+    Ok(Some((
+        String::from_utf8_lossy(&name).into_owned(),
+        12 + name.len() as u64,
+    )))
 }
 
 #[cfg(test)]

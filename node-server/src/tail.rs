@@ -10,7 +10,7 @@
 //! and checksummed but does not decode is an error (it was written by another build).
 
 use crate::record::Stamped;
-use crate::recording::{FORMAT_VERSION, MAGIC, MAX_RECORD_BYTES, RecordingError, TailProblem, read_full};
+use crate::recording::{MAX_RECORD_BYTES, RecordingError, TailProblem, io, read_full, read_header};
 use std::fs::File;
 use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
@@ -24,13 +24,6 @@ pub struct Tailer {
     offset: u64,
     name: Option<String>,
     waiting: Option<TailProblem>,
-}
-
-fn io(path: &Path) -> impl FnOnce(std::io::Error) -> RecordingError + '_ {
-    move |source| RecordingError::Io {
-        path: path.into(),
-        source,
-    }
 }
 
 impl Tailer {
@@ -124,32 +117,6 @@ impl Tailer {
         }
         Ok(out)
     }
-}
-
-/// The header's scenario name and byte length; `None` while it is not all written.
-fn read_header(input: &mut impl Read, path: &Path) -> Result<Option<(String, u64)>, RecordingError> {
-    let mut fixed = [0u8; 12];
-    if !read_full(input, &mut fixed).map_err(io(path))? {
-        return Ok(None);
-    }
-    if fixed[..8] != MAGIC {
-        return Err(RecordingError::BadMagic { path: path.into() });
-    }
-    let version = u16::from_le_bytes([fixed[8], fixed[9]]);
-    if version != FORMAT_VERSION {
-        return Err(RecordingError::Version {
-            path: path.into(),
-            got: version,
-        });
-    }
-    let mut name = vec![0u8; usize::from(u16::from_le_bytes([fixed[10], fixed[11]]))];
-    if !read_full(input, &mut name).map_err(io(path))? {
-        return Ok(None);
-    }
-    Ok(Some((
-        String::from_utf8_lossy(&name).into_owned(),
-        12 + name.len() as u64,
-    )))
 }
 
 #[cfg(test)]
