@@ -179,6 +179,8 @@ fn remove_domain_files(domain: &str) -> usize {
 /// The run directory or a child cannot be created, or the recording cannot be read at the end.
 pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report> {
     let scenario = effective_scenario(scenario, opts.transport)?;
+    // The cameras' synthetic radio is the room the default RSSI model is surveyed in.
+    let scenario = node_camera::radio::surveyed(&scenario, crate::cmd::camera::SYNTHETIC_SEED);
     std::fs::create_dir_all(&opts.run_dir).with_context(|| format!("creating {}", opts.run_dir.display()))?;
     // A recording left by an earlier launch would be resumed by the server: keep it aside.
     if opts.record.exists() {

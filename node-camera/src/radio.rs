@@ -1,12 +1,14 @@
 //! The simulated radio world: RSSI of a target's tag at a node, as log-distance path loss plus
-//! a smooth location-dependent multipath field, wall attenuation and per-reading noise
+//! a smooth location-dependent multipath field, a constant per-node offset, wall attenuation and
+//! per-reading noise
 //! (`proto::scenario::RadioWorld`). The field differs per node and is fixed for a seed, so a
 //! node that learns locally (paper 002 Algorithm 1) has real structure to learn, and the
 //! paper's default `a log d + b` model is measurably worse. Pure functions of
 //! (scenario, node, target position, t, seed).
 
 use nalgebra::{Vector2, Vector3};
-use proto::scenario::{RadioWorld, Wall, World};
+use proto::models::fit_log_distance;
+use proto::scenario::{RadioWorld, Scenario, Wall, World};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -21,6 +23,8 @@ const COMPONENTS: usize = 48;
 pub struct MultipathField {
     waves: Vec<(Vector2<f64>, f64)>,
     amplitude: f64,
+    /// The node's constant offset, dB.
+    offset: f64,
 }
 
 impl MultipathField {
@@ -34,20 +38,25 @@ impl MultipathField {
                 (kv, rng.random_range(0.0..std::f64::consts::TAU))
             })
             .collect();
+        let offset = Normal::new(0.0, radio.node_offset_db.max(0.0))
+            .map(|n| n.sample(&mut rng))
+            .unwrap_or(0.0);
         MultipathField {
             waves,
             amplitude: radio.multipath_db * (2.0 / COMPONENTS as f64).sqrt(),
+            offset,
         }
     }
 
-    /// Field value at a floor position, dB.
+    /// Field value at a floor position, including the node's offset, dB.
     pub fn at(&self, p: &Vector2<f64>) -> f64 {
-        self.amplitude
-            * self
-                .waves
-                .iter()
-                .map(|(k, phi)| (k.dot(p) + phi).cos())
-                .sum::<f64>()
+        self.offset
+            + self.amplitude
+                * self
+                    .waves
+                    .iter()
+                    .map(|(k, phi)| (k.dot(p) + phi).cos())
+                    .sum::<f64>()
     }
 }
 
@@ -107,6 +116,48 @@ pub fn reading(
     mean_rssi(world, field, node, tag) + noise
 }
 
+/// Readings each RSSI node takes of every other RSSI node's beacon (paper 002 §VI's survey
+/// before tracking): `per_pair` readings per ordered pair, at 0.1 s intervals, as
+/// (distance m, RSSI dBm). The beacon stands where the node is; the receiving node's multipath
+/// field and offset, the walls and the noise apply as for a tag.
+pub fn survey(s: &Scenario, seed: u64, per_pair: usize) -> Vec<(f64, f64)> {
+    let nodes: Vec<(u32, Vector3<f64>, MultipathField)> = s
+        .cameras()
+        .filter(|c| c.rssi)
+        .filter_map(|c| {
+            let pos = s.camera_model(c.id).ok()?.pose.centre();
+            Some((c.id, pos, MultipathField::new(&s.world.radio, c.id, seed)))
+        })
+        .collect();
+    let mut out = Vec::new();
+    for (rx, rx_pos, field) in &nodes {
+        for (tx, tx_pos, _) in nodes.iter().filter(|n| n.0 != *rx) {
+            for k in 0..per_pair {
+                let t = k as f64 * 0.1;
+                let dbm = reading(&s.world, field, *rx, rx_pos, *tx, tx_pos, t, seed);
+                out.push(((tx_pos - rx_pos).norm(), dbm));
+            }
+        }
+    }
+    out
+}
+
+/// Readings per ordered node pair in [`surveyed`].
+pub const SURVEY_READINGS_PER_PAIR: usize = 10;
+
+/// `s` with its default RSSI model fitted to the survey of its simulated room when the scenario
+/// asks for it (`method.rssi-survey`), otherwise unchanged. Too few RSSI nodes to fit leave the
+/// scenario's model.
+pub fn surveyed(s: &Scenario, seed: u64) -> Scenario {
+    let mut out = s.clone();
+    if s.method.rssi_survey
+        && let Some(m) = fit_log_distance(&survey(s, seed, SURVEY_READINGS_PER_PAIR))
+    {
+        out.method.rssi_default = m;
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -127,7 +178,8 @@ mod tests {
     /// `a log d + b`: the multipath field is local structure worth learning.
     #[test]
     fn local_linear_model_beats_the_default_log_model() {
-        let s = Scenario::default_scenario();
+        // The default fitted to the room itself (paper 002's), not a literature one.
+        let s = surveyed(&Scenario::default_scenario(), 42);
         let world = &s.world;
         let default = s.method.rssi_default;
         let tg = &s.targets[0];
@@ -168,6 +220,53 @@ mod tests {
             "noise ({} dB) cannot be learned away: {rl:.2}",
             world.radio.noise_db
         );
+    }
+
+    /// The survey of the default room recovers the simulated law (the default model the paper
+    /// fitted between nodes), with the field and noise as its variance, and only when asked.
+    #[test]
+    fn survey_fits_the_rooms_law_when_the_scenario_asks() {
+        let mut s = Scenario::default_scenario();
+        let r = s.world.radio.clone();
+        let pairs = survey(&s, 3, 4);
+        let n = s.cameras().filter(|c| c.rssi).count();
+        assert_eq!(pairs.len(), n * (n - 1) * 4);
+        s.method.rssi_survey = true;
+        let RssiModel::LogDistance { a, b, variance } = surveyed(&s, 3).method.rssi_default else {
+            panic!("the survey fits the log-distance form");
+        };
+        let (a0, b0) = (-10.0 * r.path_loss_exponent, r.tx_power_dbm);
+        assert!(
+            (a - a0).abs() < 4.0 && (b - b0).abs() < 4.0,
+            "fit {a} log d + {b}"
+        );
+        let expected = r.multipath_db.powi(2) + r.noise_db.powi(2);
+        assert!(
+            variance > 0.5 * expected && variance < 2.0 * expected,
+            "variance {variance} vs {expected}"
+        );
+        s.method.rssi_survey = false;
+        assert_eq!(surveyed(&s, 3).method.rssi_default, s.method.rssi_default);
+    }
+
+    /// Each node's constant offset is drawn with the configured spread and is the same
+    /// everywhere on the floor.
+    #[test]
+    fn node_offsets_have_the_configured_spread() {
+        let radio = RadioWorld {
+            multipath_db: 0.0,
+            node_offset_db: 3.0,
+            ..RadioWorld::default()
+        };
+        let offsets: Vec<f64> = (0..400)
+            .map(|id| {
+                let f = MultipathField::new(&radio, id, 5);
+                assert_eq!(f.at(&Vector2::new(1.0, 2.0)), f.at(&Vector2::new(7.0, -3.0)));
+                f.at(&Vector2::zeros())
+            })
+            .collect();
+        let sd = (offsets.iter().map(|v| v * v).sum::<f64>() / offsets.len() as f64).sqrt();
+        assert!((sd - 3.0).abs() < 0.5, "offset sd {sd}");
     }
 
     #[test]

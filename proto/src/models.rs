@@ -189,6 +189,34 @@ impl RssiModel {
     }
 }
 
+/// Fit the default model `RSSI = a log10 d + b` (paper 002 eq. 2) by least squares to
+/// (distance m, RSSI dBm) pairs, as paper 002 §VI did with readings between every pair of nodes;
+/// the variance σ²_D is the residuals' (two degrees of freedom removed). `None` with fewer than
+/// three usable pairs or no spread in distance.
+pub fn fit_log_distance(pairs: &[(f64, f64)]) -> Option<RssiModel> {
+    let pts: Vec<(f64, f64)> = pairs
+        .iter()
+        .filter(|(d, r)| d.is_finite() && r.is_finite() && *d > 0.0)
+        .map(|&(d, r)| (d.max(RSSI_MIN_DISTANCE_M).log10(), r))
+        .collect();
+    if pts.len() < 3 {
+        return None;
+    }
+    let n = pts.len() as f64;
+    let (mx, my) = (
+        pts.iter().map(|p| p.0).sum::<f64>() / n,
+        pts.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    if sxx <= 1e-12 {
+        return None;
+    }
+    let a = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>() / sxx;
+    let b = my - a * mx;
+    let variance = pts.iter().map(|p| (p.1 - a * p.0 - b).powi(2)).sum::<f64>() / (n - 2.0).max(1.0);
+    Some(RssiModel::LogDistance { a, b, variance })
+}
+
 /// Information form of one measurement linearized at `mean` (paper 002 §III):
 /// Ω_i = Hᵀ Q⁻¹ H, ξ_i = Hᵀ Q⁻¹ (z − h(μ̄) + H μ̄). `None` when Q is not positive definite.
 pub fn information_contribution<const M: usize>(

@@ -16,6 +16,10 @@ use std::sync::Arc;
 use std::time::Duration;
 use tokio_util::sync::CancellationToken;
 
+/// Seed of a camera's synthetic world unless `--seed` says otherwise (every camera of a launch
+/// shares it).
+pub const SYNTHETIC_SEED: u64 = 1;
+
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Scenario file (default: the embedded default scenario).
@@ -31,7 +35,7 @@ pub struct Args {
     #[arg(long, default_value = "synthetic")]
     pub source: String,
     /// Seed of the synthetic world (noise, multipath).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = SYNTHETIC_SEED)]
     pub seed: u64,
     /// Cluster time (ns since the Unix epoch) of scenario time 0.
     #[arg(long)]

@@ -1,6 +1,9 @@
-//! `ocelli scenario`: print the embedded default scenario, or check a scenario file.
+//! `ocelli scenario`: print the embedded default scenario, check a scenario file, or survey a
+//! scenario's simulated room for its default RSSI model.
 
 use anyhow::Result;
+use node_camera::radio::{SURVEY_READINGS_PER_PAIR, survey};
+use proto::models::{RssiModel, fit_log_distance};
 use proto::scenario::{DEFAULT_SCENARIO_TOML, Scenario};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -17,6 +20,15 @@ pub enum Action {
     Default,
     /// Parse and validate a scenario file; print a summary.
     Check { path: PathBuf },
+    /// Survey the scenario's simulated room (every RSSI node reads every other's beacon) and
+    /// print the default RSSI model fitted to it, as paper 002 fitted its testbed's.
+    Survey {
+        /// Scenario file (the embedded default when absent).
+        path: Option<PathBuf>,
+        /// Seed of the simulated room (a launch's cameras use 1; `ocelli sim --seed`).
+        #[arg(long, default_value_t = super::camera::SYNTHETIC_SEED)]
+        seed: u64,
+    },
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -30,6 +42,29 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 s.cameras().count(),
                 s.heads().count(),
                 s.targets.len()
+            );
+        }
+        Action::Survey { path, seed } => {
+            let s = match path {
+                Some(p) => Scenario::load(&p)?,
+                None => Scenario::default_scenario(),
+            };
+            let pairs = survey(&s, seed, SURVEY_READINGS_PER_PAIR);
+            let Some(RssiModel::LogDistance { a, b, variance }) = fit_log_distance(&pairs) else {
+                anyhow::bail!(
+                    "{}: {} survey readings cannot determine a model (it needs at least two RSSI nodes at different distances)",
+                    s.name,
+                    pairs.len()
+                );
+            };
+            println!(
+                "# {}: {} readings between {} RSSI nodes, seed {seed}",
+                s.name,
+                pairs.len(),
+                s.cameras().filter(|c| c.rssi).count()
+            );
+            println!(
+                "rssi-default = {{ kind = \"log-distance\", a = {a:.2}, b = {b:.2}, variance = {variance:.1} }}"
             );
         }
     }

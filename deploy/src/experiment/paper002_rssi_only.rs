@@ -18,7 +18,7 @@ use super::{Check, Options, Outcome, Row, Trace};
 use crate::sim::faults::Faults;
 use crate::sim::runtime::Level;
 use nalgebra::{Matrix6, Vector3};
-use node_camera::radio::{self, MultipathField};
+use node_camera::radio::{self, MultipathField, surveyed};
 use node_head::eif::{Accumulator, Eif};
 use node_head::rssi_training::RssiTrainer;
 use proto::models::{State, rssi_contribution};
@@ -130,7 +130,7 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
         let seed = opts.seed.wrapping_add(u64::from(k));
         let (_, cam) = runner::run_once(&cameras, seed, level, duration_s)?;
         for (i, trained) in [false, true].into_iter().enumerate() {
-            passes[i].push(rssi_only(&s, &cam, trained, seed));
+            passes[i].push(rssi_only(&surveyed(&s, seed), &cam, trained, seed));
         }
     }
     let mut rows = Vec::new();

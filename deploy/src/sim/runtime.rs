@@ -184,6 +184,8 @@ impl Sim {
     /// # Errors
     /// A node whose configuration cannot be built from the scenario, naming it.
     pub fn new(scenario: Scenario, opts: SimOptions) -> anyhow::Result<Sim> {
+        // The default RSSI model is fitted in this run's simulated room when the scenario asks.
+        let scenario = node_camera::radio::surveyed(&scenario, opts.seed);
         let net = SimNetwork::new(opts.network.clone(), opts.seed);
         let mut sim = Sim {
             queue: EventQueue::default(),

@@ -63,13 +63,19 @@ impl Scenario {
             }
         }
         let r = &self.world.radio;
-        if !all_finite(&[r.tx_power_dbm, r.path_loss_exponent, r.multipath_db, r.noise_db])
-            || r.multipath_db < 0.0
+        if !all_finite(&[
+            r.tx_power_dbm,
+            r.path_loss_exponent,
+            r.multipath_db,
+            r.noise_db,
+            r.node_offset_db,
+        ]) || r.multipath_db < 0.0
             || r.noise_db < 0.0
+            || r.node_offset_db < 0.0
         {
             return Err(bad(
                 "world.radio".into(),
-                "expected finite numbers and non-negative multipath-db, noise-db".into(),
+                "expected finite numbers and non-negative multipath-db, noise-db, node-offset-db".into(),
             ));
         }
         positive("world.radio.multipath-length-m".into(), r.multipath_length_m)?;

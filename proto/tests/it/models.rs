@@ -198,3 +198,27 @@ fn transition_moves_position_by_velocity() {
     assert_relative_eq!(r[(0, 3)], 0.25 * 4.0 / 2.0, epsilon = 1e-15);
     assert_relative_eq!(r[(3, 3)], 0.25 * 2.0, epsilon = 1e-15);
 }
+
+/// The survey fit recovers a known law from noisy pairs, estimates the noise as its variance,
+/// and refuses what cannot determine a line.
+#[test]
+fn log_distance_fit_recovers_a_law_and_its_variance() {
+    use proto::models::fit_log_distance;
+    // A deterministic ±2 dB alternation: variance 4 (times n/(n−2)).
+    let pairs: Vec<(f64, f64)> = (0..200)
+        .map(|k| {
+            let d = 1.0 + 0.05 * k as f64;
+            let e = if k % 2 == 0 { 2.0 } else { -2.0 };
+            (d, -26.0 * d.log10() - 48.0 + e)
+        })
+        .collect();
+    let Some(RssiModel::LogDistance { a, b, variance }) = fit_log_distance(&pairs) else {
+        panic!("no log-distance fit");
+    };
+    assert!((a + 26.0).abs() < 0.5, "a = {a}");
+    assert!((b + 48.0).abs() < 0.3, "b = {b}");
+    assert!((variance - 4.0).abs() < 0.2, "variance = {variance}");
+    assert!(fit_log_distance(&pairs[..2]).is_none());
+    assert!(fit_log_distance(&[(3.0, -60.0); 10]).is_none());
+    assert!(fit_log_distance(&[(f64::NAN, -60.0), (2.0, f64::INFINITY), (1.0, -50.0)]).is_none());
+}
