@@ -231,7 +231,7 @@ pub fn load(dir: &Path) -> Result<Dataset, DataError> {
         return Err(DataError::NoTracks(trk));
     }
     Ok(Dataset {
-        dir: dir.to_path_buf(),
+        dir: dir.canonicalize().unwrap_or_else(|_| dir.to_path_buf()),
         sensors,
         trajectories,
     })
