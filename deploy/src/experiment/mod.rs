@@ -4,9 +4,13 @@
 //! paper's numbers (constants copied from `papers/README.md`, labelled "paper"). Ground truth is
 //! only read for scoring; no estimate sees it.
 //!
+//! `ble-rssi` is the exception: it checks our RSSI models against a real dataset instead of a
+//! simulation, and is not in [`NAMES`] (see [`REAL_DATA`]).
+//!
 //! One module per experiment, [`runner`] (run a method, aggregate runs), [`table`] (text,
 //! JSON and Markdown) and [`plot`] (PNG figures).
 
+pub mod ble_rssi;
 pub mod paper000_table1;
 pub mod paper002_occlusion;
 pub mod paper002_robustness;
@@ -20,7 +24,7 @@ use crate::sim::runtime::Level;
 use runner::Sample;
 use serde::Serialize;
 
-/// Every experiment, in priority order.
+/// Every simulated experiment, in priority order: what `ocelli experiment all` runs.
 pub const NAMES: [&str; 5] = [
     "paper000-table1",
     "paper002-table1",
@@ -28,6 +32,10 @@ pub const NAMES: [&str; 5] = [
     "paper002-rssi-only",
     "paper002-robustness",
 ];
+
+/// Experiments on real data from `shared/datasets/`: run by name only, never by `all`, so that
+/// `all` works without the shared datasets (each fails with the dataset's path when absent).
+pub const REAL_DATA: [&str; 1] = [ble_rssi::NAME];
 
 /// How to run an experiment.
 #[derive(Clone, Debug)]
@@ -143,7 +151,12 @@ pub fn run(name: &str, opts: &Options) -> anyhow::Result<Outcome> {
         "paper002-occlusion" => paper002_occlusion::run(opts),
         "paper002-rssi-only" => paper002_rssi_only::run(opts),
         "paper002-robustness" => paper002_robustness::run(opts),
-        other => anyhow::bail!("unknown experiment {other:?}; known: {}", NAMES.join(", ")),
+        ble_rssi::NAME => ble_rssi::run(opts),
+        other => anyhow::bail!(
+            "unknown experiment {other:?}; known: {}, {}",
+            NAMES.join(", "),
+            REAL_DATA.join(", ")
+        ),
     }
 }
 
