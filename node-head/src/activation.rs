@@ -11,6 +11,14 @@
 //! energy difference over the step whose information gain is the reward), so c1
 //! is the node's active-minus-low-power draw and c2 its camera's (paper 002 Fig. 3); savings are
 //! negative costs.
+//!
+//! Lost cameras (opt-in, [`Planner::watching_deliveries`]): paper 000's Ω counts "the sensors
+//! currently used". A camera that is on, expected to see a track, but delivered nothing since
+//! the last decision (paper 000 §6.2 loses cameras 2 and 3's measurements for 15 s; the head
+//! cannot know why) is not counted in Ω, and no action is taken on it: switching it off and on
+//! again would spend the one action per step on a camera whose worth nothing measures. The
+//! camera the last decision switched on counts before its first frame. A plain planner counts
+//! every camera on, as its mode says (paper 002's planners).
 
 use nalgebra::{Matrix2, Matrix3, Matrix6, SMatrix, Vector3};
 use proto::Mode;
@@ -165,9 +173,61 @@ fn gain(e: &Expected, cam: bool, rssi: bool, sigma: &Matrix6<f64>, sign: f64) ->
 pub struct Planner {
     expected: Vec<Expected>,
     sigmas: Vec<Matrix6<f64>>,
+    /// Nodes whose camera delivered a measurement since the last decision, when deliveries are
+    /// watched (`None`: every camera on counts, as its mode says).
+    delivered: Option<Vec<NodeId>>,
+    /// The node the last decision switched a camera on at: it has had no frame to deliver yet.
+    switched_on: Option<NodeId>,
 }
 
 impl Planner {
+    /// A planner that counts a camera that is on only while it delivers (see
+    /// [`Planner::camera_delivered`]).
+    pub fn watching_deliveries() -> Self {
+        Planner {
+            delivered: Some(Vec::new()),
+            ..Planner::default()
+        }
+    }
+
+    /// Node `node`'s camera delivered a measurement this step.
+    pub fn camera_delivered(&mut self, node: NodeId) {
+        if let Some(d) = &mut self.delivered
+            && !d.contains(&node)
+        {
+            d.push(node);
+        }
+    }
+
+    /// Whether a camera that is on is one of "the sensors currently used" (paper 000 §5): it
+    /// delivered since the last decision, or that decision just switched it on.
+    fn in_use(&self, node: NodeId) -> bool {
+        self.delivered
+            .as_ref()
+            .is_none_or(|d| d.contains(&node) || self.switched_on == Some(node))
+    }
+
+    /// Whether candidate `n` (of `nt` tracks' expectations) has its camera on and expected to
+    /// see a track, yet delivered nothing: its measurements are lost.
+    fn lost(&self, variant: Variant, n: usize, c: &Candidate, nt: usize) -> bool {
+        variant.yields(c.mode).0
+            && !self.in_use(c.node)
+            && self.expected[n * nt..(n + 1) * nt]
+                .iter()
+                .any(|e| e.camera.is_some())
+    }
+
+    /// The decision, remembering what it switched on and forgetting this step's deliveries.
+    fn decided(&mut self, variant: Variant, d: Option<Decision>) -> Option<Decision> {
+        if let Some(v) = &mut self.delivered {
+            v.clear();
+        }
+        self.switched_on = d
+            .filter(|d| variant.yields(d.to).0 && !variant.yields(d.from).0)
+            .map(|d| d.node);
+        d
+    }
+
     /// Algorithm 2 over `nodes` for tracks with predicted information `predicted[t]` (Ω̄ of the
     /// next step). `expect(n, t)` gives node `n`'s expected measurements of track `t`.
     /// `None` when no action's reward exceeds its cost.
@@ -178,6 +238,18 @@ impl Planner {
         nodes: &[Candidate],
         predicted: &[Info],
         mut expect: impl FnMut(usize, usize) -> Expected,
+    ) -> Option<Decision> {
+        let d = self.choose(variant, energy_weight, nodes, predicted, &mut expect);
+        self.decided(variant, d)
+    }
+
+    fn choose(
+        &mut self,
+        variant: Variant,
+        energy_weight: f64,
+        nodes: &[Candidate],
+        predicted: &[Info],
+        expect: &mut impl FnMut(usize, usize) -> Expected,
     ) -> Option<Decision> {
         let nt = predicted.len();
         if nt == 0 {
@@ -194,6 +266,7 @@ impl Planner {
             let mut omega = *omega_bar;
             for (n, c) in nodes.iter().enumerate() {
                 let (cam, rssi) = variant.yields(c.mode);
+                let cam = cam && !self.lost(variant, n, c, nt);
                 omega += self.expected[n * nt + t].info(cam, rssi);
             }
             let sigma = crate::eif::spd_inverse(&omega, "expected information").ok()?;
@@ -201,6 +274,11 @@ impl Planner {
         }
         let mut best: Option<Decision> = None;
         for (n, c) in nodes.iter().enumerate() {
+            if self.lost(variant, n, c, nt) {
+                // On, but its measurements are lost: worth nothing now, and nothing tells what
+                // switching it would change.
+                continue;
+            }
             let (cam0, rssi0) = variant.yields(c.mode);
             for &to in variant.targets(c.mode) {
                 let (cam1, rssi1) = variant.yields(to);
@@ -293,6 +371,86 @@ mod tests {
             p.decide(Variant::CameraOnly, 1.0, &nodes, &[omega], expect)
                 .is_none()
         );
+    }
+
+    fn all(mode: Mode) -> Vec<Candidate> {
+        (0..3)
+            .map(|i| Candidate {
+                node: NodeId(10 + i),
+                mode,
+                power: PowerFigures::default(),
+                cost_factor: 1.0,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_lost_camera_is_neither_counted_nor_switched_when_deliveries_are_watched() {
+        let (cams, mean, omega) = setup();
+        let expect = |n: usize, _t: usize| Expected::at(Some(&cams[n]), &[], 18.0, None, &mean);
+        // Camera 10 on, 11 and 12 off; a price at which one camera is worth keeping but a
+        // second is not worth adding next to it.
+        let mut nodes = all(Mode::Inactive);
+        nodes[0].mode = Mode::Active;
+        let sigma_one = crate::eif::spd_inverse(&(omega + expect(0, 0).info(true, false)), "t").unwrap();
+        let second = gain(&expect(1, 0), true, false, &sigma_one, 1.0).max(gain(
+            &expect(2, 0),
+            true,
+            false,
+            &sigma_one,
+            1.0,
+        ));
+        let keep = -gain(&expect(0, 0), true, false, &sigma_one, -1.0);
+        assert!(second < keep, "{second} {keep}");
+        let w = (second + keep)
+            / 2.0
+            / (PowerFigures::default().in_mode(Mode::Active)
+                - PowerFigures::default().in_mode(Mode::Inactive));
+        // A plain planner counts camera 10 and leaves everything as it is.
+        let mut plain = Planner::default();
+        assert!(
+            plain
+                .decide(Variant::CameraOnly, w, &nodes, &[omega], expect)
+                .is_none()
+        );
+        // Watching deliveries: while 10 delivers, the same.
+        let mut p = Planner::watching_deliveries();
+        p.camera_delivered(NodeId(10));
+        assert!(
+            p.decide(Variant::CameraOnly, w, &nodes, &[omega], expect)
+                .is_none()
+        );
+        // 10 delivers nothing: it is not counted, so another camera is switched on, and 10 is
+        // left alone.
+        let d = p
+            .decide(Variant::CameraOnly, w, &nodes, &[omega], expect)
+            .unwrap();
+        assert_ne!(d.node, NodeId(10));
+        assert_eq!(d.to, Mode::Active);
+        // The camera just switched on counts before its first frame: with it on (and 10 still
+        // silent) nothing more is worth doing.
+        let on = nodes.iter().position(|c| c.node == d.node).unwrap();
+        nodes[on].mode = Mode::Active;
+        assert!(
+            p.decide(Variant::CameraOnly, w, &nodes, &[omega], expect)
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn a_silent_camera_expected_to_see_nothing_is_switched_off_as_before() {
+        let (cams, _, omega) = setup();
+        // A target behind every camera: none expects to see it.
+        let far = State::new(3.0, 3.0, 40.0, 0.0, 0.0, 0.0);
+        let expect = |n: usize, _t: usize| Expected::at(Some(&cams[n]), &[], 18.0, None, &far);
+        assert!(expect(0, 0).camera.is_none());
+        let nodes = all(Mode::Active);
+        let mut p = Planner::watching_deliveries();
+        let d = p
+            .decide(Variant::CameraOnly, 1e-3, &nodes, &[omega], expect)
+            .unwrap();
+        assert_eq!(d.to, Mode::Inactive);
+        assert_eq!(d.reward, 0.0);
     }
 
     #[test]

@@ -68,6 +68,11 @@ impl HeadNode {
             .collect();
         let slots = nodes.iter().enumerate().map(|(i, n)| (n.info.id, i)).collect();
         let cameras = nodes.iter().map(|n| n.info.camera).collect();
+        let planner = if cfg.method.drop_lost_cameras {
+            Planner::watching_deliveries()
+        } else {
+            Planner::default()
+        };
         HeadNode {
             cfg,
             nodes,
@@ -80,7 +85,7 @@ impl HeadNode {
             step_time: ClusterTime::ZERO,
             next_step_at: None,
             detections: Vec::new(),
-            planner: Planner::default(),
+            planner,
             expected: Vec::new(),
             counters: Counters::default(),
             last: StepStats::default(),
@@ -238,6 +243,7 @@ impl HeadNode {
                 let rssi = c.rssi.filter(|_| node.info.rssi).map(|r| r.dbm);
                 let track = &mut self.tracks[t];
                 if c.camera {
+                    self.planner.camera_delivered(node.info.id);
                     track.acc.add_wire(&c.info_matrix, &c.info_vector);
                     track.aux_acc.add_wire(&c.info_matrix, &c.info_vector);
                     track.last_seen = now;
@@ -273,6 +279,7 @@ impl HeadNode {
 
     fn on_measurement(&mut self, slot: usize, m: Measurement) {
         self.nodes[slot].mode = m.mode;
+        self.planner.camera_delivered(self.nodes[slot].info.id);
         if self.detections.len() >= MAX_DETECTIONS_PER_STEP {
             self.counters.overflow += 1;
             return;

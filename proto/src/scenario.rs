@@ -242,6 +242,12 @@ pub struct Method {
     pub track_timeout_ms: u64,
     /// Mahalanobis gate (χ², 2 dof) for associating detections with tracks.
     pub gate_chi2: f64,
+    /// Activation drops lost cameras: a camera that is on and expected to see a track but
+    /// delivered nothing last step is not counted among the sensors in use, nor switched, until
+    /// it delivers again (paper 000 §6.2's lost measurements). Off (the default): every camera
+    /// on counts as its mode says.
+    #[serde(default)]
+    pub drop_lost_cameras: bool,
 }
 
 impl Default for Method {
@@ -262,6 +268,7 @@ impl Default for Method {
             previous_point: false,
             track_timeout_ms: 3000,
             gate_chi2: 13.8,
+            drop_lost_cameras: false,
         }
     }
 }

@@ -55,11 +55,20 @@ impl Runs {
     /// Mean and standard deviation of the errors of every run's samples with `t` in
     /// `[from, to)`; `None` without samples.
     pub fn errors_in(&self, from: f64, to: f64) -> Option<(f64, f64, usize)> {
+        self.errors_where(|t| t >= from && t < to)
+    }
+
+    /// The same for the samples outside `[from, to)`.
+    pub fn errors_out(&self, from: f64, to: f64) -> Option<(f64, f64, usize)> {
+        self.errors_where(|t| t < from || t >= to)
+    }
+
+    fn errors_where(&self, keep: impl Fn(f64) -> bool) -> Option<(f64, f64, usize)> {
         let e: Vec<f64> = self
             .samples
             .iter()
             .flatten()
-            .filter(|s| s.t >= from && s.t < to)
+            .filter(|s| keep(s.t))
             .map(|s| s.error_m)
             .collect();
         mean_std(&e).map(|(m, s)| (m, s, e.len()))

@@ -166,3 +166,78 @@ fn activation_cost_is_the_energy_of_one_step() {
     let want = s.method.energy_weight * (power.in_mode(d.to) - power.in_mode(d.from)) * step_s;
     assert!((d.cost - want).abs() < 1e-12, "cost {} vs {want}", d.cost);
 }
+
+/// Twelve steps of a head on the default scenario with the camera-only planner, energy so dear
+/// that no camera is worth keeping, and a still track handed over at (3, 4): every member
+/// camera that is on sends its (empty) camera contribution when `deliver`. Returns the config,
+/// the track's predicted mean and each step's decision.
+fn camera_only_steps(
+    drop_lost: bool,
+    deliver: bool,
+) -> (HeadConfig, State, Vec<crate::activation::Decision>) {
+    let mut s = Scenario::default_scenario();
+    s.method.activation = Activation::CameraEntropy;
+    s.method.drop_lost_cameras = drop_lost;
+    s.method.energy_weight = 1.0;
+    let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
+    let mut h = HeadNode::new(cfg.clone());
+    h.tick(ClusterTime::ZERO);
+    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, Some(3), 3.0)));
+    let mut mean = State::zeros();
+    let mut decisions = Vec::new();
+    for k in 1..=12 {
+        let t = ClusterTime::from_millis(200 * k);
+        let out = h.tick(t);
+        // A prior goes to the cameras that are on (none once all are off).
+        let prior = out.iter().find_map(|o| match &o.body {
+            Message::Prior(p) => Some(p.clone()),
+            _ => None,
+        });
+        if let Some(p) = &prior {
+            mean = vec6_from_wire(&p.mean);
+        }
+        if let Some(prior) = prior.filter(|_| deliver) {
+            for n in cfg.nodes.iter().filter(|n| n.member) {
+                if h.mode_of(n.id) != Some(Mode::Active) {
+                    continue;
+                }
+                let c = Contribution {
+                    target: prior.target,
+                    step: prior.step,
+                    info_matrix: [[0.0; 6]; 6],
+                    info_vector: [0.0; 6],
+                    camera: true,
+                    captured: t,
+                    mode: Mode::Active,
+                    rssi: None,
+                };
+                h.on_message(t, env(n.id.0, Message::Contribution(c)));
+            }
+        }
+        h.tick(ClusterTime::from_millis(200 * k + 81));
+        decisions.extend(h.last_step().decision);
+    }
+    (cfg, mean, decisions)
+}
+
+/// Paper 000 §6.2 (`drop-lost-cameras`): while every camera delivers, the head decides as a
+/// plain one; a camera that should see the track but sends nothing is left alone.
+#[test]
+fn lost_cameras_are_left_alone_and_delivering_ones_count_as_before() {
+    let (_, _, plain) = camera_only_steps(false, true);
+    let (_, _, watched) = camera_only_steps(true, true);
+    assert!(!plain.is_empty());
+    assert_eq!(plain, watched);
+    let sees = |cfg: &HeadConfig, mean: &State, node: NodeId| {
+        let info = cfg.nodes.iter().find(|n| n.id == node).unwrap();
+        crate::activation::Expected::at(Some(&info.camera), &[], cfg.method.pixel_sigma, None, mean)
+            .camera
+            .is_some()
+    };
+    // Nobody delivers: the plain head switches off cameras that see the track too, one a step;
+    // the watching one counts them lost and switches none of those.
+    let (cfg, mean, d) = camera_only_steps(false, false);
+    assert!(d.iter().any(|d| sees(&cfg, &mean, d.node)), "{d:?}");
+    let (cfg, mean, d) = camera_only_steps(true, false);
+    assert!(d.iter().all(|d| !sees(&cfg, &mean, d.node)), "{d:?}");
+}

@@ -79,6 +79,9 @@ fn every_default_camera_sees_part_of_the_loop() {
 fn default_scenario_text_round_trips() {
     let s = Scenario::from_toml(DEFAULT_SCENARIO_TOML, "<printed>").unwrap();
     assert_eq!(s, Scenario::default_scenario());
+    // A key the file leaves out takes its default: lost cameras are counted as their mode says.
+    assert!(!DEFAULT_SCENARIO_TOML.contains("drop-lost-cameras"));
+    assert!(!s.method.drop_lost_cameras);
     let again = Scenario::from_toml(&s.to_toml(), "<to_toml>").unwrap();
     assert_eq!(again, s);
 }
