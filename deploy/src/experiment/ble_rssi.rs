@@ -13,7 +13,7 @@
 //!
 //! The dataset has no cameras: Algorithm 1's auxiliary distances come from a camera stand-in,
 //! the truth plus seeded noise ([`track`]). It is real data, so the outcome's `level`, `runs`
-//! and `duration_s` mean: level n/a (reported as measurement), runs = stand-in noise seeds,
+//! and `duration_s` mean: no level (the tables say "real data"), runs = stand-in noise seeds,
 //! duration = seconds of data. Not part of `ocelli experiment all` (which must not depend on
 //! the shared datasets): run it by name.
 
@@ -408,7 +408,7 @@ pub fn run_on(ds: &Dataset, opts: &Options) -> anyhow::Result<Outcome> {
     ];
     let mut notes = vec![
         format!(
-            "Real data: {} ({} sensors, {} trajectories, {} packets). Level n/a (shown as measurement); runs = seeds of the camera stand-in noise; duration = seconds of data.",
+            "Real data: {} ({} sensors, {} trajectories, {} packets). No simulation level; runs = seeds of the camera stand-in noise; duration = seconds of data.",
             ds.dir.display(),
             ds.sensors.len(),
             n_traj,

@@ -76,18 +76,29 @@ fn text_table(rows: &[Row], s: &mut String) {
     }
 }
 
+/// The run's setup in words: the level and runs of a simulation, or what the runs of a real-data
+/// experiment are (it has no level; its runs are seeds of its camera stand-in's noise).
+fn setup(o: &Outcome, each: &str) -> String {
+    if super::REAL_DATA.contains(&o.experiment.as_str()) {
+        format!(
+            "real data, no simulation; {} runs (stand-in noise seeds) from seed {}, {:.0} s of data",
+            o.runs, o.seed, o.duration_s
+        )
+    } else {
+        format!(
+            "level: {}, {} runs from seed {}, {:.0} {each}",
+            level_label(o.level),
+            o.runs,
+            o.seed,
+            o.duration_s
+        )
+    }
+}
+
 /// Our table, the paper's, the shape checks and the notes, as text.
 pub fn to_text(o: &Outcome) -> String {
     let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "experiment {} — level: {}, {} runs from seed {}, {:.0} s each",
-        o.experiment,
-        level_label(o.level),
-        o.runs,
-        o.seed,
-        o.duration_s
-    );
+    let _ = writeln!(s, "experiment {} — {}", o.experiment, setup(o, "s each"));
     let _ = writeln!(s, "\nours:");
     text_table(&o.rows, &mut s);
     let _ = writeln!(s, "\npaper:");
@@ -149,14 +160,7 @@ pub fn to_markdown(o: &Outcome, command: &str, figures: &[String]) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "## {}\n", o.experiment);
     let _ = writeln!(s, "```\n{command}\n```\n");
-    let _ = writeln!(
-        s,
-        "Level: **{}**; {} runs from seed {}, {:.0} simulated seconds each.\n",
-        level_label(o.level),
-        o.runs,
-        o.seed,
-        o.duration_s
-    );
+    let _ = writeln!(s, "{}.\n", setup(o, "simulated seconds each"));
     let _ = writeln!(s, "Ours:\n");
     md_table(&o.rows, &mut s);
     let _ = writeln!(s, "\nPaper:\n");
