@@ -116,19 +116,23 @@ pub fn reading(
     mean_rssi(world, field, node, tag) + noise
 }
 
-/// Readings each RSSI node takes of every other RSSI node's beacon (paper 002 §VI's survey
-/// before tracking): `per_pair` readings per ordered pair, at 0.1 s intervals, as
-/// (distance m, RSSI dBm). The beacon stands where the node is; the receiving node's multipath
-/// field and offset, the walls and the noise apply as for a tag.
-pub fn survey(s: &Scenario, seed: u64, per_pair: usize) -> Vec<(f64, f64)> {
-    let nodes: Vec<(u32, Vector3<f64>, MultipathField)> = s
-        .cameras()
+/// The scenario's RSSI nodes with their positions and their multipath fields for `seed`.
+pub fn rssi_nodes(s: &Scenario, seed: u64) -> Vec<(u32, Vector3<f64>, MultipathField)> {
+    s.cameras()
         .filter(|c| c.rssi)
         .filter_map(|c| {
             let pos = s.camera_model(c.id).ok()?.pose.centre();
             Some((c.id, pos, MultipathField::new(&s.world.radio, c.id, seed)))
         })
-        .collect();
+        .collect()
+}
+
+/// Readings each RSSI node takes of every other RSSI node's beacon (paper 002 §VI's survey
+/// before tracking): `per_pair` readings per ordered pair, at 0.1 s intervals, as
+/// (distance m, RSSI dBm). The beacon stands where the node is; the receiving node's multipath
+/// field and offset, the walls and the noise apply as for a tag.
+pub fn survey(s: &Scenario, seed: u64, per_pair: usize) -> Vec<(f64, f64)> {
+    let nodes = rssi_nodes(s, seed);
     let mut out = Vec::new();
     for (rx, rx_pos, field) in &nodes {
         for (tx, tx_pos, _) in nodes.iter().filter(|n| n.0 != *rx) {

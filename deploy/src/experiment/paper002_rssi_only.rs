@@ -18,7 +18,7 @@ use super::{Check, Options, Outcome, Row, Trace};
 use crate::sim::faults::Faults;
 use crate::sim::runtime::Level;
 use nalgebra::{Matrix6, Vector3};
-use node_camera::radio::{self, MultipathField, surveyed};
+use node_camera::radio::{self, surveyed};
 use node_head::eif::{Accumulator, Eif};
 use node_head::rssi_training::RssiTrainer;
 use proto::models::{State, rssi_contribution};
@@ -36,14 +36,7 @@ fn rssi_only(s: &Scenario, camera: &[Sample], trained: bool, seed: u64) -> Vec<S
     let Some(tag) = s.targets.iter().find(|t| t.rssi_tag) else {
         return Vec::new();
     };
-    let nodes: Vec<(u32, Vector3<f64>, MultipathField)> = s
-        .cameras()
-        .filter(|c| c.rssi)
-        .filter_map(|c| {
-            let pos = s.camera_model(c.id).ok()?.pose.centre();
-            Some((c.id, pos, MultipathField::new(&s.world.radio, c.id, seed)))
-        })
-        .collect();
+    let nodes = radio::rssi_nodes(s, seed);
     let m = &s.method;
     let mut trainers: Vec<RssiTrainer> = nodes
         .iter()

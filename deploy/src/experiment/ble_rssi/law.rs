@@ -6,7 +6,7 @@
 
 use super::data::{Dataset, Packet};
 use nalgebra::Vector3;
-use proto::models::{RSSI_MIN_DISTANCE_M, RssiModel};
+use proto::models::{RSSI_MIN_DISTANCE_M, RssiModel, fit_log_distance};
 
 /// Sensor–beacon distance, m, clamped as the models clamp it.
 pub fn distance(sensor: &Vector3<f64>, beacon: &Vector3<f64>) -> f64 {
@@ -46,32 +46,18 @@ pub fn pairs<'a>(
     packets.map(|p| (distance(&ds.sensors[p.sensor].pos, &p.truth), p.rssi))
 }
 
-/// Ordinary least squares of RSSI on log10 d. `None` with fewer than three pairs or no spread
-/// in distance.
+/// Ordinary least squares of RSSI on log10 d (`proto::models::fit_log_distance`, the survey's
+/// fit). `None` with fewer than three pairs or no spread in distance.
 pub fn fit_log(pairs: impl Iterator<Item = (f64, f64)>) -> Option<LogFit> {
-    let xy: Vec<(f64, f64)> = pairs
-        .map(|(d, r)| (d.max(RSSI_MIN_DISTANCE_M).log10(), r))
-        .collect();
-    let n = xy.len();
-    if n < 3 {
+    let pairs: Vec<(f64, f64)> = pairs.collect();
+    let RssiModel::LogDistance { a, b, variance } = fit_log_distance(&pairs)? else {
         return None;
-    }
-    let nf = n as f64;
-    let mx = xy.iter().map(|p| p.0).sum::<f64>() / nf;
-    let my = xy.iter().map(|p| p.1).sum::<f64>() / nf;
-    let sxx: f64 = xy.iter().map(|p| (p.0 - mx).powi(2)).sum();
-    let sxy: f64 = xy.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-    if sxx <= 1e-12 {
-        return None;
-    }
-    let a = sxy / sxx;
-    let b = my - a * mx;
-    let sse: f64 = xy.iter().map(|p| (p.1 - a * p.0 - b).powi(2)).sum();
+    };
     Some(LogFit {
         a,
         b,
-        sd_db: (sse / (nf - 2.0)).sqrt(),
-        n,
+        sd_db: variance.sqrt(),
+        n: pairs.len(),
     })
 }
 
