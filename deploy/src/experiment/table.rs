@@ -160,7 +160,13 @@ pub fn to_markdown(o: &Outcome, command: &str, figures: &[String]) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "## {}\n", o.experiment);
     let _ = writeln!(s, "```\n{command}\n```\n");
-    let _ = writeln!(s, "{}.\n", setup(o, "simulated seconds each"));
+    let setup = setup(o, "simulated seconds each");
+    let mut first = setup.chars();
+    let capitalized: String = first
+        .next()
+        .map(|c| c.to_uppercase().chain(first).collect())
+        .unwrap_or_default();
+    let _ = writeln!(s, "{capitalized}.\n");
     let _ = writeln!(s, "Ours:\n");
     md_table(&o.rows, &mut s);
     let _ = writeln!(s, "\nPaper:\n");
