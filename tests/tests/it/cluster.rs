@@ -273,18 +273,22 @@ fn killing_a_camera_mid_run_leaves_tracking_running() {
 #[test]
 fn killing_the_owning_head_fails_over_and_keeps_the_global_id() {
     let run = Launch::start("kill-head", "ipc", 24.0, None);
-    // Wait until the robot is tracked, then kill whichever head owns it.
+    // Wait until the robot is tracked, then kill whichever head owns it. The robot is the
+    // global reported most often: a segmentation ghost can hold a second, short-lived id, and the
+    // latest row may be the ghost's.
     let deadline = now() + Duration::from_secs(30);
     let (global, owner, t_kill) = loop {
         let rows = owner_rows(&run.record());
-        if let Some(last) = rows.last()
-            && rows.len() >= 10
+        let mut counts = std::collections::BTreeMap::<u64, usize>::new();
+        for r in &rows {
+            *counts.entry(r["global"].as_u64().unwrap()).or_default() += 1;
+        }
+        let robot = counts.iter().max_by_key(|(_, n)| **n).map(|(g, n)| (*g, *n));
+        if let Some((robot, n)) = robot
+            && n >= 10
+            && let Some(last) = rows.iter().rfind(|r| r["global"].as_u64() == Some(robot))
         {
-            break (
-                last["global"].as_u64().unwrap(),
-                last["head"].as_u64().unwrap(),
-                f(last, "t"),
-            );
+            break (robot, last["head"].as_u64().unwrap(), f(last, "t"));
         }
         assert!(
             now() < deadline,
