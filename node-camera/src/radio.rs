@@ -150,14 +150,16 @@ pub fn survey(s: &Scenario, seed: u64, per_pair: usize) -> Vec<(f64, f64)> {
 pub const SURVEY_READINGS_PER_PAIR: usize = 10;
 
 /// `s` with its default RSSI model fitted to the survey of its simulated room when the scenario
-/// asks for it (`method.rssi-survey`), otherwise unchanged. Too few RSSI nodes to fit leave the
-/// scenario's model.
+/// asks for it (`method.rssi-survey`), otherwise unchanged. The result no longer asks: it
+/// carries the model it was given, so a recording of it says what was used and a replay does not
+/// survey again. Too few RSSI nodes to fit leave the scenario as it is.
 pub fn surveyed(s: &Scenario, seed: u64) -> Scenario {
     let mut out = s.clone();
     if s.method.rssi_survey
         && let Some(m) = fit_log_distance(&survey(s, seed, SURVEY_READINGS_PER_PAIR))
     {
         out.method.rssi_default = m;
+        out.method.rssi_survey = false;
     }
     out
 }
@@ -236,7 +238,10 @@ mod tests {
         let n = s.cameras().filter(|c| c.rssi).count();
         assert_eq!(pairs.len(), n * (n - 1) * 4);
         s.method.rssi_survey = true;
-        let RssiModel::LogDistance { a, b, variance } = surveyed(&s, 3).method.rssi_default else {
+        let done = surveyed(&s, 3);
+        assert!(!done.method.rssi_survey, "a surveyed scenario does not ask again");
+        assert_eq!(surveyed(&done, 4), done, "surveying twice changes nothing");
+        let RssiModel::LogDistance { a, b, variance } = done.method.rssi_default else {
             panic!("the survey fits the log-distance form");
         };
         let (a0, b0) = (-10.0 * r.path_loss_exponent, r.tx_power_dbm);

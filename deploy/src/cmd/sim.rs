@@ -3,7 +3,7 @@
 
 use super::common::{NetArgs, load_scenario};
 use crate::sim::runtime::{Level, Sim, SimOptions};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use node_server::replay::Loaded;
 use node_server::report;
 use proto::ClusterTime;
@@ -55,27 +55,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
         record_measurements: args.record_measurements,
         ..SimOptions::default()
     };
-    let outcome = Sim::new(scenario.clone(), opts)?.run();
+    let outcome = Sim::new(scenario, opts)?.run();
     if let Some(path) = &args.record {
-        let mut rec = node_server::Recorder::create(path, &scenario.name)
-            .with_context(|| format!("creating recording {}", path.display()))?;
-        let has_scenario = outcome
-            .records
-            .iter()
-            .any(|r| matches!(r.record, node_server::Record::Scenario(_)));
-        if !has_scenario {
-            rec.append(&node_server::Stamped::new(
-                ClusterTime(0),
-                node_server::Record::Scenario(scenario.to_toml()),
-            ))?;
-        }
-        for r in &outcome.records {
-            rec.append(r)?;
-        }
-        rec.sync()?;
+        outcome.write_recording(path)?;
     }
     let loaded = Loaded {
-        scenario,
+        scenario: outcome.scenario,
         records: outcome.records,
         tail: None,
     };

@@ -102,6 +102,8 @@ pub struct NetCounters {
 /// What a run leaves behind: the server's records (the recording) and the counters.
 #[derive(Debug)]
 pub struct SimOutcome {
+    /// The scenario the run used (with its surveyed default RSSI model, if it asked for one).
+    pub scenario: Scenario,
     pub records: Vec<Stamped>,
     pub net: NetCounters,
     pub frames_rendered: u64,
@@ -109,6 +111,34 @@ pub struct SimOutcome {
     /// A replay's recorded frames passed over because a newer one was due at the same frame
     /// event (a recording made at another frame rate).
     pub superseded_frames: u64,
+}
+
+impl SimOutcome {
+    /// Write the run as a recording, as `ocelli sim --record` does: the scenario it used at
+    /// time 0, then every record.
+    ///
+    /// # Errors
+    /// The file cannot be created or written.
+    pub fn write_recording(&self, path: &std::path::Path) -> anyhow::Result<()> {
+        use anyhow::Context;
+        let mut rec = node_server::Recorder::create(path, &self.scenario.name)
+            .with_context(|| format!("creating recording {}", path.display()))?;
+        if !self
+            .records
+            .iter()
+            .any(|r| matches!(r.record, Record::Scenario(_)))
+        {
+            rec.append(&Stamped::new(
+                ClusterTime(0),
+                Record::Scenario(self.scenario.to_toml()),
+            ))?;
+        }
+        for r in &self.records {
+            rec.append(r)?;
+        }
+        rec.sync()?;
+        Ok(())
+    }
 }
 
 #[derive(Debug)]
@@ -314,6 +344,7 @@ impl Sim {
             self.drain_server_records();
         }
         SimOutcome {
+            scenario: self.scenario,
             records: self.records,
             net: self.counters,
             frames_rendered: self.frames_rendered,

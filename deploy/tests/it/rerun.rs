@@ -7,7 +7,7 @@ use deploy::replay::rerun::{RerunOptions, rerun, without_measurements};
 use deploy::sim::runtime::{Level, Sim, SimOptions};
 use node_server::replay::Loaded;
 use node_server::report::{self, Report};
-use node_server::{Record, Recorder, Stamped};
+use node_server::{Record, Stamped};
 use proto::ClusterTime;
 use proto::msg::Message;
 use proto::scenario::{Activation, Fusion, Scenario};
@@ -27,20 +27,13 @@ fn logging_run(fusion: Fusion, activation: Activation, o: &SimOptions, name: &st
     let mut scenario = Scenario::default_scenario();
     scenario.method.fusion = fusion;
     scenario.method.activation = activation;
-    let outcome = Sim::new(scenario.clone(), o.clone()).expect("simulates").run();
+    logging_run_of(scenario, o, name)
+}
+
+fn logging_run_of(scenario: Scenario, o: &SimOptions, name: &str) -> (Vec<Stamped>, Loaded) {
+    let outcome = Sim::new(scenario, o.clone()).expect("simulates").run();
     let path = std::env::temp_dir().join(format!("ocelli-rerun-{name}-{}.ocrec", std::process::id()));
-    {
-        let mut rec = Recorder::create(&path, &scenario.name).expect("recording");
-        rec.append(&Stamped::new(
-            ClusterTime(0),
-            Record::Scenario(scenario.to_toml()),
-        ))
-        .unwrap();
-        for r in &outcome.records {
-            rec.append(r).unwrap();
-        }
-        rec.sync().unwrap();
-    }
+    outcome.write_recording(&path).expect("recording");
     let loaded = node_server::replay::load(&path, None).expect("reads back with its scenario");
     let _ = std::fs::remove_file(&path);
     (outcome.records, loaded)
@@ -287,4 +280,36 @@ fn binary_replays_a_sim_recording_to_its_own_estimates() {
         .unwrap();
     assert!(three < all_on, "three-mode {three} vs all-on {all_on} cameras");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A run that surveys its default RSSI model records the model it used, and its replay (which
+/// must not survey again) gives the same records.
+#[test]
+fn a_surveyed_run_records_its_model_and_replays_the_same() {
+    let mut scenario = Scenario::default_scenario();
+    scenario.method.rssi_survey = true;
+    let literature = scenario.method.rssi_default;
+    let o = opts(8, 6.0);
+    let (run, loaded) = logging_run_of(scenario, &o, "surveyed");
+    let m = &loaded.scenario.method;
+    assert!(!m.rssi_survey, "the recording still asks for a survey");
+    assert_ne!(
+        m.rssi_default, literature,
+        "the recording lost the surveyed model"
+    );
+    let replay = rerun(
+        &loaded,
+        &RerunOptions {
+            fusion: None,
+            activation: None,
+            sim: o.clone(),
+            t0: ClusterTime(0),
+        },
+    )
+    .expect("replays");
+    assert_eq!(
+        without_measurements(&run),
+        without_measurements(&replay.records),
+        "the replay of a surveyed run differs from it"
+    );
 }

@@ -80,7 +80,7 @@ fn the_default_scenario_is_tracked_with_one_id_and_three_mode_saves_cameras() {
 #[test]
 fn replaying_a_sim_recording_gives_the_same_estimates() {
     use node_server::export::track_rows;
-    use node_server::{Record, Recorder, ServerConfig, ServerNode, Stamped};
+    use node_server::{ServerConfig, ServerNode};
     let scenario = Scenario::default_scenario();
     let opts = SimOptions {
         seed: 7,
@@ -89,18 +89,7 @@ fn replaying_a_sim_recording_gives_the_same_estimates() {
     };
     let outcome = Sim::new(scenario.clone(), opts).expect("simulates").run();
     let path = std::env::temp_dir().join(format!("ocelli-sim-replay-{}.ocrec", std::process::id()));
-    {
-        let mut rec = Recorder::create(&path, &scenario.name).expect("recording");
-        rec.append(&Stamped::new(
-            ClusterTime(0),
-            Record::Scenario(scenario.to_toml()),
-        ))
-        .unwrap();
-        for r in &outcome.records {
-            rec.append(r).unwrap();
-        }
-        rec.sync().unwrap();
-    }
+    outcome.write_recording(&path).expect("recording");
     let loaded = node_server::replay::load(&path, None).expect("reads back with its scenario");
     let _ = std::fs::remove_file(&path);
     assert_eq!(
