@@ -352,14 +352,7 @@ mod tests {
     #[test]
     fn activates_a_useful_camera_when_cheap_and_not_when_dear() {
         let (cams, mean, omega) = setup();
-        let nodes: Vec<_> = (0..3)
-            .map(|i| Candidate {
-                node: NodeId(10 + i),
-                mode: Mode::Inactive,
-                power: PowerFigures::default(),
-                cost_factor: 1.0,
-            })
-            .collect();
+        let nodes = all(Mode::Inactive);
         let mut p = Planner::default();
         let expect = |n: usize, _t: usize| Expected::at(Some(&cams[n]), &[], 18.0, None, &mean);
         let d = p
@@ -456,14 +449,8 @@ mod tests {
     #[test]
     fn three_mode_turns_a_camera_off_when_rssi_suffices_and_energy_is_dear() {
         let (cams, mean, omega) = setup();
-        let nodes: Vec<_> = (0..3)
-            .map(|i| Candidate {
-                node: NodeId(10 + i),
-                mode: Mode::Active,
-                power: PowerFigures::default(),
-                cost_factor: if i == 2 { 5.0 } else { 1.0 },
-            })
-            .collect();
+        let mut nodes = all(Mode::Active);
+        nodes[2].cost_factor = 5.0;
         let model = RssiModel::Linear {
             a: -10.0,
             b: -40.0,
@@ -505,14 +492,7 @@ mod tests {
         assert!(e(1).camera.is_some() && e(2).camera.is_some());
         // Three-mode, all Inactive, energy cheap: the hidden node is worth only its radio, so
         // the planner wakes a camera that can see, and never wakes the hidden one's camera.
-        let nodes: Vec<_> = (0..3)
-            .map(|i| Candidate {
-                node: NodeId(10 + i),
-                mode: Mode::Inactive,
-                power: PowerFigures::default(),
-                cost_factor: 1.0,
-            })
-            .collect();
+        let nodes = all(Mode::Inactive);
         let mut p = Planner::default();
         let d = p
             .decide(Variant::ThreeMode, 1e-4, &nodes, &[omega], |n, _| e(n))
