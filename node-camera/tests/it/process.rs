@@ -12,18 +12,14 @@ use std::sync::Arc;
 use std::time::Duration;
 use tokio_util::sync::CancellationToken;
 
-#[allow(clippy::disallowed_methods)] // a runtime's clock: tests are runtimes
-fn wall_clock() -> Clock {
-    let start = std::time::Instant::now();
-    Arc::new(move || ClusterTime(start.elapsed().as_nanos() as i64))
-}
-
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
-    let scenario = Scenario::default_scenario();
-    let hub = InProcessHub::new();
-    let clock = wall_clock();
-    let cfg = ProcessConfig {
+/// Camera 10 of `scenario` on the hub, synthetic frames, seed 1.
+fn camera_10(
+    scenario: &Scenario,
+    hub: &InProcessHub,
+    clock: &Clock,
+    record_measurements: bool,
+) -> ProcessConfig {
+    ProcessConfig {
         scenario: scenario.clone(),
         id: 10,
         transport: TransportConfig::InProcess {
@@ -38,8 +34,22 @@ async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
         clock: clock.clone(),
         tick: Duration::from_millis(100),
         reference: ReferencePoint::Centre,
-        record_measurements: false,
-    };
+        record_measurements,
+    }
+}
+
+#[allow(clippy::disallowed_methods)] // a runtime's clock: tests are runtimes
+fn wall_clock() -> Clock {
+    let start = std::time::Instant::now();
+    Arc::new(move || ClusterTime(start.elapsed().as_nanos() as i64))
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
+    let scenario = Scenario::default_scenario();
+    let hub = InProcessHub::new();
+    let clock = wall_clock();
+    let cfg = camera_10(&scenario, &hub, &clock, false);
     let stop = CancellationToken::new();
     // The camera's future is driven on this task: `proto::transport::open`'s future holds a
     // `&ShutdownHandle` (not `Sync`) across an await, so `run` cannot be `tokio::spawn`ed.
@@ -125,23 +135,7 @@ async fn a_logging_camera_sends_every_frame_to_the_server_whatever_its_mode() {
     })
     .await
     .unwrap();
-    let cfg = ProcessConfig {
-        scenario: scenario.clone(),
-        id: 10,
-        transport: TransportConfig::InProcess {
-            hub: hub.clone(),
-            me: NodeId(10),
-            role: Role::Camera,
-            queue_len: 64,
-        },
-        source: SourceSpec::Synthetic,
-        seed: 1,
-        epoch: ClusterTime::ZERO,
-        clock: clock.clone(),
-        tick: Duration::from_millis(100),
-        reference: ReferencePoint::Centre,
-        record_measurements: true,
-    };
+    let cfg = camera_10(&scenario, &hub, &clock, true);
     let stop = CancellationToken::new();
     let camera = run(cfg, stop.clone());
     let driver = async {
