@@ -25,6 +25,24 @@ fn inproc(hub: &InProcessHub, id: u32, role: Role) -> TransportConfig {
     }
 }
 
+/// Head 2 on its own thread and runtime, as in the `ocelli head` process (`transport::open`'s
+/// future is not `Send`).
+fn spawn_head(
+    cfg: HeadConfig,
+    hub: &InProcessHub,
+    clock: &Arc<Clock>,
+    token: &CancellationToken,
+) -> std::thread::JoinHandle<Result<node_head::process::Summary, node_head::process::ProcessError>> {
+    let (hub, clock, token) = (hub.clone(), clock.clone(), token.clone());
+    std::thread::spawn(move || {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        rt.block_on(run_on(cfg, inproc(&hub, 2, Role::Head), clock, token))
+    })
+}
+
 async fn next_report(inbox: &mut Inbox) -> TrackReport {
     loop {
         let ev = tokio::time::timeout(WAIT, inbox.recv())
@@ -49,18 +67,7 @@ async fn head_process_tracks_and_survives_cameras_and_server_vanishing() {
     let hub = InProcessHub::new();
     let token = CancellationToken::new();
     let clock = Arc::new(Clock::default());
-    // `transport::open`'s future is not `Send`: the head gets its own thread and runtime, as
-    // in the `ocelli head` process.
-    let head = {
-        let (hub, clock, token) = (hub.clone(), clock.clone(), token.clone());
-        std::thread::spawn(move || {
-            let rt = tokio::runtime::Builder::new_current_thread()
-                .enable_all()
-                .build()
-                .unwrap();
-            rt.block_on(run_on(cfg, inproc(&hub, 2, Role::Head), clock, token))
-        })
-    };
+    let head = spawn_head(cfg, &hub, &clock, &token);
     let (server, mut server_in, _, server_handle) = open(inproc(&hub, 1, Role::Server)).await.unwrap();
     // Wait for the head to be on the hub.
     loop {
@@ -202,16 +209,7 @@ async fn head_process_syncs_to_the_beacons_and_reports_its_sync_error() {
     let hub = InProcessHub::new();
     let token = CancellationToken::new();
     let clock = Arc::new(Clock::default());
-    let head = {
-        let (hub, clock, token) = (hub.clone(), clock.clone(), token.clone());
-        std::thread::spawn(move || {
-            let rt = tokio::runtime::Builder::new_current_thread()
-                .enable_all()
-                .build()
-                .unwrap();
-            rt.block_on(run_on(cfg, inproc(&hub, 2, Role::Head), clock, token))
-        })
-    };
+    let head = spawn_head(cfg, &hub, &clock, &token);
     let (server, mut server_in, _, server_handle) = open(inproc(&hub, 1, Role::Server)).await.unwrap();
     // Beacons every 100 ms; statuses every second.
     let mut statuses = Vec::new();
