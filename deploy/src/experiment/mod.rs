@@ -134,6 +134,23 @@ pub struct Outcome {
 }
 
 impl Outcome {
+    /// An experiment's outcome before its rows: its name, level, runs and seed from `opts`, and
+    /// the simulated seconds per run.
+    pub fn new(experiment: &str, level: Level, opts: &Options, duration_s: f64) -> Outcome {
+        Outcome {
+            experiment: experiment.into(),
+            level,
+            runs: opts.runs.max(1),
+            seed: opts.seed,
+            duration_s,
+            rows: Vec::new(),
+            paper: Vec::new(),
+            shape: Vec::new(),
+            notes: Vec::new(),
+            traces: Vec::new(),
+        }
+    }
+
     /// The row of a method.
     pub fn row(&self, method: &str) -> Option<&Row> {
         self.rows.iter().find(|r| r.method == method)

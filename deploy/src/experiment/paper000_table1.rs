@@ -201,14 +201,8 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
         rows.push(runs.row);
     }
     let mut out = Outcome {
-        experiment: "paper000-table1".into(),
-        level,
-        runs: opts.runs.max(1),
-        seed: opts.seed,
-        duration_s,
         rows,
         paper: paper(),
-        shape: Vec::new(),
         notes: vec![
             "Geometry, 2 fps, 500 ms step, 18 px noise and power are ours; the paper gives none.".to_string(),
             "Paper cost c (nats per step of a camera on) = energy-weight × (P_active − P_inactive) × step."
@@ -224,6 +218,7 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
             ),
         ],
         traces,
+        ..Outcome::new("paper000-table1", level, opts, duration_s)
     };
     out.shape = shape(&out);
     Ok(out)

@@ -131,11 +131,6 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
         });
     }
     let mut out = Outcome {
-        experiment: "paper002-occlusion".into(),
-        level,
-        runs: opts.runs.max(1),
-        seed: opts.seed,
-        duration_s,
         rows,
         paper: paper()
             .into_iter()
@@ -144,7 +139,6 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
                 ..r
             })
             .collect(),
-        shape: Vec::new(),
         notes: vec![
             format!(
                 "Hidden from every camera {hidden_s:.1} s of {duration_s:.0} s, in {} windows: {}.",
@@ -159,6 +153,7 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
             "Walls, path (turning round inside the hidden stretch) and the 30 s track timeout are ours.".into(),
         ],
         traces,
+        ..Outcome::new("paper002-occlusion", level, opts, duration_s)
     };
     let e = |m: &str| {
         out.row(&format!("{m} (during occlusion)"))

@@ -112,11 +112,6 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
         ));
     }
     Ok(Outcome {
-        experiment: "paper002-robustness".into(),
-        level,
-        runs: opts.runs.max(1),
-        seed: opts.seed,
-        duration_s,
         rows,
         paper: vec![],
         shape,
@@ -125,5 +120,6 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
             "A failure is one lost frame of one camera (independent per frame); extra noise acts on detections only (nodes weight with 18 px); yaw drawn once per camera and run. These choices are ours.".into(),
         ],
         traces,
+        ..Outcome::new("paper002-robustness", level, opts, duration_s)
     })
 }

@@ -176,11 +176,6 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
         ),
     ];
     Ok(Outcome {
-        experiment: "paper002-rssi-only".into(),
-        level,
-        runs: opts.runs.max(1),
-        seed: opts.seed,
-        duration_s,
         rows,
         paper: vec![Row {
             param: Some(0.8),
@@ -194,5 +189,6 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
             "Error here is horizontal (x, y): RSSI carries no height information.".into(),
         ],
         traces,
+        ..Outcome::new("paper002-rssi-only", level, opts, duration_s)
     })
 }

@@ -102,14 +102,8 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
         rows.push(runs.row);
     }
     let mut out = Outcome {
-        experiment: "paper002-table1".into(),
-        level,
-        runs: opts.runs.max(1),
-        seed: opts.seed,
-        duration_s,
         rows,
         paper: paper(),
-        shape: Vec::new(),
         notes: vec![
             "Scenario: the embedded default's 21 cameras, robot and power in one cluster (paper 002's testbed as modelled).".into(),
             "Method1 keeps all 21 cameras on; the paper's Method1 kept on only the cameras seeing the robot (11.5), so our Method1 power is higher.".into(),
@@ -117,6 +111,7 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
             "Active cameras / RSSI: contributors with a camera measurement / an RSSI reading per step.".into(),
         ],
         traces,
+        ..Outcome::new("paper002-table1", level, opts, duration_s)
     };
     out.shape = shape(&out);
     Ok(out)
