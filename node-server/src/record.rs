@@ -46,55 +46,31 @@ pub struct MeasuredFrame {
     pub detections: Vec<MeasuredDetection>,
 }
 
-/// One undistorted detection of a [`MeasuredFrame`]: the segmented region and its normalized
-/// pin-hole point with covariance, bit for bit as the camera computed them.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct MeasuredDetection {
-    /// Region centroid and foot point, pixels.
-    pub centre: [f32; 2],
-    pub foot: [f32; 2],
-    pub pixel_box: proto::msg::PixelBox,
-    pub area: u32,
-    pub colour: proto::msg::ColourSignature,
-    /// Undistorted normalized point.
-    pub point: [f64; 2],
-    /// Its covariance, row-major 2×2, normalized units².
-    pub cov: [f64; 4],
-}
+/// One undistorted detection of a [`MeasuredFrame`]: the camera's wire form, recorded as it
+/// arrived (the sim records through the same form), so the replay gets back the numbers the
+/// camera computed, bit for bit.
+pub use proto::msg::MeasuredDetection;
 
 impl MeasuredFrame {
     /// The record of a camera's `proto::msg::MeasuredFrame` (a logging run over real
-    /// processes): the same numbers, the covariance written out as its symmetric 2×2.
+    /// processes, or the sim's through the camera's wire form).
     pub fn from_wire(camera: NodeId, m: &proto::msg::MeasuredFrame) -> MeasuredFrame {
         MeasuredFrame {
             camera,
             captured: m.captured,
             rssi_dbm: m.rssi_dbm,
-            detections: m
-                .detections
-                .iter()
-                .map(|d| MeasuredDetection {
-                    centre: d.centre,
-                    foot: d.foot,
-                    pixel_box: d.pixel_box,
-                    area: d.area,
-                    colour: d.colour,
-                    point: d.point,
-                    cov: [d.cov[0], d.cov[1], d.cov[1], d.cov[2]],
-                })
-                .collect(),
+            detections: m.detections.clone(),
         }
     }
 
-    /// Why the frame cannot be used, if it cannot: a non-finite number or a covariance that is
-    /// not symmetric positive semi-definite on its diagonal.
+    /// Why the frame cannot be used, if it cannot: a non-finite number or a negative variance.
     pub fn problem(&self) -> Option<String> {
         if self.rssi_dbm.is_some_and(|d| !d.is_finite()) {
             return Some(format!("camera {}: RSSI is not finite", self.camera));
         }
         self.detections.iter().enumerate().find_map(|(i, d)| {
             let finite = d.point.iter().chain(&d.cov).all(|x| x.is_finite());
-            (!finite || d.cov[0] < 0.0 || d.cov[3] < 0.0 || d.cov[1] != d.cov[2]).then(|| {
+            (!finite || d.cov[0] < 0.0 || d.cov[2] < 0.0).then(|| {
                 format!(
                     "camera {} detection {i}: point {:?} / covariance {:?} is not a finite \
                      symmetric covariance",
@@ -304,29 +280,19 @@ mod tests {
                     intensity: 0.25,
                 },
                 point: [0.1 + 0.2, -1.0 / 3.0],
-                cov: [1e-6 / 3.0, 1e-9, 1e-9, 2e-6 / 7.0],
+                cov: [1e-6 / 3.0, 1e-9, 2e-6 / 7.0],
             }],
         }
     }
 
-    /// A camera's wire frame becomes the record the simulation would have written for the
-    /// same detection, bit for bit, and survives the recording.
+    /// A camera's wire frame becomes a record with the same numbers, and survives the recording.
     #[test]
     fn a_wire_frame_maps_to_the_same_record() {
         let want = frame();
-        let d = want.detections[0];
         let wire = proto::msg::MeasuredFrame {
             captured: want.captured,
             rssi_dbm: want.rssi_dbm,
-            detections: vec![proto::msg::MeasuredDetection {
-                centre: d.centre,
-                foot: d.foot,
-                pixel_box: d.pixel_box,
-                area: d.area,
-                colour: d.colour,
-                point: d.point,
-                cov: [d.cov[0], d.cov[1], d.cov[3]],
-            }],
+            detections: want.detections.clone(),
         };
         let got = MeasuredFrame::from_wire(want.camera, &wire);
         assert_eq!(got, want);

@@ -19,7 +19,7 @@ pub fn from_record(d: &MeasuredDetection) -> Measured {
             colour: d.colour,
         },
         point: nalgebra::Vector2::new(d.point[0], d.point[1]),
-        cov: nalgebra::Matrix2::new(d.cov[0], d.cov[1], d.cov[2], d.cov[3]),
+        cov: nalgebra::Matrix2::new(d.cov[0], d.cov[1], d.cov[1], d.cov[2]),
     }
 }
 
