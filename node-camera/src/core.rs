@@ -210,16 +210,28 @@ impl CameraNode {
             .copied()
             .filter(|r| self.fresh(r.time, now));
         let captured = self.captured.filter(|&t| self.fresh(t, now));
+        // The prior's mean is for the step the head opened as it sent it; its arrival here
+        // stands for that time on this node's own clock (the link's latency is small against a
+        // frame period), so the frame's age needs no clock shared with the head.
+        let age_s = captured.map_or(0.0, |t| now.secs_since(t));
         let cam = &self.cfg.camera;
         let chosen = captured.and_then(|_| {
             self.measured
                 .iter()
-                .filter_map(|m| measure::mahalanobis2(cam, prior, m).map(|d2| (d2, m)))
+                .filter_map(|m| measure::mahalanobis2(cam, prior, m, age_s).map(|d2| (d2, m)))
                 .filter(|(d2, _)| *d2 <= self.cfg.gate_chi2)
                 .min_by(|a, b| a.0.total_cmp(&b.0))
                 .map(|(_, m)| m)
         });
-        measure::contribution(cam, prior, chosen, captured.unwrap_or(now), self.mode, rssi)
+        measure::contribution(
+            cam,
+            prior,
+            chosen,
+            captured.unwrap_or(now),
+            age_s,
+            self.mode,
+            rssi,
+        )
     }
 
     /// A captured frame. Segmented only in Active mode.
@@ -328,11 +340,17 @@ impl CameraNode {
 
     /// Gate the newest detections against the known priors and send what the mode asks for.
     fn send_measurements(&mut self, now: ClusterTime, captured: ClusterTime, out: &mut Vec<Outgoing>) {
-        let priors: Vec<&Prior> = self.priors.values().map(|(_, p)| p).collect();
+        // A prior's time is when it arrived (see `answer`); frames newer than it have a
+        // negative age.
+        let priors: Vec<(&Prior, f64)> = self
+            .priors
+            .values()
+            .map(|(t, p)| (p, t.secs_since(captured)))
+            .collect();
         let assoc = measure::associate(&self.cfg.camera, &priors, &self.measured, self.cfg.gate_chi2);
         let targets: Vec<Option<(TargetId, u64)>> = assoc
             .iter()
-            .map(|a| a.map(|i| (priors[i].target, priors[i].step)))
+            .map(|a| a.map(|i| (priors[i].0.target, priors[i].0.step)))
             .collect();
         let centralized = self.cfg.fusion != Fusion::DistributedEif;
         let mut msgs = Vec::new();
@@ -524,6 +542,7 @@ mod tests {
             &prior(&s, t, 0.15, 31),
             Some(m),
             c.captured,
+            now.secs_since(c.captured),
             Mode::Active,
             None,
         );

@@ -41,14 +41,15 @@ pub fn measure(
 
 /// Squared Mahalanobis distance of a measured point from the prior's predicted projection,
 /// with the prior covariance pushed through the pin-hole Jacobian plus the point's own
-/// covariance: `ν^T (J Σ̄ J^T + R)^-1 ν`. `None` when the prior is behind the camera or the
-/// innovation covariance is singular.
-pub fn mahalanobis2(camera: &CameraModel, prior: &Prior, m: &Measured) -> Option<f64> {
+/// covariance: `ν^T (J Σ̄ J^T + R)^-1 ν`. The point was seen `age_s` seconds before the prior's
+/// time (negative: after), and is compared with where the prior puts the target then.
+/// `None` when the prior is behind the camera or the innovation covariance is singular.
+pub fn mahalanobis2(camera: &CameraModel, prior: &Prior, m: &Measured, age_s: f64) -> Option<f64> {
     let mean = models::vec6_from_wire(&prior.mean);
     if camera.pose.world_to_camera(&models::position(&mean)).z <= 0.0 {
         return None;
     }
-    let (h, jac) = models::pinhole(camera, &mean)?;
+    let (h, jac) = models::pinhole_aged(camera, &mean, age_s)?;
     let sigma = models::mat6_from_wire(&prior.cov);
     let s = jac * sigma * jac.transpose() + m.cov;
     let nu = m.point - h;
@@ -58,18 +59,19 @@ pub fn mahalanobis2(camera: &CameraModel, prior: &Prior, m: &Measured) -> Option
 }
 
 /// Assign measured detections to priors: each prior takes at most one detection and each
-/// detection at most one prior, nearest pairs first, only within `gate_chi2`. Returns, per
-/// detection, the index of its prior.
+/// detection at most one prior, nearest pairs first, only within `gate_chi2`. Each prior comes
+/// with the detections' age relative to it, s (see [`mahalanobis2`]). Returns, per detection,
+/// the index of its prior.
 pub fn associate(
     camera: &CameraModel,
-    priors: &[&Prior],
+    priors: &[(&Prior, f64)],
     measured: &[Measured],
     gate_chi2: f64,
 ) -> Vec<Option<usize>> {
     let mut pairs = Vec::new();
-    for (pi, p) in priors.iter().enumerate() {
+    for (pi, &(p, age_s)) in priors.iter().enumerate() {
         for (mi, m) in measured.iter().enumerate() {
-            if let Some(d2) = mahalanobis2(camera, p, m)
+            if let Some(d2) = mahalanobis2(camera, p, m, age_s)
                 && d2 <= gate_chi2
             {
                 pairs.push((d2, pi, mi));
@@ -89,17 +91,20 @@ pub fn associate(
 }
 
 /// The contribution Ω_i, ξ_i of one measured point at the prior's mean, or the all-zero
-/// contribution (`camera: false`) when there is none or it cannot be linearized.
+/// contribution (`camera: false`) when there is none or it cannot be linearized. The point was
+/// captured `age_s` seconds before the prior's time ([`models::camera_contribution_aged`]).
 pub fn contribution(
     camera: &CameraModel,
     prior: &Prior,
     measured: Option<&Measured>,
     captured: ClusterTime,
+    age_s: f64,
     mode: Mode,
     rssi: Option<RssiReading>,
 ) -> Contribution {
     let mean: State = models::vec6_from_wire(&prior.mean);
-    let info = measured.and_then(|m| models::camera_contribution(camera, &m.point, &m.cov, &mean));
+    let info =
+        measured.and_then(|m| models::camera_contribution_aged(camera, &m.point, &m.cov, &mean, age_s));
     let (info_matrix, info_vector, used) = match info {
         Some((omega, xi)) => (models::mat6_to_wire(&omega), models::vec6_to_wire(&xi), true),
         None => ([[0.0; 6]; 6], [0.0; 6], false),
@@ -230,12 +235,64 @@ mod tests {
         let pa = prior(1, a + Vector3::new(0.1, -0.05, 0.0), 0.1);
         let pb = prior(2, b, 0.1);
         let far = prior(3, Vector3::new(9.0, 7.0, 0.25), 0.2);
-        assert!(mahalanobis2(&c, &pa, &ma).unwrap() < 13.8);
-        assert!(mahalanobis2(&c, &pa, &mb).unwrap() > 13.8);
-        let got = associate(&c, &[&pb, &far, &pa], &[ma, mb], 13.8);
+        assert!(mahalanobis2(&c, &pa, &ma, 0.0).unwrap() < 13.8);
+        assert!(mahalanobis2(&c, &pa, &mb, 0.0).unwrap() > 13.8);
+        let got = associate(&c, &[(&pb, 0.0), (&far, 0.0), (&pa, 0.0)], &[ma, mb], 13.8);
         assert_eq!(got, vec![Some(2), Some(0)]);
         let behind = prior(4, Vector3::new(0.5, -3.0, 0.25), 0.2);
-        assert_eq!(mahalanobis2(&c, &behind, &ma), None);
+        assert_eq!(mahalanobis2(&c, &behind, &ma, 0.0), None);
+    }
+
+    /// A prior of a target moving at 2 m/s and a frame of where it was 0.2 s earlier.
+    fn moving_prior_and_old_frame() -> (CameraModel, Prior, Measured) {
+        let c = cam();
+        let now = Vector3::new(3.5, 2.2, 0.25);
+        let mut p = prior(1, now, 0.05);
+        p.mean[3] = 2.0;
+        let was = now - Vector3::new(0.4, 0.0, 0.0);
+        let m = measure(
+            &c,
+            &detection_at(c.project(&was).unwrap()),
+            ReferencePoint::Centre,
+            2.0,
+        )
+        .unwrap();
+        (c, p, m)
+    }
+
+    #[test]
+    fn an_old_frame_is_compared_with_where_the_prior_puts_the_target_then() {
+        let (c, p, m) = moving_prior_and_old_frame();
+        let aged = mahalanobis2(&c, &p, &m, 0.2).unwrap();
+        let as_current = mahalanobis2(&c, &p, &m, 0.0).unwrap();
+        assert!(aged < 1e-6, "{aged}");
+        assert!(as_current > 13.8, "{as_current}");
+    }
+
+    #[test]
+    fn an_old_frame_contributes_at_its_own_time() {
+        let (c, p, m) = moving_prior_and_old_frame();
+        let mean = models::vec6_from_wire(&p.mean);
+        let got = contribution(&c, &p, Some(&m), ClusterTime(5), 0.2, Mode::Active, None);
+        let (omega, xi) = models::camera_contribution_aged(&c, &m.point, &m.cov, &mean, 0.2).unwrap();
+        assert_eq!(got.info_matrix, models::mat6_to_wire(&omega));
+        assert_eq!(got.info_vector, models::vec6_to_wire(&xi));
+        // Fused alone into the prior, the old frame moves the mean nowhere (it agrees with the
+        // prior once aged) and it observes velocity.
+        let prior_info = models::mat6_from_wire(&p.cov).try_inverse().unwrap();
+        let post_info = prior_info + omega;
+        let post = post_info.cholesky().unwrap().solve(&(prior_info * mean + xi));
+        assert!((post - mean).norm() < 1e-6, "{post}");
+        assert!(omega[(3, 3)] > 0.0);
+        let (omega0, xi0) = models::camera_contribution(&c, &m.point, &m.cov, &mean).unwrap();
+        let post0 = (prior_info + omega0)
+            .cholesky()
+            .unwrap()
+            .solve(&(prior_info * mean + xi0));
+        assert!(
+            (post0 - mean).fixed_rows::<3>(0).norm() > 0.05,
+            "as current, it drags the mean back"
+        );
     }
 
     #[test]
@@ -250,14 +307,14 @@ mod tests {
         )
         .unwrap();
         let p = prior(1, a, 0.3);
-        let got = contribution(&c, &p, Some(&m), ClusterTime(5), Mode::Active, None);
+        let got = contribution(&c, &p, Some(&m), ClusterTime(5), 0.0, Mode::Active, None);
         assert!(got.camera);
         let (omega, xi) =
             models::camera_contribution(&c, &m.point, &m.cov, &models::vec6_from_wire(&p.mean)).unwrap();
         assert_eq!(got.info_matrix, models::mat6_to_wire(&omega));
         assert_eq!(got.info_vector, models::vec6_to_wire(&xi));
         assert_eq!((got.target, got.step), (TargetId(1), 7));
-        let empty = contribution(&c, &p, None, ClusterTime(5), Mode::CameraOff, None);
+        let empty = contribution(&c, &p, None, ClusterTime(5), 0.0, Mode::CameraOff, None);
         assert!(!empty.camera);
         assert!(empty.info_matrix.iter().flatten().all(|&v| v == 0.0));
         let meas = measurement(

@@ -10,9 +10,9 @@
 use crate::init::{RayObservation, single_camera_prior, state_from_position, triangulate};
 use nalgebra::{Matrix2, Matrix6, Vector2};
 use proto::camera::CameraModel;
-use proto::models::{State, pinhole};
+use proto::models::{State, pinhole, pinhole_aged};
 use proto::msg::RssiReading;
-use proto::{NodeId, TargetId};
+use proto::{ClusterTime, NodeId, TargetId};
 
 /// One detection as the head sees it.
 #[derive(Clone, Debug, PartialEq)]
@@ -27,12 +27,29 @@ pub struct Detection {
     pub rssi: Option<RssiReading>,
     /// The track the camera gated it to, if any.
     pub hint: Option<TargetId>,
+    /// When the camera captured the frame.
+    pub captured: ClusterTime,
 }
 
-/// Squared Mahalanobis distance of a detection to a predicted track; `None` when the track
-/// projects onto the camera plane or behind it.
-pub fn distance2(camera: &CameraModel, det: &Detection, mean: &State, cov: &Matrix6<f64>) -> Option<f64> {
-    let (h, jac) = pinhole(camera, mean)?;
+impl Detection {
+    /// Seconds between the capture and `at` (the time of a track's mean); negative when the
+    /// frame is newer.
+    pub fn age_s(&self, at: ClusterTime) -> f64 {
+        at.secs_since(self.captured)
+    }
+}
+
+/// Squared Mahalanobis distance of a detection to a track predicted to `at`, compared with
+/// where the track was when the frame was captured; `None` when the track projects onto the
+/// camera plane or behind it.
+pub fn distance2(
+    camera: &CameraModel,
+    det: &Detection,
+    mean: &State,
+    cov: &Matrix6<f64>,
+    at: ClusterTime,
+) -> Option<f64> {
+    let (h, jac) = pinhole_aged(camera, mean, det.age_s(at))?;
     let depth = camera
         .pose
         .world_to_camera(&mean.fixed_rows::<3>(0).into_owned())
@@ -46,19 +63,20 @@ pub fn distance2(camera: &CameraModel, det: &Detection, mean: &State, cov: &Matr
     d2.is_finite().then_some(d2)
 }
 
-/// Assign detections to tracks (`tracks[t] = (μ̄, Σ̄)`); entry `i` is the track of detection
-/// `i`, or `None`.
+/// Assign detections to tracks (`tracks[t] = (μ̄, Σ̄)`, predicted to `at`); entry `i` is the
+/// track of detection `i`, or `None`.
 pub fn associate(
     tracks: &[(State, Matrix6<f64>)],
     dets: &[Detection],
     cameras: &[CameraModel],
     gate: f64,
+    at: ClusterTime,
 ) -> Vec<Option<usize>> {
     let mut pairs = Vec::new();
     for (i, d) in dets.iter().enumerate() {
         let Some(cam) = cameras.get(d.slot) else { continue };
         for (t, (mean, cov)) in tracks.iter().enumerate() {
-            if let Some(d2) = distance2(cam, d, mean, cov)
+            if let Some(d2) = distance2(cam, d, mean, cov, at)
                 && d2 <= gate
             {
                 pairs.push((d2, t, i));
@@ -212,6 +230,7 @@ mod tests {
             prev_point: None,
             rssi: None,
             hint: None,
+            captured: ClusterTime::ZERO,
         }
     }
 
@@ -240,7 +259,7 @@ mod tests {
             det(&cams, 0, a),
             det(&cams, 1, Vector3::new(5.5, 0.8, 0.2)),
         ];
-        let got = associate(&tracks, &dets, &cams, 13.8);
+        let got = associate(&tracks, &dets, &cams, 13.8, ClusterTime::ZERO);
         assert_eq!(got, vec![Some(1), Some(0), None]);
     }
 

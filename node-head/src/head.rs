@@ -292,6 +292,7 @@ impl HeadNode {
             prev_point: m.prev_point.map(Vector2::from),
             rssi: m.rssi,
             hint: m.target,
+            captured: m.captured,
         });
     }
 

@@ -125,6 +125,20 @@ pub fn pinhole_previous(
     Some((h, jac))
 }
 
+/// [`pinhole`] of a point seen `age_s` seconds before the state's time ([`pinhole_previous`]),
+/// or exactly [`pinhole`] at age 0 or a non-finite age.
+pub fn pinhole_aged(
+    camera: &CameraModel,
+    x: &State,
+    age_s: f64,
+) -> Option<(Vector2<f64>, SMatrix<f64, 2, 6>)> {
+    if age_s.is_finite() && age_s != 0.0 {
+        pinhole_previous(camera, x, age_s)
+    } else {
+        pinhole(camera, x)
+    }
+}
+
 /// An RSSI-range model (paper 002 §IV).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case", tag = "kind")]
@@ -236,7 +250,8 @@ pub fn information_contribution<const M: usize>(
     Some((omega, xi))
 }
 
-/// The camera half of a contribution: a normalized point with its 2×2 covariance.
+/// The camera half of a contribution: a normalized point with its 2×2 covariance, seen at the
+/// mean's time.
 pub fn camera_contribution(
     camera: &CameraModel,
     point: &Vector2<f64>,
@@ -244,6 +259,24 @@ pub fn camera_contribution(
     mean: &State,
 ) -> Option<(Info, State)> {
     let (h, jac) = pinhole(camera, mean)?;
+    information_contribution(point, &h, &jac, cov, mean)
+}
+
+/// The camera half of a contribution from a frame captured `age_s` seconds before the mean's
+/// time. Cameras are not frame-synchronized with the filter's steps, so the newest frame is up
+/// to a frame period old when a step asks for it; fused as current, it makes the estimate trail
+/// the target by speed × age. The constant-velocity model carries the state back instead
+/// (`pinhole_previous`), which also lets the frame observe velocity. The process noise over
+/// the age is left out: over a frame period it is small against the pixel noise. A negative age
+/// (a frame newer than the mean) carries the state forward.
+pub fn camera_contribution_aged(
+    camera: &CameraModel,
+    point: &Vector2<f64>,
+    cov: &Matrix2<f64>,
+    mean: &State,
+    age_s: f64,
+) -> Option<(Info, State)> {
+    let (h, jac) = pinhole_aged(camera, mean, age_s)?;
     information_contribution(point, &h, &jac, cov, mean)
 }
 

@@ -9,7 +9,7 @@ use crate::ml;
 use crate::stats::StepStats;
 use nalgebra::{Matrix6, Vector3};
 use proto::models::{
-    Info, State, camera_contribution, information_contribution, mat6_to_wire, pinhole_previous,
+    Info, State, camera_contribution_aged, information_contribution, mat6_to_wire, pinhole_previous,
     rssi_contribution, vec6_to_wire,
 };
 use proto::msg::{Command, TrackReport};
@@ -31,7 +31,13 @@ impl HeadNode {
             .iter()
             .map(|t| (*t.filter.mean(), *t.filter.cov()))
             .collect();
-        let assigned = associate(&priors, &dets, &self.cameras, self.cfg.method.gate_chi2);
+        let assigned = associate(
+            &priors,
+            &dets,
+            &self.cameras,
+            self.cfg.method.gate_chi2,
+            self.step_time,
+        );
         let mut free = Vec::new();
         for (d, a) in dets.into_iter().zip(assigned) {
             match a {
@@ -100,6 +106,7 @@ impl HeadNode {
     fn fuse_track(&mut self, t: usize, now: ClusterTime, stats: &mut StepStats, rssi_nodes: &mut [bool]) {
         let uses_rssi = self.uses_rssi();
         let method = &self.cfg.method;
+        let step_time = self.step_time;
         let track = &mut self.tracks[t];
         let mean_bar = *track.filter.mean();
         // Centralized and ML: the head linearizes.
@@ -110,13 +117,16 @@ impl HeadNode {
             let cam = &node.camera;
             match method.fusion {
                 Fusion::CentralizedEif => {
-                    if let Some((o, x)) = camera_contribution(cam, &d.point, &d.cov, &mean_bar) {
+                    // Frames are fused at their capture time, as the cameras do in the
+                    // distributed filter (`camera_contribution_aged`).
+                    let age_s = d.age_s(step_time);
+                    if let Some((o, x)) = camera_contribution_aged(cam, &d.point, &d.cov, &mean_bar, age_s) {
                         track.acc.add(&o, &x);
                         track.aux_acc.add(&o, &x);
                     }
                     if method.previous_point
                         && let Some(prev) = d.prev_point
-                        && let Some((h, jac)) = pinhole_previous(cam, &mean_bar, 1.0 / node.fps)
+                        && let Some((h, jac)) = pinhole_previous(cam, &mean_bar, age_s + 1.0 / node.fps)
                         && let Some((o, x)) = information_contribution(&prev, &h, &jac, &d.cov, &mean_bar)
                     {
                         track.acc.add(&o, &x);

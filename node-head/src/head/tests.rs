@@ -241,3 +241,78 @@ fn lost_cameras_are_left_alone_and_delivering_ones_count_as_before() {
     let (cfg, mean, d) = camera_only_steps(true, false);
     assert!(d.iter().all(|d| !sees(&cfg, &mean, d.node)), "{d:?}");
 }
+
+/// Centralized fusion takes a frame at its capture time: a track moving at 1 m/s, predicted to
+/// the step's time, and a measurement of where the target was 0.1 s before it, leave the
+/// track where it is (as current, the frame would drag it 0.1 m back).
+#[test]
+fn centralized_fusion_takes_a_frame_at_its_capture_time() {
+    let mut s = Scenario::default_scenario();
+    s.method.fusion = Fusion::CentralizedEif;
+    s.method.activation = Activation::AllOn;
+    let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
+    let mut h = HeadNode::new(cfg.clone());
+    h.tick(ClusterTime::ZERO);
+    let mean = State::new(3.0, 4.0, 0.25, 1.0, 0.0, 0.0);
+    let cov = Matrix6::from_diagonal(&nalgebra::Vector6::new(0.01, 0.01, 0.01, 0.01, 0.01, 0.01));
+    h.on_message(
+        ClusterTime::ZERO,
+        env(
+            1,
+            Message::Handover(Handover {
+                global: TargetId(7),
+                to_head: NodeId(2),
+                from_head: None,
+                time: ClusterTime::ZERO,
+                mean: vec6_to_wire(&mean),
+                cov: mat6_to_wire(&cov),
+            }),
+        ),
+    );
+    let t1 = ClusterTime::from_millis(200);
+    h.tick(t1);
+    let predicted = *h.tracks()[0].filter.mean();
+    assert!((predicted[0] - 3.2).abs() < 1e-9, "{predicted}");
+    let was = nalgebra::Vector3::new(3.1, 4.0, 0.25);
+    let node = cfg
+        .nodes
+        .iter()
+        .filter(|n| n.member)
+        .find(|n| {
+            let k = n.camera.intrinsics;
+            n.camera.project(&was).is_some_and(|p| {
+                p.x > 0.0 && p.y > 0.0 && p.x < f64::from(k.width) && p.y < f64::from(k.height)
+            })
+        })
+        .expect("a member camera sees (3.1, 4)");
+    let point = node.camera.normalized(&was).0;
+    let sd = 2.0 / node.camera.intrinsics.fx;
+    let m = Measurement {
+        target: Some(TargetId(1)),
+        step: 1,
+        point: [point.x, point.y],
+        prev_point: None,
+        cov: [sd * sd, 0.0, sd * sd],
+        pixel_box: proto::msg::PixelBox {
+            xmin: 0.0,
+            ymin: 0.0,
+            xmax: 1.0,
+            ymax: 1.0,
+        },
+        area: 100,
+        colour: proto::msg::ColourSignature {
+            hue: 0.0,
+            saturation: 1.0,
+            intensity: 0.5,
+        },
+        pose: node.camera.pose.to_wire(),
+        captured: ClusterTime::from_millis(100),
+        mode: Mode::Active,
+        rssi: None,
+    };
+    h.on_message(t1, env(node.id.0, Message::Measurement(m)));
+    h.tick(ClusterTime::from_millis(281));
+    assert_eq!(h.last_step().prediction_only, 0, "the measurement was fused");
+    let after = h.tracks()[0].filter.mean();
+    assert!((after[0] - 3.2).abs() < 0.01, "x {} (3.2 expected)", after[0]);
+}

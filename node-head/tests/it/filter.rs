@@ -122,3 +122,80 @@ fn nees_stays_in_the_95_percent_band() {
         "only {inside}/{steps} steps inside [{lo:.2}, {hi:.2}]; mean NEES {mean_nees:.2}"
     );
 }
+
+/// Cameras that are not frame-synchronized with the steps: each answers with a frame a fixed
+/// age old. Fused as current, the frames make the estimate trail the target; aged
+/// (`camera_contribution_aged`), they do not, the error falls, and the filter stays consistent.
+#[test]
+fn aged_frames_remove_the_lag_and_keep_the_filter_consistent() {
+    use proto::models::camera_contribution_aged;
+    let scenario = ring_scenario(6, "distributed-eif", "all-on", 0.0, ONE_TARGET);
+    let cams: Vec<_> = Sim::new(&scenario, 0).cams.iter().map(|c| c.model).collect();
+    let motion = MotionModel {
+        accel_psd: [0.05, 0.05, 0.001],
+    };
+    let (runs, steps, sub, dt, sigma_px) = (40usize, 60usize, 10usize, 0.2, 4.0);
+    let h = dt / sub as f64;
+    let lr = motion.process_noise(h).cholesky().unwrap().l();
+    let cov0 = Matrix6::from_diagonal(&Vector6::new(0.04, 0.04, 0.01, 0.04, 0.04, 0.001));
+    let l0 = cov0.cholesky().unwrap().l();
+    // Camera c's frame is (c × 3) mod 10 sub-steps old.
+    let age_of = |c: usize| ((c * 3) % sub) as f64 * h;
+    let run = |aged: bool| -> (f64, f64, f64) {
+        let (mut sq, mut along, mut nees, mut n) = (0.0, 0.0, 0.0, 0.0);
+        for run in 0..runs {
+            let mut rng = ChaCha8Rng::seed_from_u64(2000 + run as u64);
+            let normal6 = |rng: &mut ChaCha8Rng| State::from_fn(|_, _| StandardNormal.sample(rng));
+            let mean0 = State::new(4.0, 4.0, 0.3, 0.3, -0.15, 0.0);
+            let mut truth = mean0 + l0 * normal6(&mut rng);
+            let mut path = vec![truth];
+            let mut f = Eif::from_gaussian(mean0, cov0).unwrap();
+            for _ in 0..steps {
+                for _ in 0..sub {
+                    truth = motion.transition(h) * truth + lr * normal6(&mut rng);
+                    path.push(truth);
+                }
+                f.predict(&motion, dt).unwrap();
+                let mut acc = Accumulator::default();
+                for (c, cam) in cams.iter().enumerate() {
+                    let back = ((c * 3) % sub).min(path.len() - 1);
+                    let was = path[path.len() - 1 - back];
+                    let p = was.fixed_rows::<3>(0).into_owned();
+                    let age = if aged { age_of(c) } else { 0.0 };
+                    if let Some((point, cov)) = observe(cam, &p, sigma_px, &mut rng)
+                        && let Some((o, x)) = camera_contribution_aged(cam, &point, &cov, f.mean(), age)
+                    {
+                        acc.add(&o, &x);
+                    }
+                }
+                f.update(&acc).unwrap();
+                let err = truth - f.mean();
+                let v = truth.fixed_rows::<2>(3).into_owned();
+                sq += err.fixed_rows::<3>(0).norm_squared();
+                // Estimate minus truth along the motion: negative when the estimate trails.
+                along -= err.fixed_rows::<2>(0).dot(&v) / v.norm().max(1e-9);
+                nees += err.dot(&(f.omega() * err));
+                n += 1.0;
+            }
+        }
+        ((sq / n).sqrt(), along / n, nees / n)
+    };
+    let (rmse_current, along_current, _) = run(false);
+    let (rmse_aged, along_aged, nees_aged) = run(true);
+    assert!(
+        along_current < -0.02,
+        "fused as current the estimate trails: {along_current}"
+    );
+    assert!(
+        along_aged.abs() < 0.3 * along_current.abs(),
+        "aged: {along_aged} vs {along_current}"
+    );
+    assert!(
+        rmse_aged < rmse_current,
+        "rmse aged {rmse_aged} vs as current {rmse_current}"
+    );
+    assert!(
+        (4.5..7.5).contains(&nees_aged),
+        "mean NEES {nees_aged} (6 is consistent)"
+    );
+}

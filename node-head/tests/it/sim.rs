@@ -276,8 +276,9 @@ impl Sim {
                         prev_point: None,
                         rssi: None,
                         hint: None,
+                        captured: ClusterTime::ZERO,
                     };
-                    if let Some(d2) = distance2(&self.cams[c].model, &det, &mean, &cov)
+                    if let Some(d2) = distance2(&self.cams[c].model, &det, &mean, &cov, ClusterTime::ZERO)
                         && d2 <= 13.8
                         && best.is_none_or(|b| d2 < b.0)
                     {
