@@ -140,8 +140,10 @@ impl CameraNode {
         }
     }
 
+    /// Within `max_age_ms` of now, either way: frames are fused at their capture time, so one
+    /// stamped in the future (a source clock that is off) must not count as fresh either.
     fn fresh(&self, t: ClusterTime, now: ClusterTime) -> bool {
-        (now - t) <= self.cfg.max_age_ms as i64 * 1_000_000
+        (now - t).abs() <= self.cfg.max_age_ms as i64 * 1_000_000
     }
 
     fn reject(&mut self, what: &'static str, problem: String) {
@@ -498,6 +500,25 @@ mod tests {
             t += 0.2;
         }
         out
+    }
+
+    /// A frame far from the prior's arrival, older or (a source clock that is off) newer, is
+    /// not used: frames are fused at their capture time.
+    #[test]
+    fn a_frame_far_from_the_prior_is_not_used_either_way() {
+        for arrival in [16.0, -4.0] {
+            let (s, mut node, r) = setup(Fusion::DistributedEif);
+            run(&mut node, &s, &r, 0.0, 6.0);
+            let now = ClusterTime::from_secs_f64(arrival);
+            let got = node.on_message(now, env(Message::Prior(prior(&s, 6.0, 0.15, 31))));
+            let Message::Contribution(c) = &got[0].body else {
+                panic!("expected a contribution, got {:?}", got[0].body)
+            };
+            assert!(
+                !c.camera,
+                "a frame 10 s from the prior was used (arrival {arrival} s)"
+            );
+        }
     }
 
     #[test]

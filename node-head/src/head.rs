@@ -166,7 +166,7 @@ impl HeadNode {
                 None => self.reject(src, "contribution"),
             },
             Message::Measurement(m) => match member {
-                Some(slot) => self.on_measurement(slot, m),
+                Some(slot) => self.on_measurement(now, slot, m),
                 None => self.reject(src, "measurement"),
             },
             Message::NodeStatus(s) => match member {
@@ -277,7 +277,20 @@ impl HeadNode {
         }
     }
 
-    fn on_measurement(&mut self, slot: usize, m: Measurement) {
+    fn on_measurement(&mut self, now: ClusterTime, slot: usize, m: Measurement) {
+        // A frame is fused at its capture time, so a capture stamped far from now (a clock that
+        // is off) would carry the track seconds along its velocity: refuse it. The bound is the
+        // cameras' own freshness rule (`node_camera::config`).
+        let limit_ns = (2 * self.cfg.method.step_ms).max(500) as i64 * 1_000_000;
+        if (now - m.captured).abs() > limit_ns {
+            self.counters.stale_measurements += 1;
+            warn!(
+                node = %self.nodes[slot].info.id,
+                off_ms = (now - m.captured) / 1_000_000,
+                "measurement captured too far from now (clock off?); ignored"
+            );
+            return;
+        }
         self.nodes[slot].mode = m.mode;
         self.planner.camera_delivered(self.nodes[slot].info.id);
         if self.detections.len() >= MAX_DETECTIONS_PER_STEP {

@@ -48,6 +48,8 @@ pub struct Counters {
     pub rejected: u64,
     /// Measurements beyond the per-step limit.
     pub overflow: u64,
+    /// Measurements captured too far from the head's time to fuse (a camera clock that is off).
+    pub stale_measurements: u64,
     pub births: u64,
     pub deaths: u64,
     /// Tracks dropped as duplicates of another on the same target.

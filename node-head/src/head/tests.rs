@@ -285,9 +285,23 @@ fn centralized_fusion_takes_a_frame_at_its_capture_time() {
             })
         })
         .expect("a member camera sees (3.1, 4)");
-    let point = node.camera.normalized(&was).0;
+    let m = measurement_of(node, &was, ClusterTime::from_millis(100));
+    h.on_message(t1, env(node.id.0, Message::Measurement(m)));
+    h.tick(ClusterTime::from_millis(281));
+    assert_eq!(h.last_step().prediction_only, 0, "the measurement was fused");
+    let after = h.tracks()[0].filter.mean();
+    assert!((after[0] - 3.2).abs() < 0.01, "x {} (3.2 expected)", after[0]);
+}
+
+/// A centralized measurement of `node` seeing `world`, captured at `captured`, 2 px noise.
+fn measurement_of(
+    node: &crate::config::NodeInfo,
+    world: &nalgebra::Vector3<f64>,
+    captured: ClusterTime,
+) -> Measurement {
+    let point = node.camera.normalized(world).0;
     let sd = 2.0 / node.camera.intrinsics.fx;
-    let m = Measurement {
+    Measurement {
         target: Some(TargetId(1)),
         step: 1,
         point: [point.x, point.y],
@@ -306,13 +320,42 @@ fn centralized_fusion_takes_a_frame_at_its_capture_time() {
             intensity: 0.5,
         },
         pose: node.camera.pose.to_wire(),
-        captured: ClusterTime::from_millis(100),
+        captured,
         mode: Mode::Active,
         rssi: None,
-    };
-    h.on_message(t1, env(node.id.0, Message::Measurement(m)));
-    h.tick(ClusterTime::from_millis(281));
-    assert_eq!(h.last_step().prediction_only, 0, "the measurement was fused");
-    let after = h.tracks()[0].filter.mean();
-    assert!((after[0] - 3.2).abs() < 0.01, "x {} (3.2 expected)", after[0]);
+    }
+}
+
+/// A measurement stamped seconds away from the head's time (a camera clock that is off) is
+/// refused and counted, in either direction, and changes nothing.
+#[test]
+fn a_measurement_captured_far_from_now_is_refused() {
+    let mut s = Scenario::default_scenario();
+    s.method.fusion = Fusion::CentralizedEif;
+    let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
+    let mut h = HeadNode::new(cfg.clone());
+    h.tick(ClusterTime::ZERO);
+    let node = cfg.nodes.iter().find(|n| n.member).unwrap();
+    let seen = nalgebra::Vector3::new(3.0, 4.0, 0.25);
+    let now = ClusterTime::from_secs_f64(20.0);
+    for captured in [ClusterTime::from_secs_f64(10.0), ClusterTime::from_secs_f64(30.0)] {
+        h.on_message(
+            now,
+            env(
+                node.id.0,
+                Message::Measurement(measurement_of(node, &seen, captured)),
+            ),
+        );
+    }
+    assert_eq!(h.counters().stale_measurements, 2);
+    assert!(h.detections.is_empty());
+    h.on_message(
+        now,
+        env(
+            node.id.0,
+            Message::Measurement(measurement_of(node, &seen, now + -100_000_000)),
+        ),
+    );
+    assert_eq!(h.counters().stale_measurements, 2);
+    assert_eq!(h.detections.len(), 1);
 }
