@@ -97,8 +97,26 @@ impl FrameLogger {
             self.counters.rejected += 1;
             return Err(e);
         }
+        let detections = std::mem::take(&mut self.scratch);
+        let out = self.log_detections(node, now, frame.captured, &detections, rssi_dbm);
+        self.scratch = detections;
+        Ok(out)
+    }
+
+    /// [`FrameLogger::log`] for detections made elsewhere (the measurement-level simulation
+    /// projects the truth instead of rendering and segmenting), handled exactly as a
+    /// segmented frame's.
+    pub fn log_detections(
+        &mut self,
+        node: &mut CameraNode,
+        now: ClusterTime,
+        captured: ClusterTime,
+        detections: &[Detection],
+        rssi_dbm: Option<f64>,
+    ) -> Vec<Outgoing> {
+        let cfg = node.config();
         self.measured.clear();
-        for d in &self.scratch {
+        for d in detections {
             match measure::measure(&cfg.camera, d, cfg.reference, cfg.pixel_sigma) {
                 Ok(m) => self.measured.push(m),
                 Err(_) => self.counters.undistort_failures += 1,
@@ -108,7 +126,7 @@ impl FrameLogger {
         self.counters.truncated += (self.measured.len() - kept) as u64;
         self.counters.frames += 1;
         let body = Message::MeasuredFrame(MeasuredFrame {
-            captured: frame.captured,
+            captured,
             rssi_dbm: rssi_dbm.filter(|d| d.is_finite() && (-200.0..=30.0).contains(d)),
             detections: self.measured[..kept].iter().map(to_wire).collect(),
         });
@@ -117,8 +135,8 @@ impl FrameLogger {
             Some(s) => out.push(Outgoing::new(s, body)),
             None => self.counters.unsent += 1,
         }
-        out.extend(node.on_measured(now, frame.captured, &self.measured));
-        Ok(out)
+        out.extend(node.on_measured(now, captured, &self.measured));
+        out
     }
 }
 

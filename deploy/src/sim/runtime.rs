@@ -19,12 +19,11 @@ use super::net::{Fate, NetworkModel, SimNetwork, SkewedClock};
 use super::queue::EventQueue;
 use node_camera::config::CameraConfig;
 use node_camera::core::CameraNode;
-use node_camera::detect::Detection;
 use node_camera::frame::Frame;
-use node_camera::measure::{self, Measured};
+use node_camera::logging::FrameLogger;
+use node_camera::measure::Measured;
 use node_camera::radio::{self, MultipathField};
 use node_camera::render::Renderer;
-use node_camera::segment::Segmenter;
 use node_head::{HeadConfig, HeadNode};
 use node_server::{MeasuredFrame, Record, ServerConfig, ServerNode, Stamped};
 use proto::msg::Message;
@@ -176,9 +175,9 @@ struct CameraSlot {
     prior_targets: BTreeSet<TargetId>,
     position: nalgebra::Vector3<f64>,
     period_ns: i64,
-    /// Logging runs segment every frame here, whatever the core's mode.
-    logger: Option<Segmenter>,
-    scratch: Vec<Detection>,
+    /// Logging runs measure every frame here, whatever the core's mode.
+    logger: Option<FrameLogger>,
+    /// A replay's recorded measurements of the due frame.
     logged: Vec<Measured>,
     /// The camera as it truly is (differs from the node's under a yaw fault).
     true_camera: proto::camera::CameraModel,
@@ -275,7 +274,7 @@ impl Sim {
                     let phase =
                         (u64::from(node.id).wrapping_mul(2_654_435_761) % 1000) as i64 * period_ns / 1000;
                     sim.queue.push(phase, Event::Frame(id));
-                    let logger = sim.opts.record_measurements.then(|| Segmenter::new(&cfg.segment));
+                    let logger = sim.opts.record_measurements.then(|| FrameLogger::new(&cfg));
                     sim.cameras.insert(
                         id,
                         CameraSlot {
@@ -287,7 +286,6 @@ impl Sim {
                             position,
                             period_ns,
                             logger,
-                            scratch: Vec::new(),
                             logged: Vec::new(),
                             true_camera,
                         },
@@ -419,7 +417,10 @@ impl Sim {
         slot.core.on_measured(now, now, &slot.logged)
     }
 
-    /// A logging run: sense and record whatever the mode; the core uses it only when on.
+    /// A logging run: sense and record whatever the mode; the core uses it only when on. The
+    /// camera's own `FrameLogger` measures, so sim and launch logging runs agree; its
+    /// `MeasuredFrame` goes straight into the recording at the frame's time instead of over the
+    /// simulated network.
     fn frame_logged(&mut self, t: i64, id: NodeId, now: ClusterTime) -> Vec<Outgoing> {
         let t_s = t as f64 * 1e-9;
         let Some(slot) = self.cameras.get_mut(&id) else {
@@ -429,45 +430,44 @@ impl Sim {
         if let Some(dbm) = dbm {
             apply_rssi(slot, now, dbm);
         }
-        slot.scratch.clear();
-        match (&slot.renderer, &mut slot.logger) {
-            (Some(r), Some(seg)) => {
+        let Some(logger) = slot.logger.as_mut() else {
+            return Vec::new();
+        };
+        let out = match &slot.renderer {
+            Some(r) => {
                 r.render(&self.scenario.targets, t_s, now, &mut slot.frame);
                 self.frames_rendered += 1;
-                if let Err(e) = seg.process(&slot.frame, &mut slot.scratch) {
-                    tracing::warn!(node = %id, error = %e, "sim: logging segmentation failed");
-                    slot.scratch.clear();
+                match logger.log(&mut slot.core, now, &slot.frame, dbm) {
+                    Ok(out) => out,
+                    Err(e) => {
+                        tracing::warn!(node = %id, error = %e, "sim: logging segmentation failed");
+                        Vec::new()
+                    }
                 }
             }
-            _ => slot.scratch.extend(node_camera::synthetic::project_truth(
-                &slot.true_camera,
-                &self.scenario.world,
-                &self.scenario.targets,
-                t_s,
-                self.scenario.method.pixel_sigma,
-                &mut self.noise,
-            )),
+            None => {
+                let dets = node_camera::synthetic::project_truth(
+                    &slot.true_camera,
+                    &self.scenario.world,
+                    &self.scenario.targets,
+                    t_s,
+                    self.scenario.method.pixel_sigma,
+                    &mut self.noise,
+                );
+                logger.log_detections(&mut slot.core, now, now, &dets, dbm)
+            }
+        };
+        let mut rest = Vec::with_capacity(out.len());
+        for o in out {
+            match o.body {
+                Message::MeasuredFrame(f) => self.records.push(Stamped::new(
+                    ClusterTime(t),
+                    Record::Measured(MeasuredFrame::from_wire(id, &f)),
+                )),
+                body => rest.push(Outgoing { to: o.to, body }),
+            }
         }
-        let cfg = slot.core.config();
-        slot.logged.clear();
-        slot.logged.extend(
-            slot.scratch
-                .iter()
-                .filter_map(|d| measure::measure(&cfg.camera, d, cfg.reference, cfg.pixel_sigma).ok()),
-        );
-        self.records.push(Stamped::new(
-            ClusterTime(t),
-            // Recorded as a camera process sends it, so sim and launch logging runs agree.
-            Record::Measured(MeasuredFrame::from_wire(
-                id,
-                &proto::msg::MeasuredFrame {
-                    captured: now,
-                    rssi_dbm: dbm,
-                    detections: slot.logged.iter().map(node_camera::logging::to_wire).collect(),
-                },
-            )),
-        ));
-        slot.core.on_measured(now, now, &slot.logged)
+        rest
     }
 
     /// An ordinary run: the radio reads while on, the camera captures while on.
