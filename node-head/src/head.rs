@@ -240,7 +240,7 @@ impl HeadNode {
                 self.counters.applied += 1;
                 let node = &mut self.nodes[slot];
                 node.mode = c.mode;
-                let rssi = c.rssi.filter(|_| node.info.rssi).map(|r| r.dbm);
+                let rssi = c.rssi.filter(|_| node.info.rssi);
                 let track = &mut self.tracks[t];
                 if c.camera {
                     self.planner.camera_delivered(node.info.id);
@@ -248,8 +248,8 @@ impl HeadNode {
                     track.aux_acc.add_wire(&c.info_matrix, &c.info_vector);
                     track.last_seen = now;
                 }
-                if let Some(dbm) = rssi {
-                    track.hear(slot, dbm);
+                if let Some(r) = rssi {
+                    track.hear(slot, r.dbm, r.time);
                 }
                 if c.camera || rssi.is_some() {
                     track.contributors.push(proto::msg::Contributor {

@@ -35,7 +35,7 @@ pub struct Track {
     pub acc: Accumulator,
     pub aux_acc: Accumulator,
     /// RSSI readings of this step: (node slot, dBm).
-    pub rssi: Vec<(usize, f64)>,
+    pub rssi: Vec<(usize, f64, ClusterTime)>,
     /// Detections associated this step (centralized and ML fusion).
     pub detections: Vec<Detection>,
     pub contributors: Vec<Contributor>,
@@ -140,9 +140,9 @@ impl Track {
         self.filter.mean().fixed_rows::<3>(0).into_owned()
     }
 
-    /// Queue an RSSI reading of node `slot` for this step.
-    pub fn hear(&mut self, slot: usize, dbm: f64) {
-        self.rssi.push((slot, dbm));
+    /// Queue an RSSI reading of node `slot`, received at `time`, for this step.
+    pub fn hear(&mut self, slot: usize, dbm: f64, time: ClusterTime) {
+        self.rssi.push((slot, dbm, time));
         if let Some(h) = self.rssi_heard.get_mut(slot) {
             *h = true;
         }

@@ -114,15 +114,20 @@ pub fn pinhole_previous(
     x: &State,
     dt: f64,
 ) -> Option<(Vector2<f64>, SMatrix<f64, 2, 6>)> {
-    let mut back = *x;
-    for a in 0..3 {
-        back[POS + a] -= dt * x[VEL + a];
-    }
-    let (h, jac_pos) = pinhole(camera, &back)?;
+    let (h, jac_pos) = pinhole(camera, &back_in_time(x, dt))?;
     let mut jac = jac_pos;
     let dp = jac_pos.fixed_view::<2, 3>(0, POS).into_owned();
     jac.fixed_view_mut::<2, 3>(0, VEL).copy_from(&(dp * -dt));
     Some((h, jac))
+}
+
+/// The state `dt` seconds earlier under constant velocity: `P − V dt`, same velocity.
+pub fn back_in_time(x: &State, dt: f64) -> State {
+    let mut back = *x;
+    for a in 0..3 {
+        back[POS + a] -= dt * x[VEL + a];
+    }
+    back
 }
 
 /// [`pinhole`] of a point seen `age_s` seconds before the state's time ([`pinhole_previous`]),
@@ -287,7 +292,23 @@ pub fn rssi_contribution(
     dbm: f64,
     mean: &State,
 ) -> Option<(Info, State)> {
-    let (h, jac) = model.measurement(node, mean);
+    rssi_contribution_aged(model, node, dbm, mean, 0.0)
+}
+
+/// [`rssi_contribution`] of a packet received `age_s` seconds before the mean's time: the
+/// range is the one to where the state puts the target then (see
+/// [`camera_contribution_aged`]).
+pub fn rssi_contribution_aged(
+    model: &RssiModel,
+    node: &Vector3<f64>,
+    dbm: f64,
+    mean: &State,
+    age_s: f64,
+) -> Option<(Info, State)> {
+    let age_s = if age_s.is_finite() { age_s } else { 0.0 };
+    let (h, mut jac) = model.measurement(node, &back_in_time(mean, age_s));
+    let dp = jac.fixed_view::<1, 3>(0, POS).into_owned();
+    jac.fixed_view_mut::<1, 3>(0, VEL).copy_from(&(dp * -age_s));
     let z = SVector::<f64, 1>::new(dbm);
     let hv = SVector::<f64, 1>::new(h);
     let q = SMatrix::<f64, 1, 1>::new(model.variance());

@@ -9,8 +9,8 @@ use crate::ml;
 use crate::stats::StepStats;
 use nalgebra::{Matrix6, Vector3};
 use proto::models::{
-    Info, State, camera_contribution_aged, information_contribution, mat6_to_wire, pinhole_previous,
-    rssi_contribution, vec6_to_wire,
+    Info, State, back_in_time, camera_contribution_aged, information_contribution, mat6_to_wire,
+    pinhole_previous, rssi_contribution_aged, vec6_to_wire,
 };
 use proto::msg::{Command, TrackReport};
 use proto::node::Outgoing;
@@ -141,7 +141,7 @@ impl HeadNode {
                 Fusion::DistributedEif => {}
             }
             if let Some(r) = d.rssi.filter(|_| node.rssi) {
-                track.hear(d.slot, r.dbm);
+                track.hear(d.slot, r.dbm, r.time);
             }
             track.note(node.id, true, d.rssi.is_some() && node.rssi);
         }
@@ -152,10 +152,11 @@ impl HeadNode {
         };
         // RSSI, linearized here with the node's current model.
         if uses_rssi && method.fusion != Fusion::Ml {
-            for &(slot, dbm) in &track.rssi {
+            for &(slot, dbm, time) in &track.rssi {
                 let node = &self.nodes[slot].info;
                 let model = track.trainers[slot].model();
-                if let Some((o, x)) = rssi_contribution(&model, &node.position, dbm, &mean_bar) {
+                let age_s = rssi_age_s(step_time, time, method.step_ms);
+                if let Some((o, x)) = rssi_contribution_aged(&model, &node.position, dbm, &mean_bar, age_s) {
                     track.acc.add(&o, &x);
                     rssi_nodes[slot] = true;
                     track.last_seen = now;
@@ -202,9 +203,13 @@ impl HeadNode {
         }
         // Algorithm 1: pairs (distance from the camera-only filter, RSSI).
         if trained_from_cameras {
-            let aux_pos: Vector3<f64> = track.aux.mean().fixed_rows::<3>(0).into_owned();
             let aux_cov = track.aux.cov().fixed_view::<3, 3>(0, 0).into_owned();
-            for &(slot, dbm) in &track.rssi {
+            for &(slot, dbm, time) in &track.rssi {
+                // Paired with where the camera-only filter puts the target when the packet came.
+                let age_s = rssi_age_s(self.step_time, time, method.step_ms);
+                let aux_pos: Vector3<f64> = back_in_time(track.aux.mean(), age_s)
+                    .fixed_rows::<3>(0)
+                    .into_owned();
                 let diff = aux_pos - self.nodes[slot].info.position;
                 let d = diff.norm();
                 if d > 1e-6 {
@@ -371,4 +376,12 @@ impl HeadNode {
         self.command(slot, decision.to, out);
         Some(decision)
     }
+}
+
+/// Seconds from an RSSI packet's reception to the step's time, bounded by the cameras' own
+/// freshness rule (max(2 steps, 500 ms)) so that a packet stamped by a clock that is off is
+/// not carried far along the track.
+fn rssi_age_s(step_time: ClusterTime, received: ClusterTime, step_ms: u64) -> f64 {
+    let limit = (2 * step_ms).max(500) as f64 * 1e-3;
+    step_time.secs_since(received).clamp(-limit, limit)
 }

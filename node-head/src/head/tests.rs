@@ -359,3 +359,69 @@ fn a_measurement_captured_far_from_now_is_refused() {
     assert_eq!(h.counters().stale_measurements, 2);
     assert_eq!(h.detections.len(), 1);
 }
+
+/// The head reads an RSSI packet as the range to where the track was when it came: a track
+/// moving at 1 m/s, and a packet 0.1 s old that agrees with the track then, leave it in place.
+#[test]
+fn rssi_is_fused_at_the_packet_time() {
+    let mut s = Scenario::default_scenario();
+    s.method.activation = Activation::ThreeMode;
+    let model = proto::models::RssiModel::LogDistance {
+        a: -25.0,
+        b: -48.0,
+        variance: 0.01,
+    };
+    s.method.rssi_default = model;
+    let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
+    let mut h = HeadNode::new(cfg.clone());
+    h.tick(ClusterTime::ZERO);
+    let mean = State::new(3.0, 4.0, 0.25, 1.0, 0.0, 0.0);
+    let cov = Matrix6::identity() * 0.01;
+    h.on_message(
+        ClusterTime::ZERO,
+        env(
+            1,
+            Message::Handover(Handover {
+                global: TargetId(7),
+                to_head: NodeId(2),
+                from_head: None,
+                time: ClusterTime::ZERO,
+                mean: vec6_to_wire(&mean),
+                cov: mat6_to_wire(&cov),
+            }),
+        ),
+    );
+    let t1 = ClusterTime::from_millis(200);
+    let out = h.tick(t1);
+    let prior = out
+        .iter()
+        .find_map(|o| match &o.body {
+            Message::Prior(p) => Some(p.clone()),
+            _ => None,
+        })
+        .expect("a prior");
+    let node = cfg
+        .nodes
+        .iter()
+        .find(|n| n.member && n.rssi)
+        .expect("a radio node");
+    let was = nalgebra::Vector3::new(3.1, 4.0, 0.25);
+    let c = Contribution {
+        target: prior.target,
+        step: prior.step,
+        info_matrix: [[0.0; 6]; 6],
+        info_vector: [0.0; 6],
+        camera: false,
+        captured: t1,
+        mode: Mode::CameraOff,
+        rssi: Some(proto::msg::RssiReading {
+            dbm: model.predict((was - node.position).norm()),
+            time: ClusterTime::from_millis(100),
+        }),
+    };
+    h.on_message(t1, env(node.id.0, Message::Contribution(c)));
+    h.tick(ClusterTime::from_millis(281));
+    assert_eq!(h.last_step().rssi_nodes, 1, "the packet was fused");
+    let after = h.tracks()[0].filter.mean();
+    assert!((after[0] - 3.2).abs() < 1e-3, "x {} (3.2 expected)", after[0]);
+}

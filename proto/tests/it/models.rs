@@ -222,3 +222,39 @@ fn log_distance_fit_recovers_a_law_and_its_variance() {
     assert!(fit_log_distance(&[(3.0, -60.0); 10]).is_none());
     assert!(fit_log_distance(&[(f64::NAN, -60.0), (2.0, f64::INFINITY), (1.0, -50.0)]).is_none());
 }
+
+/// An RSSI packet received 0.3 s before the mean's time, from a target moving at 1 m/s, is
+/// read as the range to where the target was then: fused alone into a prior that is right, it
+/// moves nothing; taken as current, it drags the position.
+#[test]
+fn an_aged_rssi_packet_is_the_range_to_where_the_target_was() {
+    let model = RssiModel::LogDistance {
+        a: -25.0,
+        b: -48.0,
+        variance: 1.0,
+    };
+    let node = Vector3::new(0.0, 0.0, 2.5);
+    let mean = State::new(3.0, 1.0, 0.25, 1.0, 0.0, 0.0);
+    let back = models::back_in_time(&mean, 0.3);
+    assert_relative_eq!(models::position(&back), Vector3::new(2.7, 1.0, 0.25));
+    let dbm = model.predict((models::position(&back) - node).norm());
+    let prior_info = Matrix6::identity() * 100.0;
+    let fuse = |age: f64| {
+        let (o, x) = models::rssi_contribution_aged(&model, &node, dbm, &mean, age).unwrap();
+        (prior_info + o)
+            .cholesky()
+            .unwrap()
+            .solve(&(prior_info * mean + x))
+    };
+    let aged = fuse(0.3);
+    assert!((aged - mean).norm() < 1e-9, "{aged}");
+    let as_current = fuse(0.0);
+    assert!(
+        (as_current - mean).fixed_rows::<3>(0).norm() > 0.01,
+        "{as_current}"
+    );
+    assert_eq!(
+        models::rssi_contribution_aged(&model, &node, dbm, &mean, 0.0),
+        models::rssi_contribution(&model, &node, dbm, &mean)
+    );
+}
