@@ -7,7 +7,7 @@ use deploy::sim::runtime::Level;
 
 /// Bound on Proposed's mean error over Method1's asserted here (the paper's is 1.25; see the
 /// test).
-const PROPOSED_ERROR_FACTOR: f64 = 1.7;
+const PROPOSED_ERROR_FACTOR: f64 = 1.5;
 
 fn run(name: &str, runs: u32, duration_s: Option<f64>) -> Outcome {
     let opts = Options {
@@ -34,8 +34,8 @@ fn paper000_table1_shape_active_perception_between_eif5_and_eif3_with_fewer_meas
     let (lo, hi) = (p000::active(0.2), p000::active(1.0));
     let table = deploy::experiment::table::to_text(&o);
     // Error: EIF with five cameras < active perception < EIF with three < ML with three, at
-    // either cost (at measurement level; at pixel level cost 1.0 comes out above EIF3, see
-    // docs/results-discussion.md).
+    // either cost (here at measurement level, where EIF3's error varies much with the seed:
+    // seeds 4-6 put cost 1.0 above it; docs/results.md has the pixel level, where it holds).
     assert!(err(p000::EIF5) < err(&lo), "{table}");
     assert!(err(&lo) < err(p000::EIF3), "{table}");
     assert!(err(p000::EIF3) < err(p000::ML3), "{table}");
@@ -67,11 +67,11 @@ fn paper002_table1_shape_power_falls_method1_to_proposed() {
     assert!(power(p002::M2) > power(p002::M3), "{table}");
     assert!(power(p002::M3) > power(p002::PROPOSED), "{table}");
     assert!(power(p002::PROPOSED) <= 0.25 * power(p002::M1), "{table}");
-    // The paper's bound, Proposed within 1.25x Method1's error, does NOT come out here (the
-    // outcome's shape check says so and docs/results.md discusses it): measured with these
-    // options 0.154 vs 0.109 m (1.42x); pixel level, 60 s, seeds 1-2: 1.53x. No energy weight
-    // gives both bounds (measurement level, 60 s, seeds 1-3: weight 3e-4 gives 1.15x error at
-    // 34% power, 1e-3 gives 1.40x at 20%). What is asserted is that the loss stays bounded.
+    // The paper's bound, Proposed within 1.25x Method1's error, does NOT come out at
+    // measurement level (the outcome's shape check says so and docs/results.md discusses it):
+    // with these options 0.166 vs 0.119 m (1.39x; seeds 3-4 1.35x, 5-6 1.29x). It does at pixel
+    // level (5 runs, 60 s: 1.16x), too slow for this test. What is asserted is that the loss
+    // stays bounded.
     assert!(
         err(p002::PROPOSED) <= PROPOSED_ERROR_FACTOR * err(p002::M1),
         "{table}"
