@@ -74,7 +74,7 @@ impl CameraConfig {
             reference: ReferencePoint::Centre,
             status_period_ms: 1000,
             prior_timeout_ms: m.track_timeout_ms,
-            max_age_ms: (2 * m.step_ms).max(500),
+            max_age_ms: m.capture_max_age_ms(),
             rssi: node.rssi,
             previous_point: m.previous_point,
             initial_mode: Mode::Active,

@@ -343,10 +343,11 @@ impl CameraNode {
     /// Gate the newest detections against the known priors and send what the mode asks for.
     fn send_measurements(&mut self, now: ClusterTime, captured: ClusterTime, out: &mut Vec<Outgoing>) {
         // A prior's time is when it arrived (see `answer`); frames newer than it have a
-        // negative age.
+        // negative age. A prior kept from longer ago than a frame may be old gates nothing.
         let priors: Vec<(&Prior, f64)> = self
             .priors
             .values()
+            .filter(|(t, _)| self.fresh(captured, *t))
             .map(|(t, p)| (p, t.secs_since(captured)))
             .collect();
         let assoc = measure::associate(&self.cfg.camera, &priors, &self.measured, self.cfg.gate_chi2);
@@ -500,6 +501,40 @@ mod tests {
             t += 0.2;
         }
         out
+    }
+
+    /// Centralized mode gates a frame against the priors at the frame's time: a target moving
+    /// at 10 m/s whose prior came 0.1 s before the frame is 1 m behind in that prior, and the
+    /// detection is still gated to it (as current, it would be far outside the gate).
+    #[test]
+    fn a_frame_is_gated_against_where_the_prior_puts_the_target_then() {
+        let (s, mut node, r) = setup(Fusion::CentralizedEif);
+        run(&mut node, &s, &r, 0.0, 5.8);
+        let truth = s.targets[0].truth_at(6.0);
+        let mut mean = truth;
+        mean[3] = 10.0;
+        mean[4] = 0.0;
+        mean[0] -= 1.0;
+        let p = Prior {
+            target: TargetId(1),
+            step: 30,
+            mean: models::vec6_to_wire(&mean),
+            cov: models::mat6_to_wire(&(Matrix6::identity() * 0.0025)),
+            deadline: ClusterTime::from_secs_f64(5.98),
+        };
+        node.on_message(ClusterTime::from_secs_f64(5.9), env(Message::Prior(p)));
+        let mut f = Frame::new(0, 0, ClusterTime::ZERO);
+        let now = ClusterTime::from_secs_f64(6.0);
+        r.render(&s.targets, 6.0, now, &mut f);
+        let out = node.on_frame(now, &f);
+        let gated: Vec<_> = out
+            .iter()
+            .filter_map(|o| match &o.body {
+                Message::Measurement(m) => Some(m.target),
+                _ => None,
+            })
+            .collect();
+        assert!(gated.contains(&Some(TargetId(1))), "{gated:?}");
     }
 
     /// A frame far from the prior's arrival, older or (a source clock that is off) newer, is

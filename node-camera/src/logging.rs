@@ -82,8 +82,29 @@ impl FrameLogger {
         frame: &Frame,
         rssi_dbm: Option<f64>,
     ) -> Result<Vec<Outgoing>, FrameError> {
-        let cfg = node.config();
-        let k = &cfg.camera.intrinsics;
+        let (measured, answers) = self.measure(node, now, frame, rssi_dbm)?;
+        let mut out = Vec::with_capacity(answers.len() + 1);
+        match node.config().server {
+            Some(s) => out.push(Outgoing::new(s, Message::MeasuredFrame(measured))),
+            None => self.counters.unsent += 1,
+        }
+        out.extend(answers);
+        Ok(out)
+    }
+
+    /// [`FrameLogger::log`] without the sending: the frame's `MeasuredFrame` and what the core
+    /// answers. The simulation records the frame itself.
+    ///
+    /// # Errors
+    /// As [`FrameLogger::log`].
+    pub fn measure(
+        &mut self,
+        node: &mut CameraNode,
+        now: ClusterTime,
+        frame: &Frame,
+        rssi_dbm: Option<f64>,
+    ) -> Result<(MeasuredFrame, Vec<Outgoing>), FrameError> {
+        let k = &node.config().camera.intrinsics;
         if (frame.width, frame.height) != (k.width, k.height) {
             self.counters.rejected += 1;
             return Err(FrameError::Mismatch {
@@ -98,22 +119,22 @@ impl FrameLogger {
             return Err(e);
         }
         let detections = std::mem::take(&mut self.scratch);
-        let out = self.log_detections(node, now, frame.captured, &detections, rssi_dbm);
+        let out = self.measure_detections(node, now, frame.captured, &detections, rssi_dbm);
         self.scratch = detections;
         Ok(out)
     }
 
-    /// [`FrameLogger::log`] for detections made elsewhere (the measurement-level simulation
-    /// projects the truth instead of rendering and segmenting), handled exactly as a
-    /// segmented frame's.
-    pub fn log_detections(
+    /// [`FrameLogger::measure`] for detections made elsewhere (the measurement-level
+    /// simulation projects the truth instead of rendering and segmenting), handled exactly as
+    /// a segmented frame's.
+    pub fn measure_detections(
         &mut self,
         node: &mut CameraNode,
         now: ClusterTime,
         captured: ClusterTime,
         detections: &[Detection],
         rssi_dbm: Option<f64>,
-    ) -> Vec<Outgoing> {
+    ) -> (MeasuredFrame, Vec<Outgoing>) {
         let cfg = node.config();
         self.measured.clear();
         for d in detections {
@@ -125,18 +146,12 @@ impl FrameLogger {
         let kept = self.measured.len().min(MAX_MEASURED_DETECTIONS);
         self.counters.truncated += (self.measured.len() - kept) as u64;
         self.counters.frames += 1;
-        let body = Message::MeasuredFrame(MeasuredFrame {
+        let frame = MeasuredFrame {
             captured,
             rssi_dbm: rssi_dbm.filter(|d| d.is_finite() && (-200.0..=30.0).contains(d)),
             detections: self.measured[..kept].iter().map(to_wire).collect(),
-        });
-        let mut out = Vec::with_capacity(2);
-        match cfg.server {
-            Some(s) => out.push(Outgoing::new(s, body)),
-            None => self.counters.unsent += 1,
-        }
-        out.extend(node.on_measured(now, captured, &self.measured));
-        out
+        };
+        (frame, node.on_measured(now, captured, &self.measured))
     }
 }
 

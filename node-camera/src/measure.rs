@@ -46,7 +46,8 @@ pub fn measure(
 /// `None` when the prior is behind the camera or the innovation covariance is singular.
 pub fn mahalanobis2(camera: &CameraModel, prior: &Prior, m: &Measured, age_s: f64) -> Option<f64> {
     let mean = models::vec6_from_wire(&prior.mean);
-    if camera.pose.world_to_camera(&models::position(&mean)).z <= 0.0 {
+    let then = models::back_in_time(&mean, if age_s.is_finite() { age_s } else { 0.0 });
+    if camera.pose.world_to_camera(&models::position(&then)).z <= 0.0 {
         return None;
     }
     let (h, jac) = models::pinhole_aged(camera, &mean, age_s)?;

@@ -10,7 +10,7 @@
 use crate::init::{RayObservation, single_camera_prior, state_from_position, triangulate};
 use nalgebra::{Matrix2, Matrix6, Vector2};
 use proto::camera::CameraModel;
-use proto::models::{State, pinhole, pinhole_aged};
+use proto::models::{State, back_in_time, pinhole, pinhole_aged};
 use proto::msg::RssiReading;
 use proto::{ClusterTime, NodeId, TargetId};
 
@@ -49,10 +49,12 @@ pub fn distance2(
     cov: &Matrix6<f64>,
     at: ClusterTime,
 ) -> Option<f64> {
-    let (h, jac) = pinhole_aged(camera, mean, det.age_s(at))?;
+    let age_s = det.age_s(at);
+    let (h, jac) = pinhole_aged(camera, mean, age_s)?;
+    // In front of the camera where the track was when the frame was captured.
     let depth = camera
         .pose
-        .world_to_camera(&mean.fixed_rows::<3>(0).into_owned())
+        .world_to_camera(&back_in_time(mean, age_s).fixed_rows::<3>(0).into_owned())
         .z;
     if depth <= 0.0 {
         return None;
@@ -63,20 +65,19 @@ pub fn distance2(
     d2.is_finite().then_some(d2)
 }
 
-/// Assign detections to tracks (`tracks[t] = (μ̄, Σ̄)`, predicted to `at`); entry `i` is the
-/// track of detection `i`, or `None`.
+/// Assign detections to tracks (`tracks[t] = (μ̄, Σ̄, the time of μ̄)`); entry `i` is the track
+/// of detection `i`, or `None`.
 pub fn associate(
-    tracks: &[(State, Matrix6<f64>)],
+    tracks: &[(State, Matrix6<f64>, ClusterTime)],
     dets: &[Detection],
     cameras: &[CameraModel],
     gate: f64,
-    at: ClusterTime,
 ) -> Vec<Option<usize>> {
     let mut pairs = Vec::new();
     for (i, d) in dets.iter().enumerate() {
         let Some(cam) = cameras.get(d.slot) else { continue };
-        for (t, (mean, cov)) in tracks.iter().enumerate() {
-            if let Some(d2) = distance2(cam, d, mean, cov, at)
+        for (t, (mean, cov, at)) in tracks.iter().enumerate() {
+            if let Some(d2) = distance2(cam, d, mean, cov, *at)
                 && d2 <= gate
             {
                 pairs.push((d2, t, i));
@@ -251,15 +252,15 @@ mod tests {
         let b = Vector3::new(4.5, 4.0, 0.2);
         let cov = Matrix6::identity() * 0.05;
         let tracks = [
-            (State::new(a.x, a.y, a.z, 0.0, 0.0, 0.0), cov),
-            (State::new(b.x, b.y, b.z, 0.0, 0.0, 0.0), cov),
+            (State::new(a.x, a.y, a.z, 0.0, 0.0, 0.0), cov, ClusterTime::ZERO),
+            (State::new(b.x, b.y, b.z, 0.0, 0.0, 0.0), cov, ClusterTime::ZERO),
         ];
         let dets = vec![
             det(&cams, 0, b),
             det(&cams, 0, a),
             det(&cams, 1, Vector3::new(5.5, 0.8, 0.2)),
         ];
-        let got = associate(&tracks, &dets, &cams, 13.8, ClusterTime::ZERO);
+        let got = associate(&tracks, &dets, &cams, 13.8);
         assert_eq!(got, vec![Some(1), Some(0), None]);
     }
 

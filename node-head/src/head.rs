@@ -278,10 +278,11 @@ impl HeadNode {
     }
 
     fn on_measurement(&mut self, now: ClusterTime, slot: usize, m: Measurement) {
+        self.nodes[slot].mode = m.mode;
         // A frame is fused at its capture time, so a capture stamped far from now (a clock that
-        // is off) would carry the track seconds along its velocity: refuse it. The bound is the
-        // cameras' own freshness rule (`node_camera::config`).
-        let limit_ns = (2 * self.cfg.method.step_ms).max(500) as i64 * 1_000_000;
+        // is off) would carry the track seconds along its velocity: refuse it, by the bound the
+        // cameras apply to their own frames.
+        let limit_ns = self.cfg.method.capture_max_age_ms() as i64 * 1_000_000;
         if (now - m.captured).abs() > limit_ns {
             self.counters.stale_measurements += 1;
             warn!(
@@ -291,7 +292,6 @@ impl HeadNode {
             );
             return;
         }
-        self.nodes[slot].mode = m.mode;
         self.planner.camera_delivered(self.nodes[slot].info.id);
         if self.detections.len() >= MAX_DETECTIONS_PER_STEP {
             self.counters.overflow += 1;

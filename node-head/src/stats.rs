@@ -48,7 +48,8 @@ pub struct Counters {
     pub rejected: u64,
     /// Measurements beyond the per-step limit.
     pub overflow: u64,
-    /// Measurements captured too far from the head's time to fuse (a camera clock that is off).
+    /// Measurements and RSSI packets stamped too far from the head's time to fuse (a clock
+    /// that is off), refused.
     pub stale_measurements: u64,
     pub births: u64,
     pub deaths: u64,

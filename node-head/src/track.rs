@@ -34,7 +34,7 @@ pub struct Track {
     pub aux: Eif,
     pub acc: Accumulator,
     pub aux_acc: Accumulator,
-    /// RSSI readings of this step: (node slot, dBm).
+    /// RSSI readings of this step: (node slot, dBm, reception time).
     pub rssi: Vec<(usize, f64, ClusterTime)>,
     /// Detections associated this step (centralized and ML fusion).
     pub detections: Vec<Detection>,

@@ -121,6 +121,8 @@ pub struct Contribution {
     pub target: TargetId,
     pub step: u64,
     /// Ω_i = Hᵀ Q⁻¹ H, symmetric positive semi-definite; all zero when the camera had nothing.
+    /// H and h are taken where μ̄ puts the target at the frame's capture time
+    /// (`models::camera_contribution_aged`).
     pub info_matrix: Mat6,
     /// ξ_i = Hᵀ Q⁻¹ (z − h(μ̄) + H μ̄).
     pub info_vector: Vec6,

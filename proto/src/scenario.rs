@@ -250,6 +250,16 @@ pub struct Method {
     pub drop_lost_cameras: bool,
 }
 
+impl Method {
+    /// How far from a node's time a capture may be stamped and still be fused, ms: two filter
+    /// steps, at least 500 ms. Frames and packets are fused at their capture time, so one
+    /// stamped further off (a clock that is off, a stale buffer) is refused rather than carried
+    /// along the track. Cameras and heads share this bound.
+    pub fn capture_max_age_ms(&self) -> u64 {
+        (2 * self.step_ms).max(500)
+    }
+}
+
 impl Default for Method {
     fn default() -> Self {
         Method {

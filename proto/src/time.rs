@@ -37,7 +37,8 @@ impl ClusterTime {
 
     /// Signed duration `self - earlier` in seconds.
     pub fn secs_since(self, earlier: ClusterTime) -> f64 {
-        (self.0 - earlier.0) as f64 * 1e-9
+        // Saturating (`Sub`): stamps come off the wire, and a garbage one must not overflow.
+        (self - earlier) as f64 * 1e-9
     }
 }
 

@@ -433,17 +433,11 @@ impl Sim {
         let Some(logger) = slot.logger.as_mut() else {
             return Vec::new();
         };
-        let out = match &slot.renderer {
+        let measured = match &slot.renderer {
             Some(r) => {
                 r.render(&self.scenario.targets, t_s, now, &mut slot.frame);
                 self.frames_rendered += 1;
-                match logger.log(&mut slot.core, now, &slot.frame, dbm) {
-                    Ok(out) => out,
-                    Err(e) => {
-                        tracing::warn!(node = %id, error = %e, "sim: logging segmentation failed");
-                        Vec::new()
-                    }
-                }
+                logger.measure(&mut slot.core, now, &slot.frame, dbm)
             }
             None => {
                 let dets = node_camera::synthetic::project_truth(
@@ -454,20 +448,23 @@ impl Sim {
                     self.scenario.method.pixel_sigma,
                     &mut self.noise,
                 );
-                logger.log_detections(&mut slot.core, now, now, &dets, dbm)
+                Ok(logger.measure_detections(&mut slot.core, now, now, &dets, dbm))
             }
         };
-        let mut rest = Vec::with_capacity(out.len());
-        for o in out {
-            match o.body {
-                Message::MeasuredFrame(f) => self.records.push(Stamped::new(
+        match measured {
+            Ok((frame, answers)) => {
+                self.records.push(Stamped::new(
                     ClusterTime(t),
-                    Record::Measured(MeasuredFrame::from_wire(id, &f)),
-                )),
-                body => rest.push(Outgoing { to: o.to, body }),
+                    Record::Measured(MeasuredFrame::from_wire(id, &frame)),
+                ));
+                answers
+            }
+            Err(e) => {
+                // Rendered frames always fit the camera; counted by the logger all the same.
+                tracing::warn!(node = %id, error = %e, "sim: logging segmentation failed");
+                Vec::new()
             }
         }
-        rest
     }
 
     /// An ordinary run: the radio reads while on, the camera captures while on.

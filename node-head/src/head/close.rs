@@ -26,18 +26,12 @@ impl HeadNode {
         let fusion = self.cfg.method.fusion;
         // Associate detections; leftovers may start tracks.
         let dets = std::mem::take(&mut self.detections);
-        let priors: Vec<(State, Matrix6<f64>)> = self
+        let priors: Vec<(State, Matrix6<f64>, ClusterTime)> = self
             .tracks
             .iter()
-            .map(|t| (*t.filter.mean(), *t.filter.cov()))
+            .map(|t| (*t.filter.mean(), *t.filter.cov(), t.time))
             .collect();
-        let assigned = associate(
-            &priors,
-            &dets,
-            &self.cameras,
-            self.cfg.method.gate_chi2,
-            self.step_time,
-        );
+        let assigned = associate(&priors, &dets, &self.cameras, self.cfg.method.gate_chi2);
         let mut free = Vec::new();
         for (d, a) in dets.into_iter().zip(assigned) {
             match a {
@@ -106,8 +100,10 @@ impl HeadNode {
     fn fuse_track(&mut self, t: usize, now: ClusterTime, stats: &mut StepStats, rssi_nodes: &mut [bool]) {
         let uses_rssi = self.uses_rssi();
         let method = &self.cfg.method;
-        let step_time = self.step_time;
+        let max_age_s = method.capture_max_age_ms() as f64 * 1e-3;
         let track = &mut self.tracks[t];
+        // The time of μ̄: the step's, or a track handed over during the step its own.
+        let at = track.time;
         let mean_bar = *track.filter.mean();
         // Centralized and ML: the head linearizes.
         let dets = std::mem::take(&mut track.detections);
@@ -119,7 +115,7 @@ impl HeadNode {
                 Fusion::CentralizedEif => {
                     // Frames are fused at their capture time, as the cameras do in the
                     // distributed filter (`camera_contribution_aged`).
-                    let age_s = d.age_s(step_time);
+                    let age_s = d.age_s(at);
                     if let Some((o, x)) = camera_contribution_aged(cam, &d.point, &d.cov, &mean_bar, age_s) {
                         track.acc.add(&o, &x);
                         track.aux_acc.add(&o, &x);
@@ -155,7 +151,11 @@ impl HeadNode {
             for &(slot, dbm, time) in &track.rssi {
                 let node = &self.nodes[slot].info;
                 let model = track.trainers[slot].model();
-                let age_s = rssi_age_s(step_time, time, method.step_ms);
+                let Some(age_s) = packet_age_s(at, time, max_age_s) else {
+                    self.counters.stale_measurements += 1;
+                    warn!(node = %node.id, "RSSI packet stamped too far from the step (clock off?); ignored");
+                    continue;
+                };
                 if let Some((o, x)) = rssi_contribution_aged(&model, &node.position, dbm, &mean_bar, age_s) {
                     track.acc.add(&o, &x);
                     rssi_nodes[slot] = true;
@@ -203,13 +203,19 @@ impl HeadNode {
         }
         // Algorithm 1: pairs (distance from the camera-only filter, RSSI).
         if trained_from_cameras {
-            let aux_cov = track.aux.cov().fixed_view::<3, 3>(0, 0).into_owned();
             for &(slot, dbm, time) in &track.rssi {
-                // Paired with where the camera-only filter puts the target when the packet came.
-                let age_s = rssi_age_s(self.step_time, time, method.step_ms);
+                // Paired with where the camera-only filter puts the target when the packet came,
+                // and that position's covariance ([I, −age·I] Σ [I, −age·I]ᵀ).
+                let Some(age_s) = packet_age_s(at, time, max_age_s) else {
+                    continue;
+                };
                 let aux_pos: Vector3<f64> = back_in_time(track.aux.mean(), age_s)
                     .fixed_rows::<3>(0)
                     .into_owned();
+                let mut back = nalgebra::SMatrix::<f64, 3, 6>::zeros();
+                back.fixed_view_mut::<3, 3>(0, 0).fill_with_identity();
+                back.fixed_view_mut::<3, 3>(0, 3).fill_diagonal(-age_s);
+                let aux_cov = back * track.aux.cov() * back.transpose();
                 let diff = aux_pos - self.nodes[slot].info.position;
                 let d = diff.norm();
                 if d > 1e-6 {
@@ -378,10 +384,12 @@ impl HeadNode {
     }
 }
 
-/// Seconds from an RSSI packet's reception to the step's time, bounded by the cameras' own
-/// freshness rule (max(2 steps, 500 ms)) so that a packet stamped by a clock that is off is
-/// not carried far along the track.
-fn rssi_age_s(step_time: ClusterTime, received: ClusterTime, step_ms: u64) -> f64 {
-    let limit = (2 * step_ms).max(500) as f64 * 1e-3;
-    step_time.secs_since(received).clamp(-limit, limit)
+/// Seconds from an RSSI packet's reception to `at` (the time of the track's mean), or `None`
+/// when its stamp is more than `max_age_s` away (a clock that is off): such a packet is refused,
+/// as a measurement would be. The packet is stamped on its camera's clock and `at` is on the
+/// head's, so unlike a frame's age this one relies on the nodes' clocks agreeing (chrony
+/// across hosts, the same clock on one).
+fn packet_age_s(at: ClusterTime, received: ClusterTime, max_age_s: f64) -> Option<f64> {
+    let age = at.secs_since(received);
+    (age.abs() <= max_age_s).then_some(age)
 }
