@@ -250,25 +250,7 @@ fn centralized_fusion_takes_a_frame_at_its_capture_time() {
     let mut s = Scenario::default_scenario();
     s.method.fusion = Fusion::CentralizedEif;
     s.method.activation = Activation::AllOn;
-    let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
-    let mut h = HeadNode::new(cfg.clone());
-    h.tick(ClusterTime::ZERO);
-    let mean = State::new(3.0, 4.0, 0.25, 1.0, 0.0, 0.0);
-    let cov = Matrix6::from_diagonal(&nalgebra::Vector6::new(0.01, 0.01, 0.01, 0.01, 0.01, 0.01));
-    h.on_message(
-        ClusterTime::ZERO,
-        env(
-            1,
-            Message::Handover(Handover {
-                global: TargetId(7),
-                to_head: NodeId(2),
-                from_head: None,
-                time: ClusterTime::ZERO,
-                mean: vec6_to_wire(&mean),
-                cov: mat6_to_wire(&cov),
-            }),
-        ),
-    );
+    let (cfg, mut h) = head_with_a_moving_track(&s);
     let t1 = ClusterTime::from_millis(200);
     h.tick(t1);
     let predicted = *h.tracks()[0].filter.mean();
@@ -372,25 +354,7 @@ fn rssi_is_fused_at_the_packet_time() {
         variance: 0.01,
     };
     s.method.rssi_default = model;
-    let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
-    let mut h = HeadNode::new(cfg.clone());
-    h.tick(ClusterTime::ZERO);
-    let mean = State::new(3.0, 4.0, 0.25, 1.0, 0.0, 0.0);
-    let cov = Matrix6::identity() * 0.01;
-    h.on_message(
-        ClusterTime::ZERO,
-        env(
-            1,
-            Message::Handover(Handover {
-                global: TargetId(7),
-                to_head: NodeId(2),
-                from_head: None,
-                time: ClusterTime::ZERO,
-                mean: vec6_to_wire(&mean),
-                cov: mat6_to_wire(&cov),
-            }),
-        ),
-    );
+    let (cfg, mut h) = head_with_a_moving_track(&s);
     let t1 = ClusterTime::from_millis(200);
     let out = h.tick(t1);
     let prior = out
@@ -424,4 +388,28 @@ fn rssi_is_fused_at_the_packet_time() {
     assert_eq!(h.last_step().rssi_nodes, 1, "the packet was fused");
     let after = h.tracks()[0].filter.mean();
     assert!((after[0] - 3.2).abs() < 1e-3, "x {} (3.2 expected)", after[0]);
+}
+
+/// Head 2 of `s` with one track handed over at t = 0: at (3, 4, 0.25) moving at 1 m/s along x,
+/// σ 0.1 in every component.
+fn head_with_a_moving_track(s: &Scenario) -> (HeadConfig, HeadNode) {
+    let cfg = HeadConfig::from_scenario(s, 2).unwrap();
+    let mut h = HeadNode::new(cfg.clone());
+    h.tick(ClusterTime::ZERO);
+    let mean = State::new(3.0, 4.0, 0.25, 1.0, 0.0, 0.0);
+    h.on_message(
+        ClusterTime::ZERO,
+        env(
+            1,
+            Message::Handover(Handover {
+                global: TargetId(7),
+                to_head: NodeId(2),
+                from_head: None,
+                time: ClusterTime::ZERO,
+                mean: vec6_to_wire(&mean),
+                cov: mat6_to_wire(&(Matrix6::identity() * 0.01)),
+            }),
+        ),
+    );
+    (cfg, h)
 }
