@@ -3,7 +3,7 @@
 //! server record equal, bit for bit); replayed with another policy, it shows that policy's
 //! sensor use on the very same measurements (paper 002's offline comparison).
 
-use deploy::replay::rerun::{RerunOptions, rerun, without_measurements};
+use deploy::replay::rerun::{Rerun, RerunOptions, rerun, without_measurements};
 use deploy::sim::runtime::{Level, Sim, SimOptions};
 use node_server::replay::Loaded;
 use node_server::report::{self, Report};
@@ -39,6 +39,24 @@ fn logging_run_of(scenario: Scenario, o: &SimOptions, name: &str) -> (Vec<Stampe
     (outcome.records, loaded)
 }
 
+/// Replay `loaded` with `o`, the recorded method and policy unless given.
+fn rerun_with(
+    loaded: &Loaded,
+    fusion: Option<Fusion>,
+    activation: Option<Activation>,
+    o: &SimOptions,
+) -> anyhow::Result<Rerun> {
+    rerun(
+        loaded,
+        &RerunOptions {
+            fusion,
+            activation,
+            sim: o.clone(),
+            t0: ClusterTime(0),
+        },
+    )
+}
+
 fn track_reports(records: &[&Stamped]) -> usize {
     records
         .iter()
@@ -72,16 +90,7 @@ fn replaying_a_logging_run_with_its_own_method_and_policy_is_the_run() {
         let measured = run.len() - without_measurements(&run).len();
         // 21 cameras at 5 fps for 8 s, whatever their mode.
         assert!(measured > 21 * 5 * 7, "only {measured} measured frames");
-        let replay = rerun(
-            &loaded,
-            &RerunOptions {
-                fusion: Some(fusion),
-                activation: Some(activation),
-                sim: o.clone(),
-                t0: ClusterTime(0),
-            },
-        )
-        .expect("replays");
+        let replay = rerun_with(&loaded, Some(fusion), Some(activation), &o).expect("replays");
         assert_eq!(replay.frames, measured as u64);
         assert_eq!((replay.unknown_camera_frames, replay.superseded_frames), (0, 0));
         let (a, b) = (without_measurements(&run), without_measurements(&replay.records));
@@ -106,16 +115,7 @@ fn replayed_estimates_follow_the_recorded_measurements() {
     let o = opts(3, 6.0);
     let (_, mut loaded) = logging_run(Fusion::DistributedEif, Activation::AllOn, &o, "moved");
     let replay = |loaded: &Loaded| {
-        let r = rerun(
-            loaded,
-            &RerunOptions {
-                fusion: None,
-                activation: None,
-                sim: o.clone(),
-                t0: ClusterTime(0),
-            },
-        )
-        .expect("replays");
+        let r = rerun_with(loaded, None, None, &o).expect("replays");
         node_server::export::track_rows(&r.loaded())
     };
     let before = replay(&loaded);
@@ -149,31 +149,12 @@ fn an_ordinary_recording_is_refused_with_a_hint() {
         ..opts(1, 2.0)
     };
     let (_, loaded) = logging_run(Fusion::DistributedEif, Activation::AllOn, &o, "plain");
-    let e = rerun(
-        &loaded,
-        &RerunOptions {
-            fusion: None,
-            activation: None,
-            sim: o,
-            t0: ClusterTime(0),
-        },
-    )
-    .unwrap_err()
-    .to_string();
+    let e = rerun_with(&loaded, None, None, &o).unwrap_err().to_string();
     assert!(e.contains("--record-measurements"), "{e}");
 }
 
 fn replay_with(loaded: &Loaded, activation: Activation, o: &SimOptions) -> Report {
-    let replay = rerun(
-        loaded,
-        &RerunOptions {
-            fusion: None,
-            activation: Some(activation),
-            sim: o.clone(),
-            t0: ClusterTime(0),
-        },
-    )
-    .expect("replays");
+    let replay = rerun_with(loaded, None, Some(activation), &o).expect("replays");
     report::compute(&replay.loaded(), ClusterTime(0))
 }
 
@@ -297,16 +278,7 @@ fn a_surveyed_run_records_its_model_and_replays_the_same() {
         m.rssi_default, literature,
         "the recording lost the surveyed model"
     );
-    let replay = rerun(
-        &loaded,
-        &RerunOptions {
-            fusion: None,
-            activation: None,
-            sim: o.clone(),
-            t0: ClusterTime(0),
-        },
-    )
-    .expect("replays");
+    let replay = rerun_with(&loaded, None, None, &o).expect("replays");
     assert_eq!(
         without_measurements(&run),
         without_measurements(&replay.records),
