@@ -183,6 +183,40 @@ struct CameraSlot {
     true_camera: proto::camera::CameraModel,
 }
 
+/// What a camera sensed at one frame time.
+enum Sensed {
+    /// Pixel level: the frame rendered into the slot's `frame`.
+    Frame,
+    /// Measurement level: the truth projected plus `sigma_px` noise.
+    Detections(Vec<node_camera::detect::Detection>),
+}
+
+/// Sense at `t_s`: render the camera's view into its frame, or at measurement level project
+/// the truth (live and logging runs alike).
+fn sense(
+    slot: &mut CameraSlot,
+    scenario: &Scenario,
+    t_s: f64,
+    now: ClusterTime,
+    sigma_px: f64,
+    noise: &mut rand_chacha::ChaCha8Rng,
+) -> Sensed {
+    match &slot.renderer {
+        Some(r) => {
+            r.render(&scenario.targets, t_s, now, &mut slot.frame);
+            Sensed::Frame
+        }
+        None => Sensed::Detections(node_camera::synthetic::project_truth(
+            &slot.true_camera,
+            &scenario.world,
+            &scenario.targets,
+            t_s,
+            sigma_px,
+            noise,
+        )),
+    }
+}
+
 /// The simulation: build with [`Sim::new`], run with [`Sim::run`].
 pub struct Sim {
     scenario: Scenario,
@@ -430,26 +464,15 @@ impl Sim {
         if let Some(dbm) = dbm {
             apply_rssi(slot, now, dbm);
         }
+        let sigma_px = self.opts.faults.pixel_sigma(self.scenario.method.pixel_sigma);
+        let sensed = sense(slot, &self.scenario, t_s, now, sigma_px, &mut self.noise);
+        self.frames_rendered += u64::from(matches!(sensed, Sensed::Frame));
         let Some(logger) = slot.logger.as_mut() else {
             return Vec::new();
         };
-        let measured = match &slot.renderer {
-            Some(r) => {
-                r.render(&self.scenario.targets, t_s, now, &mut slot.frame);
-                self.frames_rendered += 1;
-                logger.measure(&mut slot.core, now, &slot.frame, dbm)
-            }
-            None => {
-                let dets = node_camera::synthetic::project_truth(
-                    &slot.true_camera,
-                    &self.scenario.world,
-                    &self.scenario.targets,
-                    t_s,
-                    self.scenario.method.pixel_sigma,
-                    &mut self.noise,
-                );
-                Ok(logger.measure_detections(&mut slot.core, now, now, &dets, dbm))
-            }
+        let measured = match sensed {
+            Sensed::Frame => logger.measure(&mut slot.core, now, &slot.frame, dbm),
+            Sensed::Detections(dets) => Ok(logger.measure_detections(&mut slot.core, now, now, &dets, dbm)),
         };
         match measured {
             Ok((frame, answers)) => {
@@ -486,23 +509,13 @@ impl Sim {
         if faults.blacked_out(id.0, t_s) || faults.frame_fails(&mut self.failures) {
             return Vec::new();
         }
-        match &slot.renderer {
-            Some(r) => {
-                r.render(&self.scenario.targets, t_s, now, &mut slot.frame);
+        let sigma_px = faults.pixel_sigma(self.scenario.method.pixel_sigma);
+        match sense(slot, &self.scenario, t_s, now, sigma_px, &mut self.noise) {
+            Sensed::Frame => {
                 self.frames_rendered += 1;
                 slot.core.on_frame(now, &slot.frame)
             }
-            None => {
-                let dets = node_camera::synthetic::project_truth(
-                    &slot.true_camera,
-                    &self.scenario.world,
-                    &self.scenario.targets,
-                    t_s,
-                    faults.pixel_sigma(self.scenario.method.pixel_sigma),
-                    &mut self.noise,
-                );
-                slot.core.on_detections(now, now, &dets)
-            }
+            Sensed::Detections(dets) => slot.core.on_detections(now, now, &dets),
         }
     }
 
