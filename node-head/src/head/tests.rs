@@ -201,16 +201,7 @@ fn camera_only_steps(
                 if h.mode_of(n.id) != Some(Mode::Active) {
                     continue;
                 }
-                let c = Contribution {
-                    target: prior.target,
-                    step: prior.step,
-                    info_matrix: [[0.0; 6]; 6],
-                    info_vector: [0.0; 6],
-                    camera: true,
-                    captured: t,
-                    mode: Mode::Active,
-                    rssi: None,
-                };
+                let c = empty_contribution(&prior, true, t, Mode::Active, None);
                 h.on_message(t, env(n.id.0, Message::Contribution(c)));
             }
         }
@@ -370,19 +361,11 @@ fn rssi_is_fused_at_the_packet_time() {
         .find(|n| n.member && n.rssi)
         .expect("a radio node");
     let was = nalgebra::Vector3::new(3.1, 4.0, 0.25);
-    let c = Contribution {
-        target: prior.target,
-        step: prior.step,
-        info_matrix: [[0.0; 6]; 6],
-        info_vector: [0.0; 6],
-        camera: false,
-        captured: t1,
-        mode: Mode::CameraOff,
-        rssi: Some(proto::msg::RssiReading {
-            dbm: model.predict((was - node.position).norm()),
-            time: ClusterTime::from_millis(100),
-        }),
+    let rssi = proto::msg::RssiReading {
+        dbm: model.predict((was - node.position).norm()),
+        time: ClusterTime::from_millis(100),
     };
+    let c = empty_contribution(&prior, false, t1, Mode::CameraOff, Some(rssi));
     h.on_message(t1, env(node.id.0, Message::Contribution(c)));
     h.tick(ClusterTime::from_millis(281));
     assert_eq!(h.last_step().rssi_nodes, 1, "the packet was fused");
@@ -412,4 +395,24 @@ fn head_with_a_moving_track(s: &Scenario) -> (HeadConfig, HeadNode) {
         ),
     );
     (cfg, h)
+}
+
+/// A contribution to `prior`'s step with no camera information (Ω_i, ξ_i zero).
+fn empty_contribution(
+    prior: &Prior,
+    camera: bool,
+    captured: ClusterTime,
+    mode: Mode,
+    rssi: Option<proto::msg::RssiReading>,
+) -> Contribution {
+    Contribution {
+        target: prior.target,
+        step: prior.step,
+        info_matrix: [[0.0; 6]; 6],
+        info_vector: [0.0; 6],
+        camera,
+        captured,
+        mode,
+        rssi,
+    }
 }
