@@ -114,11 +114,16 @@ pub fn pinhole_previous(
     x: &State,
     dt: f64,
 ) -> Option<(Vector2<f64>, SMatrix<f64, 2, 6>)> {
-    let (h, jac_pos) = pinhole(camera, &back_in_time(x, dt))?;
-    let mut jac = jac_pos;
-    let dp = jac_pos.fixed_view::<2, 3>(0, POS).into_owned();
-    jac.fixed_view_mut::<2, 3>(0, VEL).copy_from(&(dp * -dt));
-    Some((h, jac))
+    let (h, jac) = pinhole(camera, &back_in_time(x, dt))?;
+    Some((h, aged_jacobian(jac, dt)))
+}
+
+/// A position-only Jacobian, taken at `P − V dt`, as one with respect to the state at its own
+/// time: the velocity columns are −dt × the position columns.
+fn aged_jacobian<const M: usize>(mut jac: SMatrix<f64, M, 6>, dt: f64) -> SMatrix<f64, M, 6> {
+    let dp = jac.fixed_view::<M, 3>(0, POS).into_owned();
+    jac.fixed_view_mut::<M, 3>(0, VEL).copy_from(&(dp * -dt));
+    jac
 }
 
 /// The state `dt` seconds earlier under constant velocity: `P − V dt`, same velocity.
@@ -263,8 +268,7 @@ pub fn camera_contribution(
     cov: &Matrix2<f64>,
     mean: &State,
 ) -> Option<(Info, State)> {
-    let (h, jac) = pinhole(camera, mean)?;
-    information_contribution(point, &h, &jac, cov, mean)
+    camera_contribution_aged(camera, point, cov, mean, 0.0)
 }
 
 /// The camera half of a contribution from a frame captured `age_s` seconds before the mean's
@@ -306,9 +310,8 @@ pub fn rssi_contribution_aged(
     age_s: f64,
 ) -> Option<(Info, State)> {
     let age_s = if age_s.is_finite() { age_s } else { 0.0 };
-    let (h, mut jac) = model.measurement(node, &back_in_time(mean, age_s));
-    let dp = jac.fixed_view::<1, 3>(0, POS).into_owned();
-    jac.fixed_view_mut::<1, 3>(0, VEL).copy_from(&(dp * -age_s));
+    let (h, jac) = model.measurement(node, &back_in_time(mean, age_s));
+    let jac = aged_jacobian(jac, age_s);
     let z = SVector::<f64, 1>::new(dbm);
     let hv = SVector::<f64, 1>::new(h);
     let q = SMatrix::<f64, 1, 1>::new(model.variance());
