@@ -154,7 +154,7 @@ fn an_ordinary_recording_is_refused_with_a_hint() {
 }
 
 fn replay_with(loaded: &Loaded, activation: Activation, o: &SimOptions) -> Report {
-    let replay = rerun_with(loaded, None, Some(activation), &o).expect("replays");
+    let replay = rerun_with(loaded, None, Some(activation), o).expect("replays");
     report::compute(&replay.loaded(), ClusterTime(0))
 }
 
