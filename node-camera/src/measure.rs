@@ -39,24 +39,12 @@ pub fn measure(
     })
 }
 
-/// Squared Mahalanobis distance of a measured point from the prior's predicted projection,
-/// with the prior covariance pushed through the pin-hole Jacobian plus the point's own
-/// covariance: `ν^T (J Σ̄ J^T + R)^-1 ν`. The point was seen `age_s` seconds before the prior's
-/// time (negative: after), and is compared with where the prior puts the target then.
-/// `None` when the prior is behind the camera or the innovation covariance is singular.
+/// [`models::gate_distance2`] of a measured point seen `age_s` seconds before the prior's time
+/// (negative: after).
 pub fn mahalanobis2(camera: &CameraModel, prior: &Prior, m: &Measured, age_s: f64) -> Option<f64> {
     let mean = models::vec6_from_wire(&prior.mean);
-    let then = models::back_in_time(&mean, if age_s.is_finite() { age_s } else { 0.0 });
-    if camera.pose.world_to_camera(&models::position(&then)).z <= 0.0 {
-        return None;
-    }
-    let (h, jac) = models::pinhole_aged(camera, &mean, age_s)?;
-    let sigma = models::mat6_from_wire(&prior.cov);
-    let s = jac * sigma * jac.transpose() + m.cov;
-    let nu = m.point - h;
-    let chol = s.cholesky()?;
-    let d2 = nu.dot(&chol.solve(&nu));
-    d2.is_finite().then_some(d2)
+    let cov = models::mat6_from_wire(&prior.cov);
+    models::gate_distance2(camera, &mean, &cov, &m.point, &m.cov, age_s)
 }
 
 /// Assign measured detections to priors: each prior takes at most one detection and each

@@ -10,7 +10,7 @@
 use crate::init::{RayObservation, single_camera_prior, state_from_position, triangulate};
 use nalgebra::{Matrix2, Matrix6, Vector2};
 use proto::camera::CameraModel;
-use proto::models::{State, back_in_time, pinhole, pinhole_aged};
+use proto::models::{State, gate_distance2, pinhole};
 use proto::msg::RssiReading;
 use proto::{ClusterTime, NodeId, TargetId};
 
@@ -49,20 +49,7 @@ pub fn distance2(
     cov: &Matrix6<f64>,
     at: ClusterTime,
 ) -> Option<f64> {
-    let age_s = det.age_s(at);
-    let (h, jac) = pinhole_aged(camera, mean, age_s)?;
-    // In front of the camera where the track was when the frame was captured.
-    let depth = camera
-        .pose
-        .world_to_camera(&back_in_time(mean, age_s).fixed_rows::<3>(0).into_owned())
-        .z;
-    if depth <= 0.0 {
-        return None;
-    }
-    let s = jac * cov * jac.transpose() + det.cov;
-    let nu = det.point - h;
-    let d2 = nu.dot(&s.cholesky()?.solve(&nu));
-    d2.is_finite().then_some(d2)
+    gate_distance2(camera, mean, cov, &det.point, &det.cov, det.age_s(at))
 }
 
 /// Assign detections to tracks (`tracks[t] = (μ̄, Σ̄, the time of μ̄)`); entry `i` is the track

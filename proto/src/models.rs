@@ -149,6 +149,29 @@ pub fn pinhole_aged(
     }
 }
 
+/// Squared Mahalanobis distance `νᵀ (J Σ Jᵀ + R)⁻¹ ν` of a normalized point (covariance `R`)
+/// seen `age_s` seconds before the time of a track's (`mean`, `cov`), compared with where the
+/// track puts the target then; `None` when that is behind the camera or the innovation
+/// covariance is singular. The gate of cameras (against priors) and heads (against tracks).
+pub fn gate_distance2(
+    camera: &CameraModel,
+    mean: &State,
+    cov: &Matrix6<f64>,
+    point: &Vector2<f64>,
+    point_cov: &Matrix2<f64>,
+    age_s: f64,
+) -> Option<f64> {
+    let then = back_in_time(mean, if age_s.is_finite() { age_s } else { 0.0 });
+    if camera.pose.world_to_camera(&position(&then)).z <= 0.0 {
+        return None;
+    }
+    let (h, jac) = pinhole_aged(camera, mean, age_s)?;
+    let s = jac * cov * jac.transpose() + point_cov;
+    let nu = point - h;
+    let d2 = nu.dot(&s.cholesky()?.solve(&nu));
+    d2.is_finite().then_some(d2)
+}
+
 /// An RSSI-range model (paper 002 §IV).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case", tag = "kind")]
