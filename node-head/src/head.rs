@@ -238,9 +238,12 @@ impl HeadNode {
         match self.window.offer(slot, t, c.step, now) {
             Offer::Apply => {
                 self.counters.applied += 1;
+                let rssi = c
+                    .rssi
+                    .filter(|_| self.nodes[slot].info.rssi)
+                    .filter(|r| self.fresh(now, r.time, slot, "RSSI packet"));
                 let node = &mut self.nodes[slot];
                 node.mode = c.mode;
-                let rssi = c.rssi.filter(|_| node.info.rssi);
                 let track = &mut self.tracks[t];
                 if c.camera {
                     self.planner.camera_delivered(node.info.id);
@@ -249,7 +252,7 @@ impl HeadNode {
                     track.last_seen = now;
                 }
                 if let Some(r) = rssi {
-                    track.hear(slot, r.dbm, r.time);
+                    track.hear(slot, r.dbm, track.time.secs_since(r.time));
                 }
                 if c.camera || rssi.is_some() {
                     track.contributors.push(proto::msg::Contributor {
@@ -277,21 +280,31 @@ impl HeadNode {
         }
     }
 
+    /// Whether a capture stamped `t` may be fused at `now`. Frames and packets are fused at
+    /// their capture time, so one stamped far from now (a clock that is off) would carry the
+    /// track seconds along its velocity: it is refused and counted, by the bound the cameras
+    /// apply to their own frames.
+    fn fresh(&mut self, now: ClusterTime, t: ClusterTime, slot: usize, what: &'static str) -> bool {
+        let off_ns = now - t;
+        if off_ns.abs() <= self.cfg.method.capture_max_age_ms() as i64 * 1_000_000 {
+            return true;
+        }
+        self.counters.stale_measurements += 1;
+        warn!(
+            node = %self.nodes[slot].info.id,
+            what,
+            off_ms = off_ns / 1_000_000,
+            "stamped too far from now (clock off?); ignored"
+        );
+        false
+    }
+
     fn on_measurement(&mut self, now: ClusterTime, slot: usize, m: Measurement) {
         self.nodes[slot].mode = m.mode;
-        // A frame is fused at its capture time, so a capture stamped far from now (a clock that
-        // is off) would carry the track seconds along its velocity: refuse it, by the bound the
-        // cameras apply to their own frames.
-        let limit_ns = self.cfg.method.capture_max_age_ms() as i64 * 1_000_000;
-        if (now - m.captured).abs() > limit_ns {
-            self.counters.stale_measurements += 1;
-            warn!(
-                node = %self.nodes[slot].info.id,
-                off_ms = (now - m.captured) / 1_000_000,
-                "measurement captured too far from now (clock off?); ignored"
-            );
+        if !self.fresh(now, m.captured, slot, "measurement") {
             return;
         }
+        let rssi = m.rssi.filter(|r| self.fresh(now, r.time, slot, "RSSI packet"));
         self.planner.camera_delivered(self.nodes[slot].info.id);
         if self.detections.len() >= MAX_DETECTIONS_PER_STEP {
             self.counters.overflow += 1;
@@ -303,7 +316,7 @@ impl HeadNode {
             point: Vector2::from(m.point),
             cov: Matrix2::new(m.cov[0], m.cov[1], m.cov[1], m.cov[2]),
             prev_point: m.prev_point.map(Vector2::from),
-            rssi: m.rssi,
+            rssi,
             hint: m.target,
             captured: m.captured,
         });

@@ -34,8 +34,8 @@ pub struct Track {
     pub aux: Eif,
     pub acc: Accumulator,
     pub aux_acc: Accumulator,
-    /// RSSI readings of this step: (node slot, dBm, reception time).
-    pub rssi: Vec<(usize, f64, ClusterTime)>,
+    /// RSSI readings of this step: (node slot, dBm, seconds from reception to the track's time).
+    pub rssi: Vec<(usize, f64, f64)>,
     /// Detections associated this step (centralized and ML fusion).
     pub detections: Vec<Detection>,
     pub contributors: Vec<Contributor>,
@@ -140,9 +140,10 @@ impl Track {
         self.filter.mean().fixed_rows::<3>(0).into_owned()
     }
 
-    /// Queue an RSSI reading of node `slot`, received at `time`, for this step.
-    pub fn hear(&mut self, slot: usize, dbm: f64, time: ClusterTime) {
-        self.rssi.push((slot, dbm, time));
+    /// Queue an RSSI reading of node `slot`, received `age_s` seconds before the track's time,
+    /// for this step.
+    pub fn hear(&mut self, slot: usize, dbm: f64, age_s: f64) {
+        self.rssi.push((slot, dbm, age_s));
         if let Some(h) = self.rssi_heard.get_mut(slot) {
             *h = true;
         }

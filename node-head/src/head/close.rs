@@ -100,7 +100,6 @@ impl HeadNode {
     fn fuse_track(&mut self, t: usize, now: ClusterTime, stats: &mut StepStats, rssi_nodes: &mut [bool]) {
         let uses_rssi = self.uses_rssi();
         let method = &self.cfg.method;
-        let max_age_s = method.capture_max_age_ms() as f64 * 1e-3;
         let track = &mut self.tracks[t];
         // The time of μ̄: the step's, or a track handed over during the step its own.
         let at = track.time;
@@ -137,7 +136,7 @@ impl HeadNode {
                 Fusion::DistributedEif => {}
             }
             if let Some(r) = d.rssi.filter(|_| node.rssi) {
-                track.hear(d.slot, r.dbm, r.time);
+                track.hear(d.slot, r.dbm, at.secs_since(r.time));
             }
             track.note(node.id, true, d.rssi.is_some() && node.rssi);
         }
@@ -148,14 +147,9 @@ impl HeadNode {
         };
         // RSSI, linearized here with the node's current model.
         if uses_rssi && method.fusion != Fusion::Ml {
-            for &(slot, dbm, time) in &track.rssi {
+            for &(slot, dbm, age_s) in &track.rssi {
                 let node = &self.nodes[slot].info;
                 let model = track.trainers[slot].model();
-                let Some(age_s) = packet_age_s(at, time, max_age_s) else {
-                    self.counters.stale_measurements += 1;
-                    warn!(node = %node.id, "RSSI packet stamped too far from the step (clock off?); ignored");
-                    continue;
-                };
                 if let Some((o, x)) = rssi_contribution_aged(&model, &node.position, dbm, &mean_bar, age_s) {
                     track.acc.add(&o, &x);
                     rssi_nodes[slot] = true;
@@ -208,11 +202,8 @@ impl HeadNode {
             // erred 0.160 m instead of 0.142 and Method3 drew more power than Method2 (pixel
             // level, 5 runs): Algorithm 1's σ²_tm ≤ σ²_D choice is that sensitive.
             let aux_cov = track.aux.cov().fixed_view::<3, 3>(0, 0).into_owned();
-            for &(slot, dbm, time) in &track.rssi {
+            for &(slot, dbm, age_s) in &track.rssi {
                 // Paired with where the camera-only filter puts the target when the packet came.
-                let Some(age_s) = packet_age_s(at, time, max_age_s) else {
-                    continue;
-                };
                 let aux_pos: Vector3<f64> = back_in_time(track.aux.mean(), age_s)
                     .fixed_rows::<3>(0)
                     .into_owned();
@@ -382,14 +373,4 @@ impl HeadNode {
         self.command(slot, decision.to, out);
         Some(decision)
     }
-}
-
-/// Seconds from an RSSI packet's reception to `at` (the time of the track's mean), or `None`
-/// when its stamp is more than `max_age_s` away (a clock that is off): such a packet is refused,
-/// as a measurement would be. The packet is stamped on its camera's clock and `at` is on the
-/// head's, so unlike a frame's age this one relies on the nodes' clocks agreeing (chrony
-/// across hosts, the same clock on one).
-fn packet_age_s(at: ClusterTime, received: ClusterTime, max_age_s: f64) -> Option<f64> {
-    let age = at.secs_since(received);
-    (age.abs() <= max_age_s).then_some(age)
 }

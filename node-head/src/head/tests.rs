@@ -337,6 +337,25 @@ fn a_measurement_captured_far_from_now_is_refused() {
 /// moving at 1 m/s, and a packet 0.1 s old that agrees with the track then, leave it in place.
 #[test]
 fn rssi_is_fused_at_the_packet_time() {
+    let h = head_after_one_rssi_packet(ClusterTime::from_millis(100));
+    assert_eq!(h.last_step().rssi_nodes, 1, "the packet was fused");
+    let after = h.tracks()[0].filter.mean();
+    assert!((after[0] - 3.2).abs() < 1e-3, "x {} (3.2 expected)", after[0]);
+}
+
+/// An RSSI packet stamped 10 s from the head's time (a clock that is off) is refused and
+/// counted, not carried along the track.
+#[test]
+fn an_rssi_packet_stamped_far_from_now_is_refused() {
+    let h = head_after_one_rssi_packet(ClusterTime::from_secs_f64(-9.8));
+    assert_eq!(h.last_step().rssi_nodes, 0);
+    assert_eq!(h.counters().stale_measurements, 1);
+}
+
+/// Head 2 with a track at x = 3 moving at 1 m/s (`head_with_a_moving_track`), after one step
+/// at 200 ms in which a radio node sent, as its only contribution, a packet received at `time`
+/// that agrees with where the track was at 100 ms.
+fn head_after_one_rssi_packet(time: ClusterTime) -> HeadNode {
     let mut s = Scenario::default_scenario();
     s.method.activation = Activation::ThreeMode;
     let model = proto::models::RssiModel::LogDistance {
@@ -363,14 +382,12 @@ fn rssi_is_fused_at_the_packet_time() {
     let was = nalgebra::Vector3::new(3.1, 4.0, 0.25);
     let rssi = proto::msg::RssiReading {
         dbm: model.predict((was - node.position).norm()),
-        time: ClusterTime::from_millis(100),
+        time,
     };
     let c = empty_contribution(&prior, false, t1, Mode::CameraOff, Some(rssi));
     h.on_message(t1, env(node.id.0, Message::Contribution(c)));
     h.tick(ClusterTime::from_millis(281));
-    assert_eq!(h.last_step().rssi_nodes, 1, "the packet was fused");
-    let after = h.tracks()[0].filter.mean();
-    assert!((after[0] - 3.2).abs() < 1e-3, "x {} (3.2 expected)", after[0]);
+    h
 }
 
 /// Head 2 of `s` with one track handed over at t = 0: at (3, 4, 0.25) moving at 1 m/s along x,
