@@ -4,9 +4,12 @@
 //! auxiliary camera-only EIF. A local linear model `RSSI = a d + b` is fitted by eq. 4–5; its
 //! variance σ²_tm = a² σ²_u + σ²_v (eq. 7) decides between it and the default model: the
 //! trained model is used only when σ²_tm ≤ σ²_D. σ²_u is the variance of the auxiliary EIF's
-//! distance along the node–target line; σ²_v is estimated from the fit's residuals. A slope
+//! distance along the node–target line: the window's mean when a pair is added, and the
+//! filter's current one if larger at every step ([`RssiTrainer::recheck`]); σ²_v is estimated
+//! from the fit's residuals. A slope
 //! with 1/a → 0 is clamped to |1/a| = ε and b recomputed (eq. 5).
 
+use nalgebra::{Matrix3, Vector3};
 use proto::models::RssiModel;
 use std::collections::VecDeque;
 
@@ -35,6 +38,8 @@ pub struct RssiTrainer {
     sigma_u2: VecDeque<f64>,
     model: RssiModel,
     choice: Choice,
+    /// The last fit (a, b, σ̂²_v).
+    line: Option<(f64, f64, f64)>,
 }
 
 impl RssiTrainer {
@@ -49,6 +54,7 @@ impl RssiTrainer {
             epsilon: epsilon.abs().max(f64::MIN_POSITIVE),
             model: default,
             choice: Choice::Untrained,
+            line: None,
         }
     }
 
@@ -81,12 +87,32 @@ impl RssiTrainer {
     }
 
     fn refit(&mut self) {
-        let Some((a, b, sigma_v2)) = fit(self.window.iter().copied(), self.epsilon) else {
+        self.line = fit(self.window.iter().copied(), self.epsilon);
+        self.choose(self.window_sigma_u2());
+    }
+
+    /// Re-run Algorithm 1's choice on the last fit with the auxiliary filter's σ²_u now, when
+    /// that exceeds the window's. Called every step: while no camera sees the target the
+    /// auxiliary filter only predicts, its σ²_u grows, and a line fitted where the target was
+    /// gives way to the default model, as paper 002 §VI describes for its occlusion.
+    /// Non-finite input is ignored.
+    pub fn recheck(&mut self, sigma_u2_now: f64) {
+        if sigma_u2_now.is_finite() {
+            self.choose(self.window_sigma_u2().max(sigma_u2_now));
+        }
+    }
+
+    /// Mean σ²_u over the window's pairs.
+    fn window_sigma_u2(&self) -> f64 {
+        self.sigma_u2.iter().sum::<f64>() / self.sigma_u2.len().max(1) as f64
+    }
+
+    fn choose(&mut self, sigma_u2: f64) {
+        let Some((a, b, sigma_v2)) = self.line else {
             self.model = self.default;
             self.choice = Choice::Untrained;
             return;
         };
-        let sigma_u2 = self.sigma_u2.iter().sum::<f64>() / self.sigma_u2.len() as f64;
         let sigma_tm2 = a * a * sigma_u2 + sigma_v2;
         if sigma_tm2 > self.default.variance() {
             self.model = self.default;
@@ -100,6 +126,20 @@ impl RssiTrainer {
             };
             self.choice = Choice::Trained { sigma_tm2 };
         }
+    }
+}
+
+/// σ²_u: the variance of the distance from `node` to a target estimated at `target` with
+/// position covariance `cov`, along the node–target line. NaN when the two coincide (no
+/// direction), which [`RssiTrainer`] ignores.
+pub fn distance_variance(target: &Vector3<f64>, cov: &Matrix3<f64>, node: &Vector3<f64>) -> f64 {
+    let diff = target - node;
+    let d = diff.norm();
+    if d > 1e-6 {
+        let u = diff / d;
+        u.dot(&(cov * u))
+    } else {
+        f64::NAN
     }
 }
 
@@ -192,5 +232,34 @@ mod tests {
         // The window keeps the last M.
         good.push(3.0, -70.0, 0.01);
         assert_eq!(good.pairs(), 10);
+    }
+
+    #[test]
+    fn a_trained_line_gives_way_while_the_distance_is_uncertain_and_returns_after() {
+        let default = RssiModel::default();
+        let mut t = RssiTrainer::new(default, 10, 1e-3);
+        for i in 0..10 {
+            let d = 2.0 + 0.1 * i as f64;
+            t.push(d, -50.0 - 6.0 * d + if i % 2 == 0 { 0.5 } else { -0.5 }, 0.01);
+        }
+        let trained = t.model();
+        assert!(matches!(t.choice(), Choice::Trained { .. }));
+        // The window's σ²_u rules while the filter is at least as sure as it was.
+        t.recheck(0.001);
+        assert_eq!(t.model(), trained);
+        t.recheck(f64::NAN);
+        assert_eq!(t.model(), trained);
+        // Cameras lost: 2 m of distance error, a²σ²_u = 144 > σ²_D = 16.
+        t.recheck(4.0);
+        assert!(matches!(t.choice(), Choice::Default { .. }), "{:?}", t.choice());
+        assert_eq!(t.model(), default);
+        // Cameras back: the same line again, with nothing refitted.
+        t.recheck(0.01);
+        assert_eq!(t.model(), trained);
+        assert_eq!(t.pairs(), 10);
+        // Untrained stays untrained.
+        let mut fresh = RssiTrainer::new(default, 10, 1e-3);
+        fresh.recheck(0.0);
+        assert_eq!(fresh.choice(), Choice::Untrained);
     }
 }

@@ -6,6 +6,7 @@ use crate::activation::{Candidate, Expected, Variant};
 use crate::association::{Detection, associate, births};
 use crate::eif::Eif;
 use crate::ml;
+use crate::rssi_training::distance_variance;
 use crate::stats::StepStats;
 use nalgebra::{Matrix6, Vector3};
 use proto::models::{
@@ -145,8 +146,19 @@ impl HeadNode {
         } else {
             dets.len() as u64
         };
-        // RSSI, linearized here with the node's current model.
+        // The camera-only filter takes this step's camera information first: RSSI below is
+        // weighed by what the cameras know now.
+        if track.aux.update(&track.aux_acc).is_err() {
+            self.counters.numeric_failures += 1;
+        }
+        // RSSI, linearized here with the node's current model: Algorithm 1's choice first
+        // re-run with what the cameras know of each node's distance now.
         if uses_rssi && method.fusion != Fusion::Ml {
+            let aux_cov = track.aux.cov().fixed_view::<3, 3>(0, 0).into_owned();
+            let aux_pos: Vector3<f64> = track.aux.mean().fixed_rows::<3>(0).into_owned();
+            for (trainer, node) in track.trainers.iter_mut().zip(&self.nodes) {
+                trainer.recheck(distance_variance(&aux_pos, &aux_cov, &node.info.position));
+            }
             for &(slot, dbm, age_s) in &track.rssi {
                 let node = &self.nodes[slot].info;
                 let model = track.trainers[slot].model();
@@ -192,9 +204,6 @@ impl HeadNode {
         }
         let trained_from_cameras = track.aux_acc.count > 0;
         track.end_step(trained_from_cameras || !dets.is_empty());
-        if track.aux.update(&track.aux_acc).is_err() {
-            self.counters.numeric_failures += 1;
-        }
         // Algorithm 1: pairs (distance from the camera-only filter, RSSI).
         if trained_from_cameras {
             // σ²_u is the paper's: from the auxiliary filter's covariance at the step. Taken at
@@ -207,11 +216,10 @@ impl HeadNode {
                 let aux_pos: Vector3<f64> = back_in_time(track.aux.mean(), age_s)
                     .fixed_rows::<3>(0)
                     .into_owned();
-                let diff = aux_pos - self.nodes[slot].info.position;
-                let d = diff.norm();
+                let node = &self.nodes[slot].info.position;
+                let d = (aux_pos - node).norm();
                 if d > 1e-6 {
-                    let u = diff / d;
-                    track.trainers[slot].push(d, dbm, u.dot(&(aux_cov * u)));
+                    track.trainers[slot].push(d, dbm, distance_variance(&aux_pos, &aux_cov, node));
                 }
             }
         }
