@@ -89,3 +89,40 @@ fn count_trained(sim: &mut Sim, steps: usize) -> usize {
     }
     n
 }
+
+#[test]
+fn trained_lines_give_way_to_the_default_while_no_camera_sees_the_target() {
+    // RSSI fused (full-node; no energy weight, so every node stays on).
+    let mut scenario = ring_scenario(6, "distributed-eif", "full-node", 0.0, ONE_TARGET);
+    // Kept through the blind stretch on prediction and RSSI.
+    scenario.method.track_timeout_ms = 30_000;
+    let mut sim = Sim::new(&scenario, 23);
+    sim.radio = Some(Radio {
+        tx_dbm: -48.0,
+        exponent: 2.6,
+        multipath_db: 6.0,
+        noise_db: 1.0,
+    });
+    for _ in 0..30 {
+        sim.step();
+    }
+    let seen = count_trained(&mut sim, 10);
+    // Every camera blind (an occlusion): RSSI keeps the track, but the camera-only filter only
+    // predicts, its σ²_u grows, and Algorithm 1's re-check hands the lines to the default.
+    for c in sim.cams.iter_mut() {
+        c.working = false;
+    }
+    count_trained(&mut sim, 30);
+    let hidden = count_trained(&mut sim, 10);
+    assert!(
+        hidden * 4 < seen,
+        "trained choices while hidden {hidden} vs seen {seen}"
+    );
+    // Cameras back: the lines return.
+    for c in sim.cams.iter_mut() {
+        c.working = true;
+    }
+    count_trained(&mut sim, 10);
+    let back = count_trained(&mut sim, 10);
+    assert!(back * 2 > seen, "trained choices after {back} vs before {seen}");
+}
