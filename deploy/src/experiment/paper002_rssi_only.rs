@@ -31,8 +31,10 @@ pub const TRAINED: &str = "RSSI only, trained models";
 /// The paper's "below 90 cm" threshold, m.
 pub const WITHIN_M: f64 = 0.9;
 
-/// One RSSI-only pass over a camera run: the samples of the RSSI-only EIF.
-fn rssi_only(s: &Scenario, camera: &[Sample], trained: bool, seed: u64) -> Vec<Sample> {
+/// One RSSI-only pass over a camera run: the samples of the RSSI-only EIF, started at the
+/// first camera sample's position (σ 0.5 m, at rest). `camera` gives the step times and, with
+/// `trained`, the training distances.
+pub(crate) fn rssi_only(s: &Scenario, camera: &[Sample], trained: bool, seed: u64) -> Vec<Sample> {
     let Some(tag) = s.targets.iter().find(|t| t.rssi_tag) else {
         return Vec::new();
     };
