@@ -71,6 +71,11 @@ impl RssiTrainer {
         self.window.len()
     }
 
+    /// The newest (distance, RSSI) pair.
+    pub fn last_pair(&self) -> Option<(f64, f64)> {
+        self.window.back().copied()
+    }
+
     /// Add a pair: `distance` from the auxiliary EIF, its variance `sigma_u2`, and the RSSI
     /// read. Non-finite input is ignored. Refits and re-runs Algorithm 1.
     pub fn push(&mut self, distance: f64, rssi: f64, sigma_u2: f64) {

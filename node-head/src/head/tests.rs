@@ -337,25 +337,43 @@ fn a_measurement_captured_far_from_now_is_refused() {
 /// moving at 1 m/s, and a packet 0.1 s old that agrees with the track then, leave it in place.
 #[test]
 fn rssi_is_fused_at_the_packet_time() {
-    let h = head_after_one_rssi_packet(ClusterTime::from_millis(100));
+    let h = head_after_one_rssi_packet(ClusterTime::from_millis(100), false).1;
     assert_eq!(h.last_step().rssi_nodes, 1, "the packet was fused");
     let after = h.tracks()[0].filter.mean();
     assert!((after[0] - 3.2).abs() < 1e-3, "x {} (3.2 expected)", after[0]);
+}
+
+/// Algorithm 1 pairs a packet with where the camera-only filter puts the target when the packet
+/// came: 0.1 s before the step, x = 3.1, not the step's x = 3.2.
+#[test]
+fn algorithm_1_pairs_a_packet_with_the_position_at_its_time() {
+    let (slot, h) = head_after_one_rssi_packet(ClusterTime::from_millis(100), true);
+    let node = h.nodes[slot].info.position;
+    let (d, _) = h.tracks()[0].trainers[slot].last_pair().expect("a pair");
+    let then = (nalgebra::Vector3::new(3.1, 4.0, 0.25) - node).norm();
+    let now = (nalgebra::Vector3::new(3.2, 4.0, 0.25) - node).norm();
+    assert!((then - now).abs() > 1e-3, "the node cannot tell the two apart");
+    assert!(
+        (d - then).abs() < 1e-6,
+        "paired at {d}, the position then is at {then}, now {now}"
+    );
 }
 
 /// An RSSI packet stamped 10 s from the head's time (a clock that is off) is refused and
 /// counted, not carried along the track.
 #[test]
 fn an_rssi_packet_stamped_far_from_now_is_refused() {
-    let h = head_after_one_rssi_packet(ClusterTime::from_secs_f64(-9.8));
+    let h = head_after_one_rssi_packet(ClusterTime::from_secs_f64(-9.8), false).1;
     assert_eq!(h.last_step().rssi_nodes, 0);
     assert_eq!(h.counters().stale_measurements, 1);
 }
 
 /// Head 2 with a track at x = 3 moving at 1 m/s (`head_with_a_moving_track`), after one step
 /// at 200 ms in which a radio node sent, as its only contribution, a packet received at `time`
-/// that agrees with where the track was at 100 ms.
-fn head_after_one_rssi_packet(time: ClusterTime) -> HeadNode {
+/// that agrees with where the track was at 100 ms; with `camera`, the contribution also carries
+/// camera information that confirms the prior (so the camera-only filter trains Algorithm 1
+/// without moving). Also returns the node's slot.
+fn head_after_one_rssi_packet(time: ClusterTime, camera: bool) -> (usize, HeadNode) {
     let mut s = Scenario::default_scenario();
     s.method.activation = Activation::ThreeMode;
     let model = proto::models::RssiModel::LogDistance {
@@ -374,20 +392,28 @@ fn head_after_one_rssi_packet(time: ClusterTime) -> HeadNode {
             _ => None,
         })
         .expect("a prior");
-    let node = cfg
+    let slot = cfg
         .nodes
         .iter()
-        .find(|n| n.member && n.rssi)
+        .position(|n| n.member && n.rssi)
         .expect("a radio node");
+    let node = &cfg.nodes[slot];
     let was = nalgebra::Vector3::new(3.1, 4.0, 0.25);
     let rssi = proto::msg::RssiReading {
         dbm: model.predict((was - node.position).norm()),
         time,
     };
-    let c = empty_contribution(&prior, false, t1, Mode::CameraOff, Some(rssi));
+    let mut c = empty_contribution(&prior, camera, t1, Mode::CameraOff, Some(rssi));
+    if camera {
+        // Ω_i on the position, ξ_i = Ω_i μ̄: information that leaves the mean where it is.
+        let omega = Matrix6::from_diagonal(&State::new(100.0, 100.0, 100.0, 0.0, 0.0, 0.0));
+        c.info_matrix = proto::models::mat6_to_wire(&omega);
+        c.info_vector = vec6_to_wire(&(omega * proto::models::vec6_from_wire(&prior.mean)));
+        c.mode = Mode::Active;
+    }
     h.on_message(t1, env(node.id.0, Message::Contribution(c)));
     h.tick(ClusterTime::from_millis(281));
-    h
+    (slot, h)
 }
 
 /// Head 2 of `s` with one track handed over at t = 0: at (3, 4, 0.25) moving at 1 m/s along x,
