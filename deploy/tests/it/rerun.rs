@@ -285,3 +285,57 @@ fn a_surveyed_run_records_its_model_and_replays_the_same() {
         "the replay of a surveyed run differs from it"
     );
 }
+
+/// A logging run records what its cameras measured under the run's faults: the same run with
+/// extra segmentation noise records detections that moved, by about the noise added.
+#[test]
+fn a_logging_run_records_its_detections_under_the_segmentation_noise_fault() {
+    let plain = opts(3, 4.0);
+    let noisy = SimOptions {
+        faults: deploy::sim::faults::Faults {
+            extra_pixel_sigma: 30.0,
+            ..Default::default()
+        },
+        ..plain.clone()
+    };
+    // (camera, frame) → the centre of its single detection, pixels. Frames are matched by their
+    // 100 ms slot: capture times follow each camera's synchronized clock, which differs by a
+    // fraction of a millisecond between runs.
+    let centres = |o: &SimOptions, name: &str| -> std::collections::BTreeMap<(u32, i64), [f32; 2]> {
+        let (records, _) = logging_run(Fusion::DistributedEif, Activation::AllOn, o, name);
+        records
+            .iter()
+            .filter_map(|s| match &s.record {
+                Record::Measured(f) if f.detections.len() == 1 => Some((
+                    (f.camera.0, (f.captured.as_secs_f64() * 10.0).round() as i64),
+                    f.detections[0].centre,
+                )),
+                _ => None,
+            })
+            .collect()
+    };
+    let (a, again, b) = (
+        centres(&plain, "seg-plain"),
+        centres(&plain, "seg-plain-again"),
+        centres(&noisy, "seg-noisy"),
+    );
+    assert!(a.len() > 20, "{} frames", a.len());
+    assert_eq!(a, again, "a logging run is deterministic");
+    let moved: Vec<f64> = a
+        .iter()
+        .filter_map(|(k, p)| {
+            b.get(k)
+                .map(|q| f64::from(p[0] - q[0]).hypot(f64::from(p[1] - q[1])))
+        })
+        .collect();
+    assert!(
+        moved.len() * 2 > a.len(),
+        "{} of {} frames in both",
+        moved.len(),
+        a.len()
+    );
+    let rms = (moved.iter().map(|m| m * m).sum::<f64>() / moved.len() as f64).sqrt();
+    // σ grows from 18 to √(18² + 30²) ≈ 35 px per axis: the same draws scaled move a centre by
+    // about 17 px per axis, independent draws by about 39.
+    assert!(rms > 10.0 && rms < 80.0, "centres moved {rms:.1} px rms");
+}
