@@ -9,7 +9,11 @@
 //!   comparison (N ≤ 100; its cost grows with the cube of the measurement size);
 //! - `head_step_us[N]`: one whole step of the sans-IO `HeadNode` with N member cameras and one
 //!   track — open (predict, N priors), N `Contribution` envelopes through `on_message` (step
-//!   accounting), close (update, report) — with all-on activation so the population is stable.
+//!   accounting), close (update, report) — with all-on activation so the population is stable;
+//! - `head_step_rssi_us[N]`: the same with every node's radio on (full-node activation with no
+//!   energy weight, so again no node is switched): each contribution also carries an RSSI
+//!   reading, which the head linearizes with the node's model after re-running Algorithm 1's
+//!   choice for every node, and trains on (the camera-only filter, N trainers).
 //!
 //! Contributions are real ones: a ring of N cameras looking at the room centre, each linearized
 //! with `proto::models::camera_contribution`. The timed loops allocate nothing.
@@ -25,7 +29,7 @@ use proto::camera::{CameraModel, Distortion, Intrinsics, Pose};
 use proto::models::{
     MotionModel, RssiModel, State, camera_contribution, mat6_to_wire, pinhole, vec6_to_wire,
 };
-use proto::msg::{Contribution, Handover};
+use proto::msg::{Contribution, Handover, RssiReading};
 use proto::msg::{Mat6, Vec6};
 use proto::scenario::PowerFigures;
 use proto::scenario::{Activation, Method};
@@ -181,9 +185,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }
     }
     let mut head_step = serde_json::Map::new();
+    let mut head_step_rssi = serde_json::Map::new();
     for n in SIZES {
-        let us = head_step_us(n, args.scale)?;
-        head_step.insert(n.to_string(), json!(us));
+        head_step.insert(n.to_string(), json!(head_step_us(n, args.scale, false)?));
+        head_step_rssi.insert(n.to_string(), json!(head_step_us(n, args.scale, true)?));
     }
     let out = json!({
         "bench": "head",
@@ -193,20 +198,28 @@ pub fn run(args: Args) -> Result<ExitCode> {
         "activation_us": activation,
         "ekf_update_us": ekf_update,
         "head_step_us": head_step,
+        "head_step_rssi_us": head_step_rssi,
         "note": "medians; update = predict + sum of N wire contributions + update; activation = one Algorithm 2 decision over N nodes (three modes)",
     });
     println!("{}", serde_json::to_string_pretty(&out)?);
     Ok(ExitCode::SUCCESS)
 }
 
-/// Median time of one whole `HeadNode` step with `n` cameras answering one track.
-fn head_step_us(n: usize, scale: f64) -> Result<f64> {
+/// Median time of one whole `HeadNode` step with `n` cameras answering one track, with an
+/// RSSI reading in every contribution when `rssi`.
+fn head_step_us(n: usize, scale: f64, rssi: bool) -> Result<f64> {
     let cams = ring(n);
     let server = NodeId(1);
     let method = Method {
-        activation: Activation::AllOn,
+        activation: if rssi {
+            Activation::FullNode
+        } else {
+            Activation::AllOn
+        },
+        energy_weight: 0.0,
         ..Method::default()
     };
+    let model = method.rssi_default;
     let nodes = cams
         .iter()
         .enumerate()
@@ -214,7 +227,7 @@ fn head_step_us(n: usize, scale: f64) -> Result<f64> {
             id: NodeId(10 + i as u32),
             camera: *c,
             position: c.pose.centre(),
-            rssi: false,
+            rssi,
             power: PowerFigures::default(),
             cost_factor: 1.0,
             fps: 5.0,
@@ -272,7 +285,10 @@ fn head_step_us(n: usize, scale: f64) -> Result<f64> {
                     camera: true,
                     captured: ClusterTime::ZERO,
                     mode: Mode::Active,
-                    rssi: None,
+                    rssi: rssi.then(|| RssiReading {
+                        dbm: model.predict((truth.fixed_rows::<3>(0) - cam.pose.centre()).norm()),
+                        time: ClusterTime::ZERO,
+                    }),
                 }),
             })
         })
@@ -289,6 +305,9 @@ fn head_step_us(n: usize, scale: f64) -> Result<f64> {
             let mut e = e.clone();
             if let Message::Contribution(c) = &mut e.body {
                 c.step = step;
+                if let Some(r) = &mut c.rssi {
+                    r.time = now;
+                }
             }
             black_box(head.on_message(now, e));
         }
@@ -297,6 +316,16 @@ fn head_step_us(n: usize, scale: f64) -> Result<f64> {
     anyhow::ensure!(
         c.applied as usize >= n * reps && c.late == 0 && c.duplicate == 0,
         "bench steps did not apply every contribution: {c:?}"
+    );
+    // The closing tick fuses the last step's readings.
+    head.tick(ClusterTime::from_millis((k + 1) * 200));
+    let c = head.counters();
+    anyhow::ensure!(
+        c.commands == 0
+            && c.stale_measurements == 0
+            && head.last_step().rssi_nodes == if rssi { n } else { 0 },
+        "bench steps switched nodes or did not fuse every reading: {c:?}, {} RSSI nodes",
+        head.last_step().rssi_nodes
     );
     Ok(us)
 }
