@@ -9,12 +9,7 @@ use proto::models::RssiModel;
 fn trained_models_beat_the_default_under_multipath() {
     let scenario = ring_scenario(6, "distributed-eif", "all-on", 0.0, ONE_TARGET);
     let mut sim = Sim::new(&scenario, 21);
-    let radio = Radio {
-        tx_dbm: -48.0,
-        exponent: 2.6,
-        multipath_db: 6.0,
-        noise_db: 1.0,
-    };
+    let radio = multipath_radio();
     sim.radio = Some(radio);
     let default = scenario.method.rssi_default;
     for _ in 0..30 {
@@ -51,12 +46,7 @@ fn trained_models_beat_the_default_under_multipath() {
 fn without_camera_distances_training_falls_back_to_the_default() {
     let scenario = ring_scenario(6, "distributed-eif", "all-on", 0.0, ONE_TARGET);
     let mut sim = Sim::new(&scenario, 22);
-    sim.radio = Some(Radio {
-        tx_dbm: -48.0,
-        exponent: 2.6,
-        multipath_db: 6.0,
-        noise_db: 1.0,
-    });
+    sim.radio = Some(multipath_radio());
     // Camera failures: with one noisy camera left the camera-only filter barely knows the
     // target's depth, the distances are too uncertain (σ²_tm = a²σ²_u + σ²_v above σ²_D), and
     // Algorithm 1 keeps the default model more often.
@@ -73,6 +63,16 @@ fn without_camera_distances_training_falls_back_to_the_default() {
         bad < good,
         "trained choices with bad cameras {bad} not below good {good}"
     );
+}
+
+/// The radio of these tests: a 6 dB multipath field the default model cannot know.
+fn multipath_radio() -> Radio {
+    Radio {
+        tx_dbm: -48.0,
+        exponent: 2.6,
+        multipath_db: 6.0,
+        noise_db: 1.0,
+    }
 }
 
 fn count_trained(sim: &mut Sim, steps: usize) -> usize {
@@ -97,12 +97,7 @@ fn trained_lines_give_way_to_the_default_while_no_camera_sees_the_target() {
     // Kept through the blind stretch on prediction and RSSI.
     scenario.method.track_timeout_ms = 30_000;
     let mut sim = Sim::new(&scenario, 23);
-    sim.radio = Some(Radio {
-        tx_dbm: -48.0,
-        exponent: 2.6,
-        multipath_db: 6.0,
-        noise_db: 1.0,
-    });
+    sim.radio = Some(multipath_radio());
     for _ in 0..30 {
         sim.step();
     }
