@@ -40,6 +40,8 @@ pub struct RssiTrainer {
     choice: Choice,
     /// The last fit (a, b, σ̂²_v).
     line: Option<(f64, f64, f64)>,
+    /// The auxiliary filter's σ²_u at the last re-check; a refit in the same step keeps it.
+    sigma_u2_now: f64,
 }
 
 impl RssiTrainer {
@@ -55,6 +57,7 @@ impl RssiTrainer {
             model: default,
             choice: Choice::Untrained,
             line: None,
+            sigma_u2_now: 0.0,
         }
     }
 
@@ -93,7 +96,7 @@ impl RssiTrainer {
 
     fn refit(&mut self) {
         self.line = fit(self.window.iter().copied(), self.epsilon);
-        self.choose(self.window_sigma_u2());
+        self.choose(self.window_sigma_u2().max(self.sigma_u2_now));
     }
 
     /// Re-run Algorithm 1's choice on the last fit with the auxiliary filter's σ²_u now, when
@@ -103,7 +106,8 @@ impl RssiTrainer {
     /// Non-finite input is ignored.
     pub fn recheck(&mut self, sigma_u2_now: f64) {
         if sigma_u2_now.is_finite() {
-            self.choose(self.window_sigma_u2().max(sigma_u2_now));
+            self.sigma_u2_now = sigma_u2_now.max(0.0);
+            self.choose(self.window_sigma_u2().max(self.sigma_u2_now));
         }
     }
 
@@ -258,9 +262,12 @@ mod tests {
         t.recheck(4.0);
         assert!(matches!(t.choice(), Choice::Default { .. }), "{:?}", t.choice());
         assert_eq!(t.model(), default);
-        // Cameras back: the same line again, with nothing refitted.
+        // A pair added in that step refits but keeps the re-check's σ²_u.
+        t.push(2.5, -65.0, 0.01);
+        assert!(matches!(t.choice(), Choice::Default { .. }), "{:?}", t.choice());
+        // Cameras back: a line again.
         t.recheck(0.01);
-        assert_eq!(t.model(), trained);
+        assert!(matches!(t.choice(), Choice::Trained { .. }), "{:?}", t.choice());
         assert_eq!(t.pairs(), 10);
         // Untrained stays untrained.
         let mut fresh = RssiTrainer::new(default, 10, 1e-3);

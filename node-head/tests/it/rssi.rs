@@ -102,13 +102,23 @@ fn trained_lines_give_way_to_the_default_while_no_camera_sees_the_target() {
         sim.step();
     }
     let seen = count_trained(&mut sim, 10);
+    let track = sim.head.tracks()[0].local;
+    let only_that_track = |sim: &Sim| {
+        let t = sim.head.tracks();
+        assert!(
+            t.len() == 1 && t[0].local == track,
+            "the track was lost or replaced"
+        );
+    };
     // Every camera blind (an occlusion): RSSI keeps the track, but the camera-only filter only
     // predicts, its σ²_u grows, and Algorithm 1's re-check hands the lines to the default.
     for c in sim.cams.iter_mut() {
         c.working = false;
     }
     count_trained(&mut sim, 30);
+    only_that_track(&sim);
     let hidden = count_trained(&mut sim, 10);
+    only_that_track(&sim);
     assert!(
         hidden * 4 < seen,
         "trained choices while hidden {hidden} vs seen {seen}"
@@ -119,5 +129,6 @@ fn trained_lines_give_way_to_the_default_while_no_camera_sees_the_target() {
     }
     count_trained(&mut sim, 10);
     let back = count_trained(&mut sim, 10);
+    only_that_track(&sim);
     assert!(back * 2 > seen, "trained choices after {back} vs before {seen}");
 }
