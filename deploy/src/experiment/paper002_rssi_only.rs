@@ -33,7 +33,8 @@ pub const WITHIN_M: f64 = 0.9;
 
 /// One RSSI-only pass over a camera run: the samples of the RSSI-only EIF, started at the
 /// first camera sample's position (σ 0.5 m, at rest). `camera` gives the step times and, with
-/// `trained`, the training distances.
+/// `trained`, the training distances; untrained, only its times and first position are read,
+/// which is how `paper002_occlusion`'s reference row starts this filter at the truth.
 pub(crate) fn rssi_only(s: &Scenario, camera: &[Sample], trained: bool, seed: u64) -> Vec<Sample> {
     let Some(tag) = s.targets.iter().find(|t| t.rssi_tag) else {
         return Vec::new();
