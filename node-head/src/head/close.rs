@@ -8,10 +8,10 @@ use crate::eif::Eif;
 use crate::ml;
 use crate::rssi_training::distance_variance;
 use crate::stats::StepStats;
-use nalgebra::{Matrix6, Vector3};
+use nalgebra::Matrix6;
 use proto::models::{
     Info, State, back_in_time, camera_contribution_aged, information_contribution, mat6_to_wire,
-    pinhole_previous, rssi_contribution_aged, vec6_to_wire,
+    pinhole_previous, position, rssi_contribution_aged, vec6_to_wire,
 };
 use proto::msg::{Command, TrackReport};
 use proto::node::Outgoing;
@@ -151,11 +151,11 @@ impl HeadNode {
         if track.aux.update(&track.aux_acc).is_err() {
             self.counters.numeric_failures += 1;
         }
+        let aux_cov = track.aux.cov().fixed_view::<3, 3>(0, 0).into_owned();
         // RSSI, linearized here with the node's current model: Algorithm 1's choice first
         // re-run with what the cameras know of each node's distance now.
         if uses_rssi && method.fusion != Fusion::Ml {
-            let aux_cov = track.aux.cov().fixed_view::<3, 3>(0, 0).into_owned();
-            let aux_pos: Vector3<f64> = track.aux.mean().fixed_rows::<3>(0).into_owned();
+            let aux_pos = position(track.aux.mean());
             for (trainer, node) in track.trainers.iter_mut().zip(&self.nodes) {
                 trainer.recheck(distance_variance(&aux_pos, &aux_cov, &node.info.position));
             }
@@ -210,17 +210,13 @@ impl HeadNode {
             // the packet's time instead ([I, −age·I] Σ [I, −age·I]ᵀ), Table I's proposed method
             // erred 0.160 m instead of 0.142 and Method3 drew more power than Method2 (pixel
             // level, 5 runs): Algorithm 1's σ²_tm ≤ σ²_D choice is that sensitive.
-            let aux_cov = track.aux.cov().fixed_view::<3, 3>(0, 0).into_owned();
             for &(slot, dbm, age_s) in &track.rssi {
                 // Paired with where the camera-only filter puts the target when the packet came.
-                let aux_pos: Vector3<f64> = back_in_time(track.aux.mean(), age_s)
-                    .fixed_rows::<3>(0)
-                    .into_owned();
+                let aux_pos = position(&back_in_time(track.aux.mean(), age_s));
                 let node = &self.nodes[slot].info.position;
-                let d = (aux_pos - node).norm();
-                if d > 1e-6 {
-                    track.trainers[slot].push(d, dbm, distance_variance(&aux_pos, &aux_cov, node));
-                }
+                // At the node itself σ²_u is NaN (no direction), and the trainer skips the pair.
+                let sigma_u2 = distance_variance(&aux_pos, &aux_cov, node);
+                track.trainers[slot].push((aux_pos - node).norm(), dbm, sigma_u2);
             }
         }
         track.detections = dets;
