@@ -34,7 +34,7 @@ pub struct RssiTrainer {
     capacity: usize,
     default: RssiModel,
     epsilon: f64,
-    /// Mean σ²_u over the window.
+    /// σ²_u of each pair in the window.
     sigma_u2: VecDeque<f64>,
     model: RssiModel,
     choice: Choice,
@@ -96,7 +96,7 @@ impl RssiTrainer {
 
     fn refit(&mut self) {
         self.line = fit(self.window.iter().copied(), self.epsilon);
-        self.choose(self.window_sigma_u2().max(self.sigma_u2_now));
+        self.choose();
     }
 
     /// Re-run Algorithm 1's choice on the last fit with the auxiliary filter's σ²_u now, when
@@ -107,22 +107,20 @@ impl RssiTrainer {
     pub fn recheck(&mut self, sigma_u2_now: f64) {
         if sigma_u2_now.is_finite() {
             self.sigma_u2_now = sigma_u2_now.max(0.0);
-            self.choose(self.window_sigma_u2().max(self.sigma_u2_now));
+            self.choose();
         }
     }
 
-    /// Mean σ²_u over the window's pairs.
-    fn window_sigma_u2(&self) -> f64 {
-        self.sigma_u2.iter().sum::<f64>() / self.sigma_u2.len().max(1) as f64
-    }
-
-    fn choose(&mut self, sigma_u2: f64) {
+    /// Algorithm 1's choice on the last fit, with σ²_u the larger of the window's mean and the
+    /// last re-check's.
+    fn choose(&mut self) {
         let Some((a, b, sigma_v2)) = self.line else {
             self.model = self.default;
             self.choice = Choice::Untrained;
             return;
         };
-        let sigma_tm2 = a * a * sigma_u2 + sigma_v2;
+        let window = self.sigma_u2.iter().sum::<f64>() / self.sigma_u2.len().max(1) as f64;
+        let sigma_tm2 = a * a * window.max(self.sigma_u2_now) + sigma_v2;
         if sigma_tm2 > self.default.variance() {
             self.model = self.default;
             self.choice = Choice::Default { sigma_tm2 };
