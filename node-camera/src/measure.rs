@@ -168,6 +168,17 @@ mod tests {
         }
     }
 
+    /// The measured centre of a detection of the world point `x`, weighed with `sigma_px`.
+    fn measured_at(c: &CameraModel, x: &Vector3<f64>, sigma_px: f64) -> Measured {
+        measure(
+            c,
+            &detection_at(c.project(x).unwrap()),
+            ReferencePoint::Centre,
+            sigma_px,
+        )
+        .unwrap()
+    }
+
     fn prior(target: u32, pos: Vector3<f64>, sd: f64) -> Prior {
         let mean = State::new(pos.x, pos.y, pos.z, 0.0, 0.0, 0.0);
         Prior {
@@ -207,20 +218,8 @@ mod tests {
             pb_px.x > 0.0 && pb_px.x < 352.0 && pb_px.y > 0.0 && pb_px.y < 288.0,
             "{pb_px}"
         );
-        let ma = measure(
-            &c,
-            &detection_at(c.project(&a).unwrap()),
-            ReferencePoint::Centre,
-            18.0,
-        )
-        .unwrap();
-        let mb = measure(
-            &c,
-            &detection_at(c.project(&b).unwrap()),
-            ReferencePoint::Centre,
-            18.0,
-        )
-        .unwrap();
+        let ma = measured_at(&c, &a, 18.0);
+        let mb = measured_at(&c, &b, 18.0);
         let pa = prior(1, a + Vector3::new(0.1, -0.05, 0.0), 0.1);
         let pb = prior(2, b, 0.1);
         let far = prior(3, Vector3::new(9.0, 7.0, 0.25), 0.2);
@@ -239,13 +238,7 @@ mod tests {
         let mut p = prior(1, now, 0.05);
         p.mean[3] = 2.0;
         let was = now - Vector3::new(0.4, 0.0, 0.0);
-        let m = measure(
-            &c,
-            &detection_at(c.project(&was).unwrap()),
-            ReferencePoint::Centre,
-            2.0,
-        )
-        .unwrap();
+        let m = measured_at(&c, &was, 2.0);
         (c, p, m)
     }
 
@@ -288,13 +281,7 @@ mod tests {
     fn contribution_matches_proto_and_zero_when_empty() {
         let c = cam();
         let a = Vector3::new(3.5, 2.2, 0.25);
-        let m = measure(
-            &c,
-            &detection_at(c.project(&a).unwrap()),
-            ReferencePoint::Centre,
-            18.0,
-        )
-        .unwrap();
+        let m = measured_at(&c, &a, 18.0);
         let p = prior(1, a, 0.3);
         let got = contribution(&c, &p, Some(&m), ClusterTime(5), 0.0, Mode::Active, None);
         assert!(got.camera);
