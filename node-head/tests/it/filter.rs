@@ -68,6 +68,19 @@ fn eif_agrees_with_ekf_to_1e9() {
     assert!(worst <= 1e-9, "EIF and EKF differ by {worst:e}");
 }
 
+/// The consistency tests' world: six ring cameras, the motion model (the truth follows the
+/// filter's own, so that consistency is what is tested), and the initial covariance the truth
+/// is drawn from.
+fn consistency_setup() -> (Vec<proto::camera::CameraModel>, MotionModel, Matrix6<f64>) {
+    let scenario = ring_scenario(6, "distributed-eif", "all-on", 0.0, ONE_TARGET);
+    let cams = Sim::new(&scenario, 0).cams.iter().map(|c| c.model).collect();
+    let motion = MotionModel {
+        accel_psd: [0.05, 0.05, 0.001],
+    };
+    let cov0 = Matrix6::from_diagonal(&Vector6::new(0.04, 0.04, 0.01, 0.04, 0.04, 0.001));
+    (cams, motion, cov0)
+}
+
 /// χ² quantile by Wilson–Hilferty (accurate to a fraction of a percent for k ≥ 30).
 fn chi2_quantile(k: f64, z: f64) -> f64 {
     let a = 2.0 / (9.0 * k);
@@ -76,15 +89,9 @@ fn chi2_quantile(k: f64, z: f64) -> f64 {
 
 #[test]
 fn nees_stays_in_the_95_percent_band() {
-    let scenario = ring_scenario(6, "distributed-eif", "all-on", 0.0, ONE_TARGET);
-    let cams: Vec<_> = Sim::new(&scenario, 0).cams.iter().map(|c| c.model).collect();
-    // Truth follows the filter's own motion model so that consistency is what is tested.
-    let motion = MotionModel {
-        accel_psd: [0.05, 0.05, 0.001],
-    };
+    let (cams, motion, cov0) = consistency_setup();
     let (runs, steps, dt, sigma_px) = (40usize, 60usize, 0.2, 4.0);
     let mut nees = vec![0.0; steps];
-    let cov0 = Matrix6::from_diagonal(&Vector6::new(0.04, 0.04, 0.01, 0.04, 0.04, 0.001));
     let l0 = cov0.cholesky().unwrap().l();
     let lr = motion.process_noise(dt).cholesky().unwrap().l();
     for run in 0..runs {
@@ -129,15 +136,10 @@ fn nees_stays_in_the_95_percent_band() {
 #[test]
 fn aged_frames_remove_the_lag_and_keep_the_filter_consistent() {
     use proto::models::camera_contribution_aged;
-    let scenario = ring_scenario(6, "distributed-eif", "all-on", 0.0, ONE_TARGET);
-    let cams: Vec<_> = Sim::new(&scenario, 0).cams.iter().map(|c| c.model).collect();
-    let motion = MotionModel {
-        accel_psd: [0.05, 0.05, 0.001],
-    };
+    let (cams, motion, cov0) = consistency_setup();
     let (runs, steps, sub, dt, sigma_px) = (40usize, 60usize, 10usize, 0.2, 4.0);
     let h = dt / sub as f64;
     let lr = motion.process_noise(h).cholesky().unwrap().l();
-    let cov0 = Matrix6::from_diagonal(&Vector6::new(0.04, 0.04, 0.01, 0.04, 0.04, 0.001));
     let l0 = cov0.cholesky().unwrap().l();
     // Camera c's frame is (c × 3) mod 10 sub-steps old.
     let age_of = |c: usize| ((c * 3) % sub) as f64 * h;
