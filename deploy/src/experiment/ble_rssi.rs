@@ -21,6 +21,7 @@ pub mod data;
 pub mod law;
 pub mod track;
 
+use super::paper002_rssi_only::rssi_row;
 use super::runner::{Sample, mean_std};
 use super::{Check, Options, Outcome, Row, Trace};
 use crate::sim::runtime::Level;
@@ -129,31 +130,6 @@ fn fold(ds: &Dataset, i: usize) -> Option<(LogFit, f64)> {
     let fit = law::fit_log(law::pairs(ds, calib()))?;
     let zs: Vec<f64> = calib().map(|p| p.truth.z).collect();
     Some((fit, mean_std(&zs)?.0))
-}
-
-fn track_row(label: &str, runs: &[Vec<Sample>]) -> (Row, f64) {
-    let errs: Vec<f64> = runs.iter().flatten().map(|x| x.error_m).collect();
-    let st = mean_std(&errs);
-    let frac = errs.iter().filter(|e| **e < WITHIN_M).count() as f64 / errs.len().max(1) as f64;
-    let steps = runs.iter().map(Vec::len).sum::<usize>().max(1) as f64;
-    let rssi = runs
-        .iter()
-        .flatten()
-        .map(|x| f64::from(x.rssi_nodes))
-        .sum::<f64>()
-        / steps;
-    let row = Row {
-        method: label.to_string(),
-        mean_error_m: st.map(|x| x.0),
-        std_m: st.map(|x| x.1),
-        measurements: Some(0.0),
-        active_cameras: Some(0.0),
-        rssi_measurements: Some(rssi),
-        power_mw: None,
-        param: Some(frac),
-        untracked_runs: None,
-    };
-    (row, frac)
 }
 
 /// Run it on the dataset at [`data::default_dir`].
@@ -311,7 +287,7 @@ pub fn run_on(ds: &Dataset, opts: &Options) -> anyhow::Result<Outcome> {
         .into_iter()
         .zip(&tracks)
     {
-        let (row, frac) = track_row(label, runs_k);
+        let (row, frac) = rssi_row(label, runs_k, WITHIN_M);
         rows.push(row);
         within.push(frac);
         traces.push(Trace {

@@ -86,6 +86,27 @@ pub struct Row {
     /// Runs in which the target was never tracked (no error samples).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub untracked_runs: Option<u32>,
+    /// Half-width of the 95% confidence interval of the mean error over the runs (Student's t
+    /// on the runs' own means): how far another set of seeds may move it. Two runs or more.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mean_error_ci95_m: Option<f64>,
+    /// Each run's own mean error, in seed order (runs without samples left out): what the
+    /// interval and the paired comparisons of the shape checks are computed from.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub run_errors_m: Vec<f64>,
+}
+
+impl Row {
+    /// This row with the error figures of `e` (none when there were no samples).
+    pub fn with_errors(self, e: Option<runner::Errors>) -> Row {
+        Row {
+            mean_error_m: e.as_ref().map(|e| e.mean),
+            std_m: e.as_ref().map(|e| e.std),
+            mean_error_ci95_m: e.as_ref().and_then(|e| e.ci95),
+            run_errors_m: e.map(|e| e.run_means).unwrap_or_default(),
+            ..self
+        }
+    }
 }
 
 /// One of the paper's shape claims, checked on our rows.

@@ -184,7 +184,7 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
                 .sum::<f64>()
                 / runs.samples.len().max(1) as f64
         };
-        let err = |e: Option<(f64, f64, usize)>| e.map_or("–".to_string(), |(m, _, _)| format!("{m:.3} m"));
+        let err = |e: Option<runner::Errors>| e.map_or("–".to_string(), |e| format!("{:.3} m", e.mean));
         windows.push(format!(
             "{} {}, {:.0} / {}, {:.0}",
             m.label,

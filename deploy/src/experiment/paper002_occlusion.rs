@@ -20,7 +20,7 @@
 
 use super::paper002_rssi_only::rssi_only;
 use super::paper002_table1::{M2, PROPOSED, method, testbed};
-use super::runner::{self, Sample};
+use super::runner::{self, Errors, Sample};
 use super::{Check, Options, Outcome, Row, Trace};
 use crate::sim::faults::Faults;
 use crate::sim::runtime::Level;
@@ -192,9 +192,14 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
         "Proposed's error during the occlusion is at most half of Method2's",
         e(PROPOSED) <= 0.5 * e(M2),
         format!(
-            "{:.3} vs {:.3} m (RSSI bound {:.3} m, half of Method2 {:.3} m)",
+            "{:.3} vs {:.3} m ({:.2}x{}; RSSI bound {:.3} m, half of Method2 {:.3} m)",
             e(PROPOSED),
             e(M2),
+            e(PROPOSED) / e(M2),
+            runner::paired_ratio_text(
+                out.row(&format!("{PROPOSED} (during occlusion)")),
+                out.row(&format!("{M2} (during occlusion)"))
+            ),
             e(BOUND),
             0.5 * e(M2)
         ),
@@ -219,14 +224,7 @@ fn scored(
     // One robot: every track is its track, however far it strays during the occlusion.
     m.gate_m = f64::INFINITY;
     let runs = runner::run_method(&m, opts, level, duration_s)?;
-    let errs: Vec<f64> = runs
-        .samples
-        .iter()
-        .flatten()
-        .filter(|s| windows.iter().any(|w| s.t >= w.0 && s.t < w.1))
-        .map(|s| s.error_m)
-        .collect();
-    let during = runner::mean_std(&errs);
+    let during = Errors::of(&runs.samples, |t| windows.iter().any(|w| t >= w.0 && t < w.1));
     let trace = Trace {
         method: label.to_string(),
         samples: runs.samples.first().cloned().unwrap_or_default(),
@@ -235,10 +233,9 @@ fn scored(
     Ok((
         Row {
             method: format!("{label} (during occlusion)"),
-            mean_error_m: during.map(|d| d.0),
-            std_m: during.map(|d| d.1),
             ..runs.row.clone()
-        },
+        }
+        .with_errors(during),
         Row {
             method: format!("{label} (whole run)"),
             ..runs.row
@@ -249,24 +246,22 @@ fn scored(
 
 /// The RSSI-only bound's row over the runs' seeds; `multipath_db` labels a sweep point.
 fn bound_row(base: &Scenario, windows: &[(f64, f64)], opts: &Options, multipath_db: Option<f64>) -> Row {
-    let samples: Vec<Sample> = (0..opts.runs.max(1))
-        .flat_map(|k| rssi_bound(base, windows, opts.seed.wrapping_add(u64::from(k))))
+    let runs: Vec<Vec<Sample>> = (0..opts.runs.max(1))
+        .map(|k| rssi_bound(base, windows, opts.seed.wrapping_add(u64::from(k))))
         .collect();
-    let errs: Vec<f64> = samples.iter().map(|x| x.error_m).collect();
-    let b = runner::mean_std(&errs);
+    let samples: Vec<&Sample> = runs.iter().flatten().collect();
     let label = match multipath_db {
         Some(db) => format!("{BOUND}, multipath {db} dB"),
         None => BOUND.to_string(),
     };
     Row {
         method: format!("{label} (during occlusion)"),
-        mean_error_m: b.map(|d| d.0),
-        std_m: b.map(|d| d.1),
         rssi_measurements: (!samples.is_empty())
             .then(|| samples.iter().map(|x| f64::from(x.rssi_nodes)).sum::<f64>() / samples.len() as f64),
         param: multipath_db,
         ..Row::default()
     }
+    .with_errors(Errors::of(&runs, |_| true))
 }
 
 /// The bound's samples (horizontal errors) in each hidden window of one seeded run: an

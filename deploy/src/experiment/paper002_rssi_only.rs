@@ -101,6 +101,30 @@ pub(crate) fn rssi_only(s: &Scenario, camera: &[Sample], trained: bool, seed: u6
     out
 }
 
+/// The row of an RSSI-only filter over `runs`: its errors, RSSI readings per step, and as its
+/// param the share of samples closer than `within_m` (also returned).
+pub(crate) fn rssi_row(label: &str, runs: &[Vec<Sample>], within_m: f64) -> (Row, f64) {
+    let errs: Vec<f64> = runs.iter().flatten().map(|x| x.error_m).collect();
+    let frac = errs.iter().filter(|e| **e < within_m).count() as f64 / errs.len().max(1) as f64;
+    let steps = errs.len().max(1) as f64;
+    let rssi = runs
+        .iter()
+        .flatten()
+        .map(|x| f64::from(x.rssi_nodes))
+        .sum::<f64>()
+        / steps;
+    let row = Row {
+        method: label.to_string(),
+        measurements: Some(0.0),
+        active_cameras: Some(0.0),
+        rssi_measurements: Some(rssi),
+        param: Some(frac),
+        ..Row::default()
+    }
+    .with_errors(runner::Errors::of(runs, |_| true));
+    (row, frac)
+}
+
 /// Run it.
 ///
 /// # Errors
@@ -133,28 +157,9 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
     let mut traces = Vec::new();
     let mut within = Vec::new();
     for (label, runs) in [DEFAULT, TRAINED].into_iter().zip(&passes) {
-        let errs: Vec<f64> = runs.iter().flatten().map(|x| x.error_m).collect();
-        let st = runner::mean_std(&errs);
-        let frac = errs.iter().filter(|e| **e < WITHIN_M).count() as f64 / errs.len().max(1) as f64;
+        let (row, frac) = rssi_row(label, runs, WITHIN_M);
         within.push(frac);
-        let steps = runs.iter().map(Vec::len).sum::<usize>().max(1) as f64;
-        rows.push(Row {
-            method: label.to_string(),
-            mean_error_m: st.map(|x| x.0),
-            std_m: st.map(|x| x.1),
-            measurements: Some(0.0),
-            active_cameras: Some(0.0),
-            rssi_measurements: Some(
-                runs.iter()
-                    .flatten()
-                    .map(|x| f64::from(x.rssi_nodes))
-                    .sum::<f64>()
-                    / steps,
-            ),
-            power_mw: None,
-            param: Some(frac),
-            untracked_runs: None,
-        });
+        rows.push(row);
         traces.push(Trace {
             method: label.to_string(),
             samples: runs.first().cloned().unwrap_or_default(),

@@ -143,10 +143,11 @@ pub fn shape(o: &Outcome) -> Vec<Check> {
             "Proposed's mean error is at most 1.25x Method1's",
             e(PROPOSED) <= 1.25 * e(M1),
             format!(
-                "{:.3} vs {:.3} m ({:.2}x)",
+                "{:.3} vs {:.3} m ({:.2}x{})",
                 e(PROPOSED),
                 e(M1),
-                e(PROPOSED) / e(M1)
+                e(PROPOSED) / e(M1),
+                runner::paired_ratio_text(o.row(PROPOSED), o.row(M1))
             ),
         ),
     ]

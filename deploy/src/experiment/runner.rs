@@ -52,26 +52,101 @@ pub struct Runs {
 }
 
 impl Runs {
-    /// Mean and standard deviation of the errors of every run's samples with `t` in
-    /// `[from, to)`; `None` without samples.
-    pub fn errors_in(&self, from: f64, to: f64) -> Option<(f64, f64, usize)> {
-        self.errors_where(|t| t >= from && t < to)
+    /// Errors of the samples with `t` in `[from, to)`; `None` without samples.
+    pub fn errors_in(&self, from: f64, to: f64) -> Option<Errors> {
+        Errors::of(&self.samples, |t| t >= from && t < to)
     }
 
     /// The same for the samples outside `[from, to)`.
-    pub fn errors_out(&self, from: f64, to: f64) -> Option<(f64, f64, usize)> {
-        self.errors_where(|t| t < from || t >= to)
+    pub fn errors_out(&self, from: f64, to: f64) -> Option<Errors> {
+        Errors::of(&self.samples, |t| t < from || t >= to)
     }
+}
 
-    fn errors_where(&self, keep: impl Fn(f64) -> bool) -> Option<(f64, f64, usize)> {
-        let e: Vec<f64> = self
-            .samples
+/// Errors of a method's runs: mean and standard deviation pooled over every sample, with the
+/// runs' own means for their spread.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Errors {
+    pub mean: f64,
+    pub std: f64,
+    pub samples: usize,
+    /// Each run's mean, in run order; runs without a kept sample are left out.
+    pub run_means: Vec<f64>,
+    /// Half-width of the 95% confidence interval of the mean over the runs.
+    pub ci95: Option<f64>,
+}
+
+impl Errors {
+    /// The errors of the samples of `runs` whose time `keep` accepts; `None` without any.
+    pub fn of(runs: &[Vec<Sample>], keep: impl Fn(f64) -> bool) -> Option<Errors> {
+        let per_run: Vec<Vec<f64>> = runs
             .iter()
-            .flatten()
-            .filter(|s| keep(s.t))
-            .map(|s| s.error_m)
+            .map(|r| r.iter().filter(|s| keep(s.t)).map(|s| s.error_m).collect())
             .collect();
-        mean_std(&e).map(|(m, s)| (m, s, e.len()))
+        let all: Vec<f64> = per_run.iter().flatten().copied().collect();
+        let (mean, std) = mean_std(&all)?;
+        let run_means: Vec<f64> = per_run.iter().filter_map(|e| mean_std(e).map(|m| m.0)).collect();
+        Some(Errors {
+            mean,
+            std,
+            samples: all.len(),
+            ci95: ci95(&run_means),
+            run_means,
+        })
+    }
+}
+
+/// Half-width of the 95% confidence interval of the mean of `xs` (Student's t with n − 1
+/// degrees of freedom, sample standard deviation); `None` below two values.
+pub fn ci95(xs: &[f64]) -> Option<f64> {
+    let n = xs.len();
+    if n < 2 {
+        return None;
+    }
+    let m = xs.iter().sum::<f64>() / n as f64;
+    let var = xs.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64;
+    Some(t975(n - 1) * (var / n as f64).sqrt())
+}
+
+/// The 97.5% quantile of Student's t with `df` degrees of freedom; between tabulated degrees,
+/// the next lower one's (a slightly wider interval).
+fn t975(df: usize) -> f64 {
+    const SMALL: [f64; 30] = [
+        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145,
+        2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048,
+        2.045, 2.042,
+    ];
+    match df {
+        0 => f64::INFINITY,
+        1..=30 => SMALL[df - 1],
+        31..=39 => SMALL[29],
+        40..=59 => 2.021,
+        60..=119 => 2.000,
+        120..=999 => 1.980,
+        _ => 1.960,
+    }
+}
+
+/// The runs' ratios of `a`'s mean error to `b`'s, paired by run (same seeds, same order):
+/// their mean and its 95% half-width. `None` unless both have the same runs.
+pub fn paired_ratio(a: &Row, b: &Row) -> Option<(f64, Option<f64>)> {
+    let (x, y) = (&a.run_errors_m, &b.run_errors_m);
+    if x.is_empty() || x.len() != y.len() {
+        return None;
+    }
+    let r: Vec<f64> = x.iter().zip(y).map(|(x, y)| x / y).collect();
+    Some((r.iter().sum::<f64>() / r.len() as f64, ci95(&r)))
+}
+
+/// [`paired_ratio`] in words for a shape check, "" when the rows cannot be paired: "; per run
+/// 1.26x ±0.08 (95%, 5 runs)".
+pub fn paired_ratio_text(a: Option<&Row>, b: Option<&Row>) -> String {
+    let Some((a, b)) = a.zip(b) else {
+        return String::new();
+    };
+    match paired_ratio(a, b) {
+        Some((r, Some(ci))) => format!("; per run {r:.2}x ±{ci:.2} (95%, {} runs)", a.run_errors_m.len()),
+        _ => String::new(),
     }
 }
 
@@ -167,20 +242,19 @@ pub fn run_method(m: &Method, opts: &Options, level: Level, duration_s: f64) -> 
         samples.push(s);
     }
     let n = f64::from(runs);
-    let errors: Vec<f64> = samples.iter().flatten().map(|s| s.error_m).collect();
-    let stats = mean_std(&errors);
+    let errors = Errors::of(&samples, |_| true);
     Ok(Runs {
         row: Row {
             method: m.label.clone(),
-            mean_error_m: stats.map(|s| s.0),
-            std_m: stats.map(|s| s.1),
             measurements: Some(meas / n),
             active_cameras: Some(cams / n),
             rssi_measurements: m.uses_rssi.then_some(rssi / n),
             power_mw: Some(power / n),
             param: None,
             untracked_runs: Some(untracked),
-        },
+            ..Row::default()
+        }
+        .with_errors(errors),
         samples,
     })
 }
@@ -193,4 +267,77 @@ fn camera_power(scenario: &Scenario, rep: &Report) -> f64 {
         .map(|e| e.mean_power_mw)
         .sum::<f64>()
         + 0.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(errors: &[(f64, f64)]) -> Vec<Sample> {
+        errors
+            .iter()
+            .map(|&(t, e)| Sample {
+                t,
+                est: [0.0; 3],
+                truth: [0.0; 3],
+                sigma_m: 0.0,
+                error_m: e,
+                cameras: 0,
+                rssi_nodes: 0,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_interval_is_students_t_over_the_runs_own_means() {
+        // Means 1, 2, 3: sample sd 1, so the half-width is t(2) / √3.
+        let h = ci95(&[1.0, 2.0, 3.0]).unwrap();
+        assert!((h - 4.303 / 3f64.sqrt()).abs() < 1e-12, "{h}");
+        assert_eq!(ci95(&[1.0]), None, "one run has no spread");
+        assert_eq!(ci95(&[2.0, 2.0]), Some(0.0));
+        // Between tabulated degrees the next lower one's quantile: wider, never narrower.
+        assert!(t975(35) == t975(30) && t975(35) > t975(40) && t975(10_000) == 1.96);
+    }
+
+    #[test]
+    fn errors_pool_the_samples_and_keep_each_runs_mean() {
+        // Run 1 has three samples, run 2 one: the pooled mean weighs samples, the runs' means
+        // weigh runs.
+        let runs = vec![run(&[(0.0, 1.0), (1.0, 1.0), (2.0, 4.0)]), run(&[(0.5, 3.0)])];
+        let e = Errors::of(&runs, |_| true).unwrap();
+        assert_eq!((e.mean, e.samples), (9.0 / 4.0, 4));
+        assert_eq!(e.run_means, vec![2.0, 3.0]);
+        assert_eq!(e.ci95, ci95(&[2.0, 3.0]));
+        // A window that leaves a run without samples leaves that run out.
+        let late = Errors::of(&runs, |t| t >= 1.0).unwrap();
+        assert_eq!(
+            (late.mean, late.run_means.clone(), late.ci95),
+            (2.5, vec![2.5], None)
+        );
+        assert!(Errors::of(&runs, |t| t > 9.0).is_none());
+        let row = Row::default().with_errors(Some(e));
+        assert_eq!(row.mean_error_m, Some(2.25));
+        assert_eq!(row.run_errors_m, vec![2.0, 3.0]);
+    }
+
+    #[test]
+    fn ratios_pair_the_runs_by_seed() {
+        let row = |e: &[f64]| Row {
+            run_errors_m: e.to_vec(),
+            ..Row::default()
+        };
+        // Run by run 2x and 4x: mean 3x, though the pooled means (2.5 / 1) would say 2.5x.
+        let (r, ci) = paired_ratio(&row(&[2.0, 3.0]), &row(&[1.0, 0.75])).unwrap();
+        assert_eq!((r, ci), (3.0, ci95(&[2.0, 4.0])));
+        assert!(
+            paired_ratio(&row(&[2.0]), &row(&[1.0, 1.0])).is_none(),
+            "unpaired runs"
+        );
+        let text = paired_ratio_text(Some(&row(&[2.0, 3.0])), Some(&row(&[1.0, 0.75])));
+        assert!(
+            text.starts_with("; per run 3.00x ±") && text.ends_with("(95%, 2 runs)"),
+            "{text}"
+        );
+        assert_eq!(paired_ratio_text(None, Some(&row(&[1.0]))), "");
+    }
 }

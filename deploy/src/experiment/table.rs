@@ -19,10 +19,11 @@ fn cell(v: Option<f64>, digits: usize) -> String {
     v.map_or_else(|| "–".to_string(), |v| format!("{v:.digits$}"))
 }
 
-const HEADERS: [&str; 8] = [
+const HEADERS: [&str; 9] = [
     "method",
     "param",
     "mean err m",
+    "±95% m",
     "std m",
     "measurements",
     "active cams",
@@ -30,11 +31,12 @@ const HEADERS: [&str; 8] = [
     "power mW",
 ];
 
-fn cells(r: &Row) -> [String; 8] {
+fn cells(r: &Row) -> [String; 9] {
     [
         r.method.clone(),
         cell(r.param, 3),
         cell(r.mean_error_m, 3),
+        cell(r.mean_error_ci95_m, 3),
         cell(r.std_m, 3),
         cell(r.measurements, 0),
         cell(r.active_cameras, 2),
@@ -43,29 +45,34 @@ fn cells(r: &Row) -> [String; 8] {
     ]
 }
 
-fn has_param(rows: &[Row]) -> bool {
-    rows.iter().any(|r| r.param.is_some())
+/// The columns of `rows`' table: the param only if a row has one, the interval only if a row
+/// has one (the papers' rows never do).
+fn columns(rows: &[Row]) -> Vec<usize> {
+    let param = rows.iter().any(|r| r.param.is_some());
+    let ci = rows.iter().any(|r| r.mean_error_ci95_m.is_some());
+    (0..HEADERS.len())
+        .filter(|&i| (i != 1 || param) && (i != 3 || ci))
+        .collect()
 }
 
 fn text_table(rows: &[Row], s: &mut String) {
-    let param = has_param(rows);
-    let keep = |i: usize| i != 1 || param;
-    let all: Vec<[String; 8]> = rows.iter().map(cells).collect();
+    let idx = columns(rows);
+    let all: Vec<[String; 9]> = rows.iter().map(cells).collect();
     let width = |i: usize| {
         all.iter()
             .map(|c| c[i].chars().count())
-            .chain([HEADERS[i].len()])
+            .chain([HEADERS[i].chars().count()])
             .max()
             .unwrap_or(0)
     };
-    let widths: Vec<usize> = (0..8).map(width).collect();
+    let widths: Vec<usize> = (0..HEADERS.len()).map(width).collect();
     let line = |c: &[String]| {
         let mut l = String::new();
-        for (i, v) in c.iter().enumerate().filter(|(i, _)| keep(*i)) {
+        for &i in &idx {
             if i == 0 {
-                let _ = write!(l, "{v:<w$}", w = widths[i]);
+                let _ = write!(l, "{:<w$}", c[i], w = widths[i]);
             } else {
-                let _ = write!(l, "  {v:>w$}", w = widths[i]);
+                let _ = write!(l, "  {:>w$}", c[i], w = widths[i]);
             }
         }
         l.trim_end().to_string()
@@ -136,9 +143,7 @@ pub fn to_json(o: &Outcome) -> serde_json::Value {
 }
 
 fn md_table(rows: &[Row], s: &mut String) {
-    let param = has_param(rows);
-    let keep = |i: &usize| *i != 1 || param;
-    let idx: Vec<usize> = (0..8).filter(keep).collect();
+    let idx = columns(rows);
     let _ = writeln!(
         s,
         "| {} |",
@@ -249,5 +254,19 @@ mod tests {
         let m = to_markdown(&outcome(), "ocelli experiment x", &["f.png".into()]);
         assert!(m.contains("| A | 0.250 |") && m.contains("![f.png](f.png)"));
         assert!(m.contains("**does not hold**"));
+    }
+
+    #[test]
+    fn the_interval_column_appears_only_for_rows_that_have_one() {
+        let mut o = outcome();
+        assert!(!to_text(&o).contains("±95%"), "no row has an interval");
+        o.rows[0].mean_error_ci95_m = Some(0.04);
+        o.rows[0].run_errors_m = vec![0.2, 0.3];
+        let m = to_markdown(&o, "c", &[]);
+        assert!(m.contains("| method | mean err m | ±95% m | std m |"), "{m}");
+        assert!(m.contains("| A | 0.250 | 0.040 | – |"), "{m}");
+        // The paper's table has no interval column.
+        assert!(m.contains("| method | mean err m | std m |"), "{m}");
+        assert_eq!(to_json(&o)["rows"][0]["run_errors_m"][1], 0.3);
     }
 }
