@@ -3,7 +3,7 @@
 //!
 //! A sans-IO core ([`head::HeadNode`]) plus its process ([`process::run`]). The filter math lives in its own
 //! modules, each tested alone: [`eif`] (information form), [`ekf`] (covariance-form cross-check),
-//! [`init`] (triangulation), [`ml`] (maximum likelihood), [`rssi_training`] (Algorithm 1),
+//! [`init`] (triangulation), [`ml`] (maximum likelihood), [`rssi_training`] (Algorithm 1), [`rssi_noise`] (RSSI weighed by its innovations),
 //! [`activation`] (Algorithm 2), [`association`] (several targets) and [`step`] (the distributed
 //! step's accounting).
 
@@ -16,6 +16,7 @@ pub mod head;
 pub mod init;
 pub mod ml;
 pub mod process;
+pub mod rssi_noise;
 pub mod rssi_training;
 pub mod stats;
 pub mod step;

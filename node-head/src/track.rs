@@ -3,6 +3,7 @@
 
 use crate::association::Detection;
 use crate::eif::{Accumulator, Eif, FilterError};
+use crate::rssi_noise::RssiNoise;
 use crate::rssi_training::RssiTrainer;
 use nalgebra::{Matrix6, Vector3};
 use proto::models::{MotionModel, RssiModel, State};
@@ -41,6 +42,8 @@ pub struct Track {
     pub contributors: Vec<Contributor>,
     /// One trainer per node slot.
     pub trainers: Vec<RssiTrainer>,
+    /// How much wider than their models claim this track's RSSI readings are weighed.
+    pub rssi_noise: RssiNoise,
     /// Per node slot: whether it ever read this target's tag (activation expects RSSI only
     /// from those).
     pub rssi_heard: Vec<bool>,
@@ -89,6 +92,7 @@ impl Track {
             trainers: (0..nodes)
                 .map(|_| RssiTrainer::new(rssi_default, window, epsilon))
                 .collect(),
+            rssi_noise: RssiNoise::default(),
             rssi_heard: vec![false; nodes],
             time: now,
             last_seen: now,

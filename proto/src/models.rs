@@ -203,6 +203,22 @@ impl RssiModel {
         }
     }
 
+    /// The same model with its variance multiplied by `factor`.
+    pub fn widened(&self, factor: f64) -> RssiModel {
+        match *self {
+            RssiModel::LogDistance { a, b, variance } => RssiModel::LogDistance {
+                a,
+                b,
+                variance: variance * factor,
+            },
+            RssiModel::Linear { a, b, variance } => RssiModel::Linear {
+                a,
+                b,
+                variance: variance * factor,
+            },
+        }
+    }
+
     /// Predicted RSSI at distance `d` metres.
     pub fn predict(&self, d: f64) -> f64 {
         let d = d.max(RSSI_MIN_DISTANCE_M);
@@ -320,6 +336,26 @@ pub fn rssi_contribution(
     mean: &State,
 ) -> Option<(Info, State)> {
     rssi_contribution_aged(model, node, dbm, mean, 0.0)
+}
+
+/// A reading's innovation against the prediction `mean` with covariance `cov`: the residual
+/// `dbm − h` and the prediction's share of its variance `H Σ Hᵀ` (the model's own variance is
+/// the other share), for checking that a model's variance matches its errors. Aged as
+/// [`rssi_contribution_aged`]. `None` for a non-finite result.
+pub fn rssi_innovation_aged(
+    model: &RssiModel,
+    node: &Vector3<f64>,
+    dbm: f64,
+    mean: &State,
+    cov: &Matrix6<f64>,
+    age_s: f64,
+) -> Option<(f64, f64)> {
+    let age_s = if age_s.is_finite() { age_s } else { 0.0 };
+    let (h, jac) = model.measurement(node, &back_in_time(mean, age_s));
+    let jac = aged_jacobian(jac, age_s);
+    let hph = (jac * cov * jac.transpose())[(0, 0)];
+    let nu = dbm - h;
+    (nu.is_finite() && hph.is_finite()).then_some((nu, hph))
 }
 
 /// [`rssi_contribution`] of a packet received `age_s` seconds before the mean's time: the

@@ -11,7 +11,7 @@ use crate::stats::StepStats;
 use nalgebra::Matrix6;
 use proto::models::{
     Info, State, back_in_time, camera_contribution_aged, information_contribution, mat6_to_wire,
-    pinhole_previous, position, rssi_contribution_aged, vec6_to_wire,
+    pinhole_previous, position, rssi_contribution_aged, rssi_innovation_aged, vec6_to_wire,
 };
 use proto::msg::{Command, TrackReport};
 use proto::node::Outgoing;
@@ -159,9 +159,18 @@ impl HeadNode {
             for (trainer, node) in track.trainers.iter_mut().zip(&self.nodes) {
                 trainer.recheck(distance_variance(&aux_pos, &aux_cov, &node.info.position));
             }
+            let cov_bar = *track.filter.cov();
             for &(slot, dbm, age_s) in &track.rssi {
                 let node = &self.nodes[slot].info;
-                let model = track.trainers[slot].model();
+                let claimed = track.trainers[slot].model();
+                // Weighed with what this track's readings of that kind have erred so far, then
+                // counted towards it.
+                let model = track.rssi_noise.weighed(&claimed);
+                if let Some((nu, hph)) =
+                    rssi_innovation_aged(&claimed, &node.position, dbm, &mean_bar, &cov_bar, age_s)
+                {
+                    track.rssi_noise.observe(&claimed, nu, hph);
+                }
                 if let Some((o, x)) = rssi_contribution_aged(&model, &node.position, dbm, &mean_bar, age_s) {
                     track.acc.add(&o, &x);
                     rssi_nodes[slot] = true;
@@ -366,7 +375,9 @@ impl HeadNode {
             &predicted,
             |n, t| {
                 let node = &nodes[slots[n]].info;
-                let model = tracks[t].trainers[slots[n]].model();
+                let model = tracks[t]
+                    .rssi_noise
+                    .weighed(&tracks[t].trainers[slots[n]].model());
                 let heard = node.rssi && tracks[t].rssi_heard[slots[n]];
                 let rssi = heard.then_some((&model, &node.position));
                 Expected::at(Some(&node.camera), walls, sigma, rssi, &means[t])
