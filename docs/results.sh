@@ -6,13 +6,15 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 OCELLI=${OCELLI:-target/release/ocelli}
 # Runs per experiment: Table I as many as the paper's (40); the occlusion 20, since one hidden
-# stretch per run makes its mean move by a metre between sets of five seeds; the rest 5.
+# stretch per run makes its mean move by a metre between sets of five seeds; the robustness
+# sweeps 20 (measurement level, fast), whose power checks compare figures a few per cent apart;
+# the rest 5.
 # RUNS=N sets every experiment's count (a quick look).
 runs_for() {
   if [[ -n "${RUNS:-}" ]]; then echo "$RUNS"; return; fi
   case "$1" in
     paper002-table1) echo 40 ;;
-    paper002-occlusion) echo 20 ;;
+    paper002-occlusion | paper002-robustness) echo 20 ;;
     *) echo 5 ;;
   esac
 }
