@@ -8,7 +8,8 @@
 //! So each track matches the noise to its innovations (covariance matching): per kind of model,
 //! a running mean of (ν² − HΣ̄Hᵀ) / σ², the reading's error variance in units of the variance its
 //! model claims, and readings are weighed with the claimed variance times that ratio, never less
-//! than the claim. Algorithm 1's choice between a trained line and the default keeps the paper's
+//! than the claim. One ratio per kind, not per node: each trained line claims its own σ²_tm, and
+//! the ratio scales them all alike (a node's window of 20 pairs is too few to estimate its own). Algorithm 1's choice between a trained line and the default keeps the paper's
 //! variances; the activation planner weighs a node's RSSI as the filter will.
 
 use proto::models::RssiModel;
@@ -32,6 +33,11 @@ impl RssiNoise {
     /// One reading moves the ratio by at most this many claimed variances (a 5σ error), so that
     /// a lone wild reading does not silence a kind for seconds.
     const MAX_SAMPLE: f64 = 25.0;
+    /// Readings whose prediction is this many claimed variances uncertain are not counted: the
+    /// innovation is then mostly the prediction's error, and subtracting HΣ̄Hᵀ leaves a sample
+    /// as likely to be hugely negative as positive (a wide prior at a birth or in an occlusion
+    /// would drag the ratio far below 1, and it would not widen when it matters).
+    const MAX_PRIOR_SHARE: f64 = 3.0;
 
     fn kind(model: &RssiModel) -> usize {
         match model {
@@ -41,11 +47,12 @@ impl RssiNoise {
     }
 
     /// One reading weighed with `model`: its innovation `nu` (dB) and the prediction's share
-    /// of the innovation's variance `hph` (dB²). Non-finite input is ignored.
+    /// of the innovation's variance `hph` (dB²). Non-finite input, and a reading whose
+    /// prediction is too uncertain to tell its error ([`Self::MAX_PRIOR_SHARE`]), are ignored.
     pub fn observe(&mut self, model: &RssiModel, nu: f64, hph: f64) {
         let v = model.variance();
         let sample = (nu * nu - hph) / v;
-        if !sample.is_finite() || v <= 0.0 {
+        if !sample.is_finite() || v <= 0.0 || hph > Self::MAX_PRIOR_SHARE * v {
             return;
         }
         let r = &mut self.ratio[Self::kind(model)];
@@ -116,6 +123,18 @@ mod tests {
         // stays 1.
         let mean = feed(&mut noise, &DEFAULT, 2.0, 1.0, 2000);
         assert_eq!(mean, 1.0, "narrowed below the claim");
+    }
+
+    #[test]
+    fn a_wide_prediction_does_not_drag_the_ratio_down() {
+        // Readings exactly as noisy as claimed, under a prediction 10 claimed variances wide: the
+        // samples (ν² − HΣ̄Hᵀ)/σ² would scatter far below zero; they are not counted.
+        let mut noise = RssiNoise::default();
+        feed(&mut noise, &DEFAULT, 4.0, 160.0, 500);
+        assert_eq!(noise.ratio[0], 1.0);
+        // Then errors twice the claim under a narrow prediction still widen at once.
+        let mean = feed(&mut noise, &DEFAULT, 32f64.sqrt(), 1.0, 4000);
+        assert!((mean - 2.0).abs() < 0.15, "mean factor {mean}");
     }
 
     #[test]

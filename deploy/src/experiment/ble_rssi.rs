@@ -288,7 +288,13 @@ pub fn run_on(ds: &Dataset, opts: &Options) -> anyhow::Result<Outcome> {
         .zip(&tracks)
     {
         let (row, frac) = rssi_row(label, runs_k, WITHIN_M);
-        rows.push(row);
+        // Its "runs" are trajectories (and stand-in seeds of the same trajectories), not
+        // independent seeds of one experiment: no interval over them.
+        rows.push(Row {
+            mean_error_ci95_m: None,
+            run_errors_m: Vec::new(),
+            ..row
+        });
         within.push(frac);
         traces.push(Trace {
             method: format!("{label} — {}", ds.trajectories[0].name),

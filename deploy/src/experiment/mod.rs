@@ -86,14 +86,17 @@ pub struct Row {
     /// Runs in which the target was never tracked (no error samples).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub untracked_runs: Option<u32>,
-    /// Half-width of the 95% confidence interval of the mean error over the runs (Student's t
-    /// on the runs' own means): how far another set of seeds may move it. Two runs or more.
+    /// Half-width of the 95% confidence interval of the mean error over these runs (Student's t
+    /// on the runs' own means). Two runs or more.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mean_error_ci95_m: Option<f64>,
-    /// Each run's own mean error, in seed order (runs without samples left out): what the
+    /// Each run's own mean error, in run order (`None` for a run without samples): what the
     /// interval and the paired comparisons of the shape checks are computed from.
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub run_errors_m: Vec<f64>,
+    pub run_errors_m: Vec<Option<f64>>,
+    /// Each run's mean total power of the camera nodes, mW, in run order.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub run_power_mw: Vec<f64>,
 }
 
 impl Row {

@@ -152,8 +152,9 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
             .collect(),
         notes: vec![
             format!(
-                "Hidden from every camera {hidden_s:.1} s of {duration_s:.0} s, in {} windows: {}.",
+                "Hidden from every camera {hidden_s:.1} s of {duration_s:.0} s, in {} window{}: {}.",
                 windows.len(),
+                if windows.len() == 1 { "" } else { "s" },
                 windows
                     .iter()
                     .map(|w| format!("{:.1}-{:.1} s", w.0, w.1))

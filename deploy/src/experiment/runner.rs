@@ -70,8 +70,8 @@ pub struct Errors {
     pub mean: f64,
     pub std: f64,
     pub samples: usize,
-    /// Each run's mean, in run order; runs without a kept sample are left out.
-    pub run_means: Vec<f64>,
+    /// Each run's mean, in run order; `None` for a run without a kept sample.
+    pub run_means: Vec<Option<f64>>,
     /// Half-width of the 95% confidence interval of the mean over the runs.
     pub ci95: Option<f64>,
 }
@@ -85,12 +85,13 @@ impl Errors {
             .collect();
         let all: Vec<f64> = per_run.iter().flatten().copied().collect();
         let (mean, std) = mean_std(&all)?;
-        let run_means: Vec<f64> = per_run.iter().filter_map(|e| mean_std(e).map(|m| m.0)).collect();
+        let run_means: Vec<Option<f64>> = per_run.iter().map(|e| mean_std(e).map(|m| m.0)).collect();
+        let present: Vec<f64> = run_means.iter().flatten().copied().collect();
         Some(Errors {
             mean,
             std,
             samples: all.len(),
-            ci95: ci95(&run_means),
+            ci95: ci95(&present),
             run_means,
         })
     }
@@ -127,15 +128,26 @@ fn t975(df: usize) -> f64 {
     }
 }
 
-/// The runs' ratios of `a`'s mean error to `b`'s, paired by run (same seeds, same order):
-/// their mean and its 95% half-width. `None` unless both have the same runs.
-pub fn paired_ratio(a: &Row, b: &Row) -> Option<(f64, Option<f64>)> {
+/// The runs' ratios of `a`'s mean error to `b`'s, paired by run (same seeds, same order; a run
+/// either lacks, or where `b`'s mean is not positive, left out): their mean, its 95% half-width
+/// and the number of pairs. `None` unless both rows come from the same runs and one pairs.
+pub fn paired_ratio(a: &Row, b: &Row) -> Option<(f64, Option<f64>, usize)> {
     let (x, y) = (&a.run_errors_m, &b.run_errors_m);
-    if x.is_empty() || x.len() != y.len() {
+    if x.len() != y.len() {
         return None;
     }
-    let r: Vec<f64> = x.iter().zip(y).map(|(x, y)| x / y).collect();
-    Some((r.iter().sum::<f64>() / r.len() as f64, ci95(&r)))
+    let r: Vec<f64> = x
+        .iter()
+        .zip(y)
+        .filter_map(|(x, y)| match (x, y) {
+            (Some(x), Some(y)) if *y > 0.0 => Some(x / y),
+            _ => None,
+        })
+        .collect();
+    if r.is_empty() {
+        return None;
+    }
+    Some((r.iter().sum::<f64>() / r.len() as f64, ci95(&r), r.len()))
 }
 
 /// [`paired_ratio`] in words for a shape check, "" when the rows cannot be paired: "; per run
@@ -145,7 +157,7 @@ pub fn paired_ratio_text(a: Option<&Row>, b: Option<&Row>) -> String {
         return String::new();
     };
     match paired_ratio(a, b) {
-        Some((r, Some(ci))) => format!("; per run {r:.2}x ±{ci:.2} (95%, {} runs)", a.run_errors_m.len()),
+        Some((r, Some(ci), n)) => format!("; per run {r:.2}x ±{ci:.2} (95%, {n} runs)"),
         _ => String::new(),
     }
 }
@@ -228,6 +240,7 @@ pub fn run_method(m: &Method, opts: &Options, level: Level, duration_s: f64) -> 
     let (mut cams, mut rssi, mut meas, mut power) = (0.0, 0.0, 0.0, 0.0);
     let mut samples = Vec::new();
     let mut untracked = 0u32;
+    let mut run_power = Vec::with_capacity(runs as usize);
     for k in 0..runs {
         let seed = opts.seed.wrapping_add(u64::from(k));
         let (rep, s) = run_once(m, seed, level, duration_s)?;
@@ -235,7 +248,9 @@ pub fn run_method(m: &Method, opts: &Options, level: Level, duration_s: f64) -> 
         cams += rep.active_cameras_mean;
         rssi += rep.rssi_nodes_mean;
         meas += rep.active_cameras_mean * rep.steps as f64;
-        power += camera_power(&m.scenario, &rep);
+        let p = camera_power(&m.scenario, &rep);
+        power += p;
+        run_power.push(p);
         if s.is_empty() {
             untracked += 1;
         }
@@ -252,6 +267,7 @@ pub fn run_method(m: &Method, opts: &Options, level: Level, duration_s: f64) -> 
             power_mw: Some(power / n),
             param: None,
             untracked_runs: Some(untracked),
+            run_power_mw: run_power,
             ..Row::default()
         }
         .with_errors(errors),
@@ -306,29 +322,34 @@ mod tests {
         let runs = vec![run(&[(0.0, 1.0), (1.0, 1.0), (2.0, 4.0)]), run(&[(0.5, 3.0)])];
         let e = Errors::of(&runs, |_| true).unwrap();
         assert_eq!((e.mean, e.samples), (9.0 / 4.0, 4));
-        assert_eq!(e.run_means, vec![2.0, 3.0]);
+        assert_eq!(e.run_means, vec![Some(2.0), Some(3.0)]);
         assert_eq!(e.ci95, ci95(&[2.0, 3.0]));
-        // A window that leaves a run without samples leaves that run out.
+        // A window that leaves a run without samples leaves that run out, in its place.
         let late = Errors::of(&runs, |t| t >= 1.0).unwrap();
         assert_eq!(
             (late.mean, late.run_means.clone(), late.ci95),
-            (2.5, vec![2.5], None)
+            (2.5, vec![Some(2.5), None], None)
         );
         assert!(Errors::of(&runs, |t| t > 9.0).is_none());
         let row = Row::default().with_errors(Some(e));
         assert_eq!(row.mean_error_m, Some(2.25));
-        assert_eq!(row.run_errors_m, vec![2.0, 3.0]);
+        assert_eq!(row.run_errors_m, vec![Some(2.0), Some(3.0)]);
     }
 
     #[test]
     fn ratios_pair_the_runs_by_seed() {
+        // −1 stands for a run without samples.
         let row = |e: &[f64]| Row {
-            run_errors_m: e.to_vec(),
+            run_errors_m: e.iter().map(|&x| (x >= 0.0).then_some(x)).collect(),
             ..Row::default()
         };
         // Run by run 2x and 4x: mean 3x, though the pooled means (2.5 / 1) would say 2.5x.
-        let (r, ci) = paired_ratio(&row(&[2.0, 3.0]), &row(&[1.0, 0.75])).unwrap();
-        assert_eq!((r, ci), (3.0, ci95(&[2.0, 4.0])));
+        let (r, ci, n) = paired_ratio(&row(&[2.0, 3.0]), &row(&[1.0, 0.75])).unwrap();
+        assert_eq!((r, ci, n), (3.0, ci95(&[2.0, 4.0]), 2));
+        // A run either lacks is left out, not paired with the next one; so is a run whose
+        // denominator is zero.
+        let (r, _, n) = paired_ratio(&row(&[2.0, -1.0, 6.0, 1.0]), &row(&[1.0, 5.0, -1.0, 0.0])).unwrap();
+        assert_eq!((r, n), (2.0, 1));
         assert!(
             paired_ratio(&row(&[2.0]), &row(&[1.0, 1.0])).is_none(),
             "unpaired runs"

@@ -261,7 +261,7 @@ mod tests {
         let mut o = outcome();
         assert!(!to_text(&o).contains("±95%"), "no row has an interval");
         o.rows[0].mean_error_ci95_m = Some(0.04);
-        o.rows[0].run_errors_m = vec![0.2, 0.3];
+        o.rows[0].run_errors_m = vec![Some(0.2), Some(0.3)];
         let m = to_markdown(&o, "c", &[]);
         assert!(m.contains("| method | mean err m | ±95% m | std m |"), "{m}");
         assert!(m.contains("| A | 0.250 | 0.040 | – |"), "{m}");

@@ -160,12 +160,13 @@ impl HeadNode {
                 trainer.recheck(distance_variance(&aux_pos, &aux_cov, &node.info.position));
             }
             let cov_bar = *track.filter.cov();
+            // Every reading of the step is weighed with what this track's readings erred before
+            // it (so the order packets came in does not matter), then counted.
+            let erred = track.rssi_noise;
             for &(slot, dbm, age_s) in &track.rssi {
                 let node = &self.nodes[slot].info;
                 let claimed = track.trainers[slot].model();
-                // Weighed with what this track's readings of that kind have erred so far, then
-                // counted towards it.
-                let model = track.rssi_noise.weighed(&claimed);
+                let model = erred.weighed(&claimed);
                 if let Some((nu, hph)) =
                     rssi_innovation_aged(&claimed, &node.position, dbm, &mean_bar, &cov_bar, age_s)
                 {
@@ -218,7 +219,8 @@ impl HeadNode {
             // σ²_u is the paper's: from the auxiliary filter's covariance at the step. Taken at
             // the packet's time instead ([I, −age·I] Σ [I, −age·I]ᵀ), Table I's proposed method
             // erred 0.160 m instead of 0.142 and Method3 drew more power than Method2 (pixel
-            // level, 5 runs): Algorithm 1's σ²_tm ≤ σ²_D choice is that sensitive.
+            // level, 5 runs, measured before Algorithm 1's per-step re-check and before RSSI was
+            // weighed by its errors): Algorithm 1's σ²_tm ≤ σ²_D choice is that sensitive.
             for &(slot, dbm, age_s) in &track.rssi {
                 // Paired with where the camera-only filter puts the target when the packet came.
                 let aux_pos = position(&back_in_time(track.aux.mean(), age_s));
