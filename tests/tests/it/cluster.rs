@@ -274,8 +274,8 @@ fn killing_a_camera_mid_run_leaves_tracking_running() {
 fn killing_the_owning_head_fails_over_and_keeps_the_global_id() {
     let run = Launch::start("kill-head", "ipc", 24.0, None);
     // Wait until the robot is tracked, then kill whichever head owns it. The robot is the
-    // global reported most often: a segmentation ghost can hold a second, short-lived id, and the
-    // latest row may be the ghost's.
+    // global reported most often: a ghost more than a metre off can hold a second, short-lived
+    // id, and the latest row may be the ghost's.
     let deadline = now() + Duration::from_secs(30);
     let (global, owner, t_kill) = loop {
         let rows = owner_rows(&run.record());
