@@ -338,24 +338,33 @@ pub fn rssi_contribution(
     rssi_contribution_aged(model, node, dbm, mean, 0.0)
 }
 
-/// A reading's innovation against the prediction `mean` with covariance `cov`: the residual
-/// `dbm − h` and the prediction's share of its variance `H Σ Hᵀ` (the model's own variance is
-/// the other share), for checking that a model's variance matches its errors. Aged as
-/// [`rssi_contribution_aged`]. `None` for a non-finite result.
-pub fn rssi_innovation_aged(
+/// The RSSI model linearized for a packet received `age_s` seconds before the mean's time: the
+/// reading predicted at where the state puts the target then, and the Jacobian with respect to
+/// the state now (see [`pinhole_aged`]). A non-finite age counts as 0.
+pub fn rssi_aged(
     model: &RssiModel,
     node: &Vector3<f64>,
-    dbm: f64,
     mean: &State,
-    cov: &Matrix6<f64>,
     age_s: f64,
-) -> Option<(f64, f64)> {
+) -> (f64, SMatrix<f64, 1, 6>) {
     let age_s = if age_s.is_finite() { age_s } else { 0.0 };
     let (h, jac) = model.measurement(node, &back_in_time(mean, age_s));
-    let jac = aged_jacobian(jac, age_s);
-    let hph = (jac * cov * jac.transpose())[(0, 0)];
-    let nu = dbm - h;
-    (nu.is_finite() && hph.is_finite()).then_some((nu, hph))
+    (h, aged_jacobian(jac, age_s))
+}
+
+/// The information of one RSSI reading `dbm` linearized as (`h`, `jac`) with variance
+/// `variance` (dB²), about `mean`.
+pub fn rssi_information(
+    dbm: f64,
+    h: f64,
+    jac: &SMatrix<f64, 1, 6>,
+    variance: f64,
+    mean: &State,
+) -> Option<(Info, State)> {
+    let z = SVector::<f64, 1>::new(dbm);
+    let hv = SVector::<f64, 1>::new(h);
+    let q = SMatrix::<f64, 1, 1>::new(variance);
+    information_contribution(&z, &hv, jac, &q, mean)
 }
 
 /// [`rssi_contribution`] of a packet received `age_s` seconds before the mean's time: the
@@ -368,11 +377,6 @@ pub fn rssi_contribution_aged(
     mean: &State,
     age_s: f64,
 ) -> Option<(Info, State)> {
-    let age_s = if age_s.is_finite() { age_s } else { 0.0 };
-    let (h, jac) = model.measurement(node, &back_in_time(mean, age_s));
-    let jac = aged_jacobian(jac, age_s);
-    let z = SVector::<f64, 1>::new(dbm);
-    let hv = SVector::<f64, 1>::new(h);
-    let q = SMatrix::<f64, 1, 1>::new(model.variance());
-    information_contribution(&z, &hv, &jac, &q, mean)
+    let (h, jac) = rssi_aged(model, node, mean, age_s);
+    rssi_information(dbm, h, &jac, model.variance(), mean)
 }

@@ -11,7 +11,7 @@ use crate::stats::StepStats;
 use nalgebra::Matrix6;
 use proto::models::{
     Info, State, back_in_time, camera_contribution_aged, information_contribution, mat6_to_wire,
-    pinhole_previous, position, rssi_contribution_aged, rssi_innovation_aged, vec6_to_wire,
+    pinhole_previous, position, rssi_aged, rssi_information, vec6_to_wire,
 };
 use proto::msg::{Command, TrackReport};
 use proto::node::Outgoing;
@@ -166,13 +166,11 @@ impl HeadNode {
             for &(slot, dbm, age_s) in &track.rssi {
                 let node = &self.nodes[slot].info;
                 let claimed = track.trainers[slot].model();
-                let model = erred.weighed(&claimed);
-                if let Some((nu, hph)) =
-                    rssi_innovation_aged(&claimed, &node.position, dbm, &mean_bar, &cov_bar, age_s)
-                {
-                    track.rssi_noise.observe(&claimed, nu, hph);
-                }
-                if let Some((o, x)) = rssi_contribution_aged(&model, &node.position, dbm, &mean_bar, age_s) {
+                let (h, jac) = rssi_aged(&claimed, &node.position, &mean_bar, age_s);
+                let hph = (jac * cov_bar * jac.transpose())[(0, 0)];
+                track.rssi_noise.observe(&claimed, dbm - h, hph);
+                let variance = erred.weighed(&claimed).variance();
+                if let Some((o, x)) = rssi_information(dbm, h, &jac, variance, &mean_bar) {
                     track.acc.add(&o, &x);
                     rssi_nodes[slot] = true;
                     track.last_seen = now;
