@@ -23,6 +23,10 @@ use tracing::{debug, info, warn};
 
 /// Most detections a head buffers per step; more are dropped and counted.
 pub const MAX_DETECTIONS_PER_STEP: usize = 4096;
+/// How far (metres, horizontally) a track may stray outside the world's box before it is
+/// dropped: no target is there, and RSSI readings (which refresh a track without cameras)
+/// kept one diverged track flying 30 m out of the room for seconds (Table I, pixel level).
+pub const OUTSIDE_MARGIN_M: f64 = 1.0;
 
 #[derive(Clone, Debug)]
 struct NodeState {
@@ -251,14 +255,12 @@ impl HeadNode {
                     track.aux_acc.add_wire(&c.info_matrix, &c.info_vector);
                     track.last_seen = now;
                 }
-                if let Some(r) = rssi {
-                    track.hear(slot, r.dbm, track.time.secs_since(r.time));
-                }
-                if c.camera || rssi.is_some() {
+                let heard = rssi.is_some_and(|r| track.hear(slot, r.dbm, track.time.secs_since(r.time)));
+                if c.camera || heard {
                     track.contributors.push(proto::msg::Contributor {
                         node: node.info.id,
                         camera: c.camera,
-                        rssi: rssi.is_some(),
+                        rssi: heard,
                     });
                 }
             }
@@ -422,12 +424,18 @@ impl HeadNode {
     fn open_step(&mut self, now: ClusterTime, out: &mut Vec<Outgoing>) {
         let timeout = (self.cfg.method.track_timeout_ms as i64).saturating_mul(1_000_000);
         let before = self.tracks.len();
+        let (lo, hi) = self.cfg.bounds;
         self.tracks.retain(|t| {
-            let keep = now - t.last_seen <= timeout;
-            if !keep {
+            let silent = now - t.last_seen > timeout;
+            if silent {
                 info!(target = %t.local, "track silent too long; dropped");
             }
-            keep
+            let p = t.position();
+            let outside = (0..2).any(|a| p[a] < lo[a] - OUTSIDE_MARGIN_M || p[a] > hi[a] + OUTSIDE_MARGIN_M);
+            if outside && !silent {
+                info!(target = %t.local, x = p[0], y = p[1], "track left the world; dropped");
+            }
+            !(silent || outside)
         });
         self.counters.deaths += (before - self.tracks.len()) as u64;
         let motion = self.cfg.method.motion;

@@ -136,10 +136,11 @@ impl HeadNode {
                 }
                 Fusion::DistributedEif => {}
             }
-            if let Some(r) = d.rssi.filter(|_| node.rssi) {
-                track.hear(d.slot, r.dbm, at.secs_since(r.time));
-            }
-            track.note(node.id, true, d.rssi.is_some() && node.rssi);
+            let heard = d
+                .rssi
+                .filter(|_| node.rssi)
+                .is_some_and(|r| track.hear(d.slot, r.dbm, at.secs_since(r.time)));
+            track.note(node.id, true, heard);
         }
         stats.applied += if method.fusion == Fusion::DistributedEif {
             0

@@ -99,6 +99,41 @@ fn handover_starts_a_track_that_reports_its_global_id_and_leaves_again() {
     assert!(h.tracks().is_empty());
 }
 
+/// A track that strays more than `OUTSIDE_MARGIN_M` outside the world's box is dropped.
+#[test]
+fn a_track_that_leaves_the_world_is_dropped() {
+    let s = Scenario::default_scenario();
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    h.tick(ClusterTime::ZERO);
+    let edge = s.world.max[0] + 0.9;
+    let mean = State::new(edge, 4.0, 0.25, 5.0, 0.0, 0.0);
+    h.on_message(
+        ClusterTime::ZERO,
+        env(
+            1,
+            Message::Handover(Handover {
+                global: TargetId(7),
+                to_head: NodeId(2),
+                from_head: None,
+                time: ClusterTime::ZERO,
+                mean: vec6_to_wire(&mean),
+                cov: mat6_to_wire(&(Matrix6::identity() * 0.01)),
+            }),
+        ),
+    );
+    assert_eq!(h.tracks().len(), 1, "0.9 m outside is within the margin");
+    // 0.2 s at 5 m/s later it is 1.9 m out.
+    h.tick(ClusterTime::from_millis(200));
+    h.tick(ClusterTime::from_millis(281));
+    h.tick(ClusterTime::from_millis(400));
+    assert!(
+        h.tracks().is_empty(),
+        "{:?}",
+        h.tracks().first().map(|t| t.position())
+    );
+    assert_eq!(h.counters().deaths, 1);
+}
+
 #[test]
 fn assignment_moves_a_camera_out_of_the_cluster() {
     let s = Scenario::default_scenario();

@@ -3,6 +3,10 @@
 use crate::sim::{ONE_TARGET, Radio, Sim, error, ring_scenario};
 
 fn run(activation: &str, weight: f64, radio: bool) -> (f64, f64, f64, f64) {
+    run_seed(activation, weight, radio, 31)
+}
+
+fn run_seed(activation: &str, weight: f64, radio: bool, seed: u64) -> (f64, f64, f64, f64) {
     let mut scenario = ring_scenario(8, "distributed-eif", activation, weight, ONE_TARGET);
     // With a radio, the paper's 18 px segmentation noise: beside 4 px cameras a reading weighed
     // by the errors it makes (`rssi_noise`) is worth less than its radio's power, and CameraOff
@@ -10,7 +14,7 @@ fn run(activation: &str, weight: f64, radio: bool) -> (f64, f64, f64, f64) {
     if radio {
         scenario.method.pixel_sigma = 18.0;
     }
-    let mut sim = Sim::new(&scenario, 31);
+    let mut sim = Sim::new(&scenario, seed);
     if radio {
         sim.radio = Some(Radio {
             tx_dbm: -48.0,
@@ -54,10 +58,18 @@ fn higher_energy_weight_chooses_fewer_cameras() {
     assert!(e_cheap < 0.3 && e_dear < 0.6, "errors {e_cheap} {e_dear}");
 }
 
+/// Over ten seeds: one seed's run is too short to compare two powers within 5% (seed 31
+/// alone: three-mode 537 vs full-node 485 mW; over seeds 31–40: 504 vs 511).
 #[test]
 fn three_mode_uses_camera_off_nodes_within_full_nodes_power() {
-    let (_, p_full, _, _) = run("full-node", 5e-3, true);
-    let (cams, p_three, err, off) = run("three-mode", 5e-3, true);
+    let seeds = 31u64..41;
+    let n = (seeds.end - seeds.start) as f64;
+    let (mut p_full, mut p_three, mut cams, mut err, mut off) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for seed in seeds {
+        p_full += run_seed("full-node", 5e-3, true, seed).1 / n;
+        let (c, p, e, o) = run_seed("three-mode", 5e-3, true, seed);
+        (p_three, cams, err, off) = (p_three + p / n, cams + c / n, err + e / n, off + o / n);
+    }
     assert!(cams < 8.0);
     assert!(off > 0.0, "no node was ever left in CameraOff");
     assert!(
