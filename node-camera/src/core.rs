@@ -52,8 +52,8 @@ pub struct Counters {
 /// offered for a new track (a region no prior gated). Paper 004's model only sees what moves,
 /// so a region that stands still is where the model's background is wrong: the ghost a target
 /// leaves where it stood when the model was (re)started. Two woken cameras' ghosts
-/// triangulated into false tracks (Table I, pixel level: ghost global ids in 7 of the
-/// proposed method's 40 runs, 3 with it). Not caught: a ghost while the target is still
+/// triangulated into false tracks (Table I, pixel level: with the head's own guards,
+/// ghost global ids in 7 of the proposed method's 40 runs, 2 with this). Not caught: a ghost while the target is still
 /// uncovering it (it grows, so its centre moves). Also held back: a target whose region
 /// moves less than this (e.g. one walking straight at the camera); another camera or the
 /// next frame offers it. Regions that gate to a prior are always used.
