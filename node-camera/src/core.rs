@@ -487,7 +487,7 @@ fn moved_px(previous: &[Measured], m: &Measured) -> Option<f32> {
 
 fn nearest_with_shift<'a>(previous: &'a [Measured], m: &Measured) -> Option<(f32, &'a Measured)> {
     let b = m.detection.bbox;
-    let reach = (b.xmax - b.xmin).max(b.ymax - b.ymin) as f32;
+    let reach = (b.xmax - b.xmin).max(b.ymax - b.ymin);
     let c = m.detection.centre;
     previous
         .iter()
