@@ -1,7 +1,7 @@
 //! Paper 002's RSSI machinery on one real trajectory: Algorithm 1
 //! (`node_head::rssi_training::RssiTrainer`) predicting each sensor's next packet, and an
-//! RSSI-only EIF (`node_head::eif::Eif`, `proto::models::rssi_contribution`, the scenario's
-//! motion model) stepping at a fixed rate over the packets received in each step.
+//! RSSI-only EIF (`node_head::eif::Eif`, `proto::models::rssi_contribution_aged`, the scenario's
+//! motion model) stepping at a fixed rate over the packets received in each step, each at its own time.
 //!
 //! Algorithm 1 needs a distance from the cameras' auxiliary filter. The dataset has no cameras:
 //! a **camera stand-in** — the ground-truth position plus seeded Gaussian noise of σ per axis,
@@ -16,7 +16,9 @@ use crate::experiment::runner::Sample;
 use nalgebra::{Matrix6, SMatrix, SVector, Vector3};
 use node_head::eif::{Accumulator, Eif};
 use node_head::rssi_training::{Choice, MIN_PAIRS, RssiTrainer};
-use proto::models::{MotionModel, RssiModel, State, information_contribution, rssi_contribution};
+use proto::models::{
+    MotionModel, RssiModel, State, back_in_time, information_contribution, rssi_contribution_aged,
+};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -161,9 +163,9 @@ fn height_contribution(t: &Tracker, mean: &State) -> Option<(Matrix6<f64>, State
     information_contribution(&z, &h, &jac, &q, mean)
 }
 
-/// Track one trajectory from RSSI only. One sample per step that received packets: the
-/// estimate at the step's end against the truth of the step's last packet; the error is
-/// horizontal. Stops early (shorter output) if the filter fails numerically.
+/// Track one trajectory from RSSI only; each packet is fused at its own time within the step.
+/// One sample per step that received packets: the estimate at the time of the step's last
+/// packet against the truth then; the error is horizontal. Stops early (shorter output) if the filter fails numerically.
 pub fn track(sensors: &[Sensor], traj: &Trajectory, models: &Models, t: &Tracker) -> Vec<Sample> {
     let mut mean = State::zeros();
     mean[0] = t.start_xy[0];
@@ -213,7 +215,11 @@ pub fn track(sensors: &[Sensor], traj: &Trajectory, models: &Models, t: &Tracker
                 Models::Fixed(m) => *m,
                 Models::Trained(..) => trainers[p.sensor].model(),
             };
-            if let Some((o, xi)) = rssi_contribution(&model, &sensors[p.sensor].pos, p.rssi, &prior) {
+            // Each packet at its own time within the step, as the head fuses them.
+            let age_s = t_end - p.t;
+            if let Some((o, xi)) =
+                rssi_contribution_aged(&model, &sensors[p.sensor].pos, p.rssi, &prior, age_s)
+            {
                 acc.add(&o, &xi);
             }
         }
@@ -234,12 +240,13 @@ pub fn track(sensors: &[Sensor], traj: &Trajectory, models: &Models, t: &Tracker
         let Some(last) = step.last() else {
             continue;
         };
-        let e = eif.mean();
+        // The estimate where it puts the beacon when its last packet came, against the truth then.
+        let e = back_in_time(eif.mean(), t_end - last.t);
         let est = [e[0], e[1], e[2]];
         let truth = [last.truth.x, last.truth.y, last.truth.z];
         let c = eif.cov();
         out.push(Sample {
-            t: t_end,
+            t: last.t,
             est,
             truth,
             sigma_m: (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0).sqrt(),
