@@ -16,7 +16,7 @@ use crate::measure::{self, Measured};
 use crate::segment::Segmenter;
 use proto::msg::{Message, Mode, NodeStatus, Prior, RssiReading};
 use proto::node::Outgoing;
-use proto::scenario::{Fusion, Segmentation};
+use proto::scenario::Fusion;
 use proto::validate::Validate;
 use proto::{ClusterTime, Envelope, TargetId};
 use std::collections::BTreeMap;
@@ -54,9 +54,12 @@ pub struct Counters {
 /// leaves where it stood when the model was (re)started. Two woken cameras' ghosts
 /// triangulated into false tracks (Table I, pixel level: with the head's own guards,
 /// ghost global ids in 7 of the proposed method's 40 runs, 2 with this). Not caught: a ghost while the target is still
-/// uncovering it (it grows, so its centre moves). Also held back: a target whose region
-/// moves less than this (e.g. one walking straight at the camera); another camera or the
-/// next frame offers it. Regions that gate to a prior are always used.
+/// uncovering it (it grows, so its centre moves), nor, probably, while the model absorbs it
+/// (pixels go in the order they were uncovered, so it shrinks along the target's path). Also
+/// held back: a target whose region moves less than this (e.g. one walking straight at the
+/// camera) or more than its own size (no region of the previous frame within reach); another
+/// camera or the next frame offers it. Regions that gate to a prior are always used, and only
+/// the distributed filter holds any back (see `CameraNode::motion_check`).
 pub const STILL_PX: f32 = 1.0;
 
 /// The camera node core.
@@ -300,13 +303,16 @@ impl CameraNode {
 
     /// Detections already segmented and undistorted elsewhere: a logging run measures every
     /// frame whatever the mode, and a replay feeds a recording's measurements back. Handled
-    /// exactly as a frame's detections after undistortion; ignored when the camera is off.
-    /// Non-finite points or covariances reject the whole frame and change no state.
+    /// exactly as a frame's detections after undistortion (`segmented`: they came from this
+    /// node's segmentation of frames, not from the measurement-level simulation's projection
+    /// of the truth); ignored when the camera is off. Non-finite points or covariances reject
+    /// the whole frame and change no state.
     pub fn on_measured(
         &mut self,
         now: ClusterTime,
         captured: ClusterTime,
         measured: &[Measured],
+        segmented: bool,
     ) -> Vec<Outgoing> {
         let mut out = Vec::new();
         if !self.mode.camera_on() {
@@ -325,8 +331,11 @@ impl CameraNode {
         }
         self.counters.frames += 1;
         self.counters.detections += measured.len() as u64;
-        // Logged detections were segmented by this node's pipeline: the same motion check.
-        let moving_only = self.motion_check(captured);
+        let moving_only = if segmented {
+            self.motion_check(captured)
+        } else {
+            None
+        };
         std::mem::swap(&mut self.previous, &mut self.measured);
         self.measured.clear();
         self.measured.extend_from_slice(measured);
@@ -336,13 +345,24 @@ impl CameraNode {
         out
     }
 
-    /// For motion-segmented detections (paper 004), whether the frame before `captured` is
-    /// recent enough to tell what moved (not one from before the camera slept); `None` for
-    /// colour segmentation, which sees targets that stand still.
+    /// For motion-segmented detections (paper 004) in the distributed filter, whether the frame
+    /// before `captured` can tell what moved: it exists and the model did not restart since
+    /// (a gap longer than its memory, as after a sleep). `None` where still regions may be
+    /// targets: colour segmentation sees targets that stand still, and in centralized fusion
+    /// the head associates every measurement itself, so one the camera could not gate may
+    /// still update a track.
     fn motion_check(&self, captured: ClusterTime) -> Option<bool> {
-        let recent = 2.5 / self.cfg.fps.max(1e-3);
-        (self.segmenter.kind() == Segmentation::Paper004)
-            .then(|| self.captured.is_some_and(|t| captured.secs_since(t) <= recent))
+        let Segmenter::Paper004(seg) = &self.segmenter else {
+            return None;
+        };
+        if self.cfg.fusion != Fusion::DistributedEif {
+            return None;
+        }
+        let memory_s = seg.params().restart_gap_ms as f64 / 1e3;
+        Some(
+            self.captured
+                .is_some_and(|t| memory_s <= 0.0 || captured.secs_since(t) <= memory_s),
+        )
     }
 
     fn apply_detections(
@@ -866,7 +886,7 @@ mod tests {
             r.render(&s.targets, t, now, &mut f);
             let from_frame = a.on_frame(now, &f);
             let logged = a.latest().to_vec();
-            assert_eq!(b.on_measured(now, now, &logged), from_frame);
+            assert_eq!(b.on_measured(now, now, &logged, true), from_frame);
             t += 0.2;
         }
         let now = ClusterTime::from_secs_f64(6.01);
@@ -879,7 +899,7 @@ mod tests {
         let mut bad = a.latest().to_vec();
         bad[0].cov[(0, 0)] = f64::NAN;
         let before = b.counters();
-        assert!(b.on_measured(now, now, &bad).is_empty());
+        assert!(b.on_measured(now, now, &bad, true).is_empty());
         assert_eq!(b.counters().rejected, before.rejected + 1);
         assert_eq!(b.counters().frames, before.frames);
         assert_eq!(b.latest(), a.latest(), "a rejected frame changes nothing");
@@ -889,7 +909,7 @@ mod tests {
             mode: Mode::CameraOff,
         }));
         b.on_message(now, off);
-        assert!(b.on_measured(now, now, a.latest()).is_empty());
+        assert!(b.on_measured(now, now, a.latest(), true).is_empty());
         assert_eq!(b.counters().frames_skipped, before.frames_skipped + 1);
     }
 }

@@ -119,7 +119,7 @@ impl FrameLogger {
             return Err(e);
         }
         let detections = std::mem::take(&mut self.scratch);
-        let out = self.measure_detections(node, now, frame.captured, &detections, rssi_dbm);
+        let out = self.measure_segmented(node, now, frame.captured, &detections, rssi_dbm, true);
         self.scratch = detections;
         Ok(out)
     }
@@ -134,6 +134,19 @@ impl FrameLogger {
         captured: ClusterTime,
         detections: &[Detection],
         rssi_dbm: Option<f64>,
+    ) -> (MeasuredFrame, Vec<Outgoing>) {
+        self.measure_segmented(node, now, captured, detections, rssi_dbm, false)
+    }
+
+    /// Both: `segmented` says whether the detections came from segmenting a frame.
+    fn measure_segmented(
+        &mut self,
+        node: &mut CameraNode,
+        now: ClusterTime,
+        captured: ClusterTime,
+        detections: &[Detection],
+        rssi_dbm: Option<f64>,
+        segmented: bool,
     ) -> (MeasuredFrame, Vec<Outgoing>) {
         let cfg = node.config();
         self.measured.clear();
@@ -151,7 +164,7 @@ impl FrameLogger {
             rssi_dbm: rssi_dbm.filter(|d| d.is_finite() && (-200.0..=30.0).contains(d)),
             detections: self.measured[..kept].iter().map(to_wire).collect(),
         };
-        (frame, node.on_measured(now, captured, &self.measured))
+        (frame, node.on_measured(now, captured, &self.measured, segmented))
     }
 }
 

@@ -109,6 +109,12 @@ type Group = (Vec<usize>, f64, nalgebra::Vector3<f64>, nalgebra::Matrix3<f64>);
 /// Slack around the world box a born track may lie in, metres.
 pub const BIRTH_BOUNDS_MARGIN: f64 = 0.5;
 
+/// Whether the first `axes` coordinates of `p` lie within `bounds` widened by `margin` (false
+/// for a NaN).
+pub fn within(p: &nalgebra::Vector3<f64>, bounds: ([f64; 3], [f64; 3]), margin: f64, axes: usize) -> bool {
+    (0..axes).all(|a| (bounds.0[a] - margin..=bounds.1[a] + margin).contains(&p[a]))
+}
+
 /// Start tracks from unassociated detections: groups of at least `min_cameras` distinct
 /// cameras whose triangulated point lies in the world box `bounds` (never fewer than two,
 /// unless `min_cameras` is 1, when a lone detection gets a wide single-camera prior on the
@@ -121,9 +127,7 @@ pub fn births(
     plane_z: f64,
     bounds: ([f64; 3], [f64; 3]),
 ) -> Vec<Birth> {
-    let inside = |p: &nalgebra::Vector3<f64>| {
-        (0..3).all(|a| p[a] >= bounds.0[a] - BIRTH_BOUNDS_MARGIN && p[a] <= bounds.1[a] + BIRTH_BOUNDS_MARGIN)
-    };
+    let inside = |p: &nalgebra::Vector3<f64>| within(p, bounds, BIRTH_BOUNDS_MARGIN, 3);
     let mut left: Vec<usize> = (0..dets.len())
         .filter(|&i| cameras.get(dets[i].slot).is_some())
         .collect();

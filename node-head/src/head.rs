@@ -424,19 +424,22 @@ impl HeadNode {
     fn open_step(&mut self, now: ClusterTime, out: &mut Vec<Outgoing>) {
         let timeout = (self.cfg.method.track_timeout_ms as i64).saturating_mul(1_000_000);
         let before = self.tracks.len();
-        let (lo, hi) = self.cfg.bounds;
+        let bounds = self.cfg.bounds;
+        let mut left = 0;
         self.tracks.retain(|t| {
             let silent = now - t.last_seen > timeout;
             if silent {
                 info!(target = %t.local, "track silent too long; dropped");
             }
             let p = t.position();
-            let outside = (0..2).any(|a| p[a] < lo[a] - OUTSIDE_MARGIN_M || p[a] > hi[a] + OUTSIDE_MARGIN_M);
+            let outside = !crate::association::within(&p, bounds, OUTSIDE_MARGIN_M, 2);
             if outside && !silent {
+                left += 1;
                 info!(target = %t.local, x = p[0], y = p[1], "track left the world; dropped");
             }
             !(silent || outside)
         });
+        self.counters.left_world += left;
         self.counters.deaths += (before - self.tracks.len()) as u64;
         let motion = self.cfg.method.motion;
         let mut failed = 0;

@@ -53,6 +53,8 @@ pub struct Counters {
     pub stale_measurements: u64,
     pub births: u64,
     pub deaths: u64,
+    /// Of the deaths, tracks dropped for straying outside the world's box.
+    pub left_world: u64,
     /// Tracks dropped as duplicates of another on the same target.
     pub merges: u64,
     pub handovers: u64,

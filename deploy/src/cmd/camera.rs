@@ -135,6 +135,7 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
                 "measurements": summary.counters.measurements,
                 "dropped": summary.counters.dropped,
                 "rejected": summary.counters.rejected,
+                "still_unassociated": summary.counters.still_unassociated,
                 "frames_lost": summary.frames_lost,
                 "send_failures": summary.send_failures,
                 "measured_frames": summary.logged.frames,

@@ -64,6 +64,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         "rejected": c.rejected,
         "births": c.births,
         "deaths": c.deaths,
+        "left_world": c.left_world,
         "merges": c.merges,
         "handovers": c.handovers,
         "commands": c.commands,

@@ -87,6 +87,12 @@ pub struct RecordingArgs {
     /// No latency, jitter, loss or clock error (overrides the network flags).
     #[arg(long)]
     pub ideal_network: bool,
+    /// The level the recording was made at: `pixel` (segmented frames, as `ocelli launch`
+    /// records) or `measurement` (`ocelli sim --level measurement`). Cameras check segmented
+    /// regions for motion before offering them for new tracks, so give the run's level to
+    /// reproduce it.
+    #[arg(long, value_enum, default_value = "pixel")]
+    pub recorded_level: super::sim::LevelArg,
     /// Cluster time (ns) of scenario time 0 in the recording (default: its first record's
     /// time — 0 for `ocelli sim`, the server's start for `ocelli launch`).
     #[arg(long)]
@@ -273,6 +279,10 @@ pub fn replay_recording(path: &std::path::Path, args: &Args) -> Result<(Vec<Trac
         sim: SimOptions {
             seed: rec.seed,
             network,
+            level: match rec.recorded_level {
+                super::sim::LevelArg::Pixel => crate::sim::runtime::Level::Pixel,
+                super::sim::LevelArg::Measurement => crate::sim::runtime::Level::Measurement,
+            },
             ..SimOptions::default()
         },
         t0: rec.t0_ns.map_or_else(|| recording_t0(&loaded), ClusterTime),

@@ -45,7 +45,8 @@ pub struct RerunOptions {
     /// Activation policy of the replay (default: the recorded scenario's).
     pub activation: Option<Activation>,
     /// Seed, network model and tick periods of the replay's simulated network and clocks.
-    /// `duration_s` is ignored: the replay runs to the recording's last record.
+    /// `duration_s` is ignored: the replay runs to the recording's last record. `level` is the
+    /// level the recording was made at (`Pixel`, the default, for a launch's).
     pub sim: SimOptions,
     /// Cluster time of scenario time 0 in the recording (0 for `ocelli sim`; see
     /// [`recording_t0`]).

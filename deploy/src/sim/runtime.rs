@@ -234,6 +234,8 @@ pub struct Sim {
     noise: rand_chacha::ChaCha8Rng,
     /// A replay's recorded measurements, used instead of sensing.
     recorded: Option<Recorded>,
+    /// Whether the recording's measurements came from segmented frames.
+    recorded_segmented: bool,
     /// Frame failures (a stream of its own, so faults leave the noise stream as it was).
     failures: rand_chacha::ChaCha8Rng,
 }
@@ -261,6 +263,7 @@ impl Sim {
             frames_rendered: 0,
             noise: rand::SeedableRng::seed_from_u64(opts.seed ^ 0x006d_6561_7375_7265),
             recorded: None,
+            recorded_segmented: false,
             failures: rand::SeedableRng::seed_from_u64(opts.seed ^ 0x0066_6169_6c75_7265),
             net,
             scenario,
@@ -349,7 +352,12 @@ impl Sim {
     ///
     /// # Errors
     /// As [`Sim::new`].
+    ///
+    /// `opts.level` says how the recording was measured: `Pixel` (segmented frames, what a
+    /// launch records) or `Measurement` (the truth projected); the replay itself renders
+    /// nothing, but a camera checks segmented regions for motion (`CameraNode::on_measured`).
     pub fn replaying(scenario: Scenario, opts: SimOptions, recorded: Recorded) -> anyhow::Result<Sim> {
+        let segmented = opts.level == Level::Pixel;
         let opts = SimOptions {
             level: Level::Measurement,
             record_measurements: false,
@@ -357,6 +365,7 @@ impl Sim {
         };
         let mut sim = Sim::new(scenario, opts)?;
         sim.recorded = Some(recorded);
+        sim.recorded_segmented = segmented;
         Ok(sim)
     }
 
@@ -448,7 +457,8 @@ impl Sim {
         }
         slot.logged.clear();
         slot.logged.extend(f.detections.iter().map(logged::from_record));
-        slot.core.on_measured(now, now, &slot.logged)
+        slot.core
+            .on_measured(now, now, &slot.logged, self.recorded_segmented)
     }
 
     /// A logging run: sense and record whatever the mode; the core uses it only when on. The

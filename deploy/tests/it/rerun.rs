@@ -237,7 +237,15 @@ fn binary_replays_a_sim_recording_to_its_own_estimates() {
         .into_iter()
         .filter(|r| r["owner"] == true)
         .collect();
-    let mut replayed = json_lines(&ocelli(&["replay", rec_s, "--seed", "9", "--json"]));
+    let mut replayed = json_lines(&ocelli(&[
+        "replay",
+        rec_s,
+        "--seed",
+        "9",
+        "--recorded-level",
+        "measurement",
+        "--json",
+    ]));
     let report = replayed.pop().expect("a report line");
     assert!(exported.len() > 10, "only {} exported rows", exported.len());
     assert_eq!(replayed, exported, "the replay's estimates are the run's");
@@ -252,6 +260,8 @@ fn binary_replays_a_sim_recording_to_its_own_estimates() {
         rec_s,
         "--seed",
         "9",
+        "--recorded-level",
+        "measurement",
         "--json",
         "--activation",
         "all-on",
