@@ -119,27 +119,15 @@ impl FrameLogger {
             return Err(e);
         }
         let detections = std::mem::take(&mut self.scratch);
-        let out = self.measure_segmented(node, now, frame.captured, &detections, rssi_dbm, true);
+        let out = self.measure_detections(node, now, frame.captured, &detections, rssi_dbm, true);
         self.scratch = detections;
         Ok(out)
     }
 
-    /// [`FrameLogger::measure`] for detections made elsewhere (the measurement-level
-    /// simulation projects the truth instead of rendering and segmenting), handled exactly as
-    /// a segmented frame's.
+    /// [`FrameLogger::measure`] for detections already made: `segmented` by this logger, or
+    /// elsewhere (the measurement-level simulation projects the truth instead of rendering and
+    /// segmenting), handled exactly as a segmented frame's otherwise.
     pub fn measure_detections(
-        &mut self,
-        node: &mut CameraNode,
-        now: ClusterTime,
-        captured: ClusterTime,
-        detections: &[Detection],
-        rssi_dbm: Option<f64>,
-    ) -> (MeasuredFrame, Vec<Outgoing>) {
-        self.measure_segmented(node, now, captured, detections, rssi_dbm, false)
-    }
-
-    /// Both: `segmented` says whether the detections came from segmenting a frame.
-    fn measure_segmented(
         &mut self,
         node: &mut CameraNode,
         now: ClusterTime,

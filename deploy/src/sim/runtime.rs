@@ -482,7 +482,9 @@ impl Sim {
         };
         let measured = match sensed {
             Sensed::Frame => logger.measure(&mut slot.core, now, &slot.frame, dbm),
-            Sensed::Detections(dets) => Ok(logger.measure_detections(&mut slot.core, now, now, &dets, dbm)),
+            Sensed::Detections(dets) => {
+                Ok(logger.measure_detections(&mut slot.core, now, now, &dets, dbm, false))
+            }
         };
         match measured {
             Ok((frame, answers)) => {

@@ -237,15 +237,20 @@ fn binary_replays_a_sim_recording_to_its_own_estimates() {
         .into_iter()
         .filter(|r| r["owner"] == true)
         .collect();
-    let mut replayed = json_lines(&ocelli(&[
-        "replay",
-        rec_s,
-        "--seed",
-        "9",
-        "--recorded-level",
-        "measurement",
-        "--json",
-    ]));
+    // The run's seed and level; `extra` changes the method or policy.
+    let replay = |extra: &[&str]| {
+        let args = [
+            "replay",
+            rec_s,
+            "--seed",
+            "9",
+            "--recorded-level",
+            "measurement",
+            "--json",
+        ];
+        json_lines(&ocelli(&[&args[..], extra].concat()))
+    };
+    let mut replayed = replay(&[]);
     let report = replayed.pop().expect("a report line");
     assert!(exported.len() > 10, "only {} exported rows", exported.len());
     assert_eq!(replayed, exported, "the replay's estimates are the run's");
@@ -255,17 +260,7 @@ fn binary_replays_a_sim_recording_to_its_own_estimates() {
         "{report}"
     );
     let three = report["active_cameras_mean"].as_f64().unwrap();
-    let mut all_on = json_lines(&ocelli(&[
-        "replay",
-        rec_s,
-        "--seed",
-        "9",
-        "--recorded-level",
-        "measurement",
-        "--json",
-        "--activation",
-        "all-on",
-    ]));
+    let mut all_on = replay(&["--activation", "all-on"]);
     let all_on = all_on.pop().unwrap()["report"]["active_cameras_mean"]
         .as_f64()
         .unwrap();

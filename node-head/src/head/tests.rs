@@ -103,24 +103,8 @@ fn handover_starts_a_track_that_reports_its_global_id_and_leaves_again() {
 #[test]
 fn a_track_that_leaves_the_world_is_dropped() {
     let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
-    h.tick(ClusterTime::ZERO);
     let edge = s.world.max[0] + 0.9;
-    let mean = State::new(edge, 4.0, 0.25, 5.0, 0.0, 0.0);
-    h.on_message(
-        ClusterTime::ZERO,
-        env(
-            1,
-            Message::Handover(Handover {
-                global: TargetId(7),
-                to_head: NodeId(2),
-                from_head: None,
-                time: ClusterTime::ZERO,
-                mean: vec6_to_wire(&mean),
-                cov: mat6_to_wire(&(Matrix6::identity() * 0.01)),
-            }),
-        ),
-    );
+    let (_, mut h) = head_with_a_track(&s, State::new(edge, 4.0, 0.25, 5.0, 0.0, 0.0));
     assert_eq!(h.tracks().len(), 1);
     // The next step opens with it still there (kept) and predicts it 1.9 m out (5 m/s for
     // 0.2 s); the step after that drops it.
@@ -456,10 +440,14 @@ fn head_after_one_rssi_packet(time: ClusterTime, camera: bool) -> (usize, HeadNo
 /// Head 2 of `s` with one track handed over at t = 0: at (3, 4, 0.25) moving at 1 m/s along x,
 /// σ 0.1 in every component.
 fn head_with_a_moving_track(s: &Scenario) -> (HeadConfig, HeadNode) {
+    head_with_a_track(s, State::new(3.0, 4.0, 0.25, 1.0, 0.0, 0.0))
+}
+
+/// Head 2 of `s` with one track handed over at t = 0 at `mean`, σ 0.1 in every component.
+fn head_with_a_track(s: &Scenario, mean: State) -> (HeadConfig, HeadNode) {
     let cfg = HeadConfig::from_scenario(s, 2).unwrap();
     let mut h = HeadNode::new(cfg.clone());
     h.tick(ClusterTime::ZERO);
-    let mean = State::new(3.0, 4.0, 0.25, 1.0, 0.0, 0.0);
     h.on_message(
         ClusterTime::ZERO,
         env(
