@@ -14,6 +14,7 @@ pub mod detect;
 pub mod frame;
 pub mod logging;
 pub mod measure;
+pub mod previous;
 pub mod process;
 pub mod radio;
 pub mod region;
