@@ -9,8 +9,9 @@
 //! a running mean of (ν² − HΣ̄Hᵀ) / σ², the reading's error variance in units of the variance its
 //! model claims, and readings are weighed with the claimed variance times that ratio, never less
 //! than the claim. One ratio per kind, not per node: each trained line claims its own σ²_tm, and
-//! the ratio scales them all alike (a node's window of 20 pairs is too few to estimate its own). Algorithm 1's choice between a trained line and the default keeps the paper's
-//! variances; the activation planner weighs a node's RSSI as the filter will.
+//! the ratio scales them all alike (a node's window of 20 pairs is too few to estimate its own).
+//! Algorithm 1's choice between a trained line and the default keeps the paper's variances; the
+//! activation planner weighs a node's RSSI as the filter will.
 
 use proto::models::RssiModel;
 

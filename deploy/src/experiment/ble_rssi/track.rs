@@ -165,7 +165,8 @@ fn height_contribution(t: &Tracker, mean: &State) -> Option<(Matrix6<f64>, State
 
 /// Track one trajectory from RSSI only; each packet is fused at its own time within the step.
 /// One sample per step that received packets: the estimate at the time of the step's last
-/// packet against the truth then; the error is horizontal. Stops early (shorter output) if the filter fails numerically.
+/// packet against the truth then; the error is horizontal. Stops early (shorter output) if the
+/// filter fails numerically.
 pub fn track(sensors: &[Sensor], traj: &Trajectory, models: &Models, t: &Tracker) -> Vec<Sample> {
     let mut mean = State::zeros();
     mean[0] = t.start_xy[0];
