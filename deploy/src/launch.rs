@@ -163,7 +163,7 @@ impl Progress {
 /// Remove every iceoryx2 file of `domain` from `/dev/shm` (the domain is this launch's own,
 /// and every process of it has been reaped).
 fn remove_domain_files(domain: &str) -> usize {
-    let prefix = proto::transport::file_prefix(domain);
+    let prefix = runtime::transport::file_prefix(domain);
     let Ok(dir) = std::fs::read_dir("/dev/shm") else {
         return 0;
     };

@@ -5,7 +5,7 @@
 //! A sans-IO core plus its process: [`frame`] and [`source`] produce frames, [`seg000`] and
 //! [`seg004`] segment them ([`segment`] selects), [`measure`] undistorts, gates and linearizes,
 //! [`core`] is the node's state machine, [`render`] and [`radio`] are the synthetic world,
-//! [`process`] runs a camera as an OS process over a `proto::transport`, [`logging`] makes its
+//! [`process`] runs a camera as an OS process over a `runtime::transport`, [`logging`] makes its
 //! logging runs (every frame measured and sent to the server's recording).
 
 pub mod config;

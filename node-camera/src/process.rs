@@ -25,7 +25,7 @@ use nalgebra::Vector3;
 use proto::msg::Message;
 use proto::scenario::{Scenario, TransportKind};
 use proto::sync::SyncEstimator;
-use proto::transport::{
+use runtime::transport::{
     Clock, Delivery, Event, IpcConfig, StatsSnapshot, TcpConfig, TransportConfig, TransportError, open,
 };
 use proto::{ClusterTime, NodeId, Role, TargetId};

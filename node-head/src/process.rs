@@ -1,4 +1,4 @@
-//! The head process: [`HeadNode`] driven by tokio over a `proto::transport` link.
+//! The head process: [`HeadNode`] driven by tokio over a `runtime::transport` link.
 //!
 //! One loop `select!`s over three events: a tick every [`TICK_MS`] with the cluster time, a
 //! transport event (a message, a peer up or down), and shutdown. Everything the core returns
@@ -15,7 +15,7 @@ use proto::msg::{Message, Mode, NodeStatus};
 use proto::node::Outgoing;
 use proto::scenario::{NodeRole, Scenario, TransportKind};
 use proto::sync::SyncEstimator;
-use proto::transport::{Event, IpcConfig, TcpConfig, TransportConfig, TransportError, open};
+use runtime::transport::{Event, IpcConfig, TcpConfig, TransportConfig, TransportError, open};
 use proto::{ClusterTime, NodeId, Role};
 use std::net::SocketAddr;
 use std::sync::Arc;

@@ -13,7 +13,7 @@ use crate::core::{RestoreStats, ServerConfig, ServerNode};
 use crate::record::{Record, Stamped};
 use crate::recording::{Recorder, RecordingError};
 use proto::scenario::{Scenario, TransportKind};
-use proto::transport::{
+use runtime::transport::{
     Event, IpcConfig, TcpConfig, TransportConfig, TransportError, open as open_transport,
 };
 use proto::{ClusterTime, Envelope, NodeId, Role};

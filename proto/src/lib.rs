@@ -1,7 +1,7 @@
 //! `proto` is the contract every Ocelli node shares.
 //!
 //! What two nodes must agree on lives here and nowhere else: the messages and their wire
-//! encoding ([`msg`], [`wire`]), the transports ([`transport`]), units and frames ([`ids`],
+//! encoding ([`msg`], [`wire`]), units and frames ([`ids`],
 //! [`time`]), the camera model ([`camera`], [`opencv`]), the state layout, motion and
 //! measurement models ([`models`]) and the scenario file ([`scenario`]).
 //!
@@ -17,7 +17,6 @@ pub mod opencv;
 pub mod scenario;
 pub mod sync;
 pub mod time;
-pub mod transport;
 pub mod validate;
 pub mod wire;
 

@@ -8,7 +8,7 @@
 use anyhow::{Context, Result, anyhow};
 use proto::msg::*;
 use proto::node::Outgoing;
-use proto::transport::{Event, IpcConfig, TcpConfig, TransportConfig, open};
+use runtime::transport::{Event, IpcConfig, TcpConfig, TransportConfig, open};
 use proto::{ClusterTime, Envelope, NodeId, Role, TargetId, decode, encode};
 use serde_json::{Value, json};
 use std::process::ExitCode;
@@ -231,7 +231,7 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
             }
             tokio::time::sleep(Duration::from_millis(100)).await;
             let dropped_of =
-                |s: proto::transport::StatsSnapshot| s.dropped_queue_full + s.dropped_undelivered;
+                |s: runtime::transport::StatsSnapshot| s.dropped_queue_full + s.dropped_undelivered;
             let dropped_before = dropped_of(stats.snapshot());
             #[allow(clippy::disallowed_methods)] // a benchmark runtime owns its clock
             let start = Instant::now();

@@ -79,7 +79,7 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
     let kind = transport_or_scenario(args.transport, &scenario);
     let source = parse_source(&args.source)?;
     #[allow(clippy::disallowed_methods)] // the process runtime owns the clock
-    let clock: proto::transport::Clock = Arc::new(ClusterTime::wall_clock);
+    let clock: runtime::transport::Clock = Arc::new(ClusterTime::wall_clock);
     let transport = transport_config(&scenario, args.id, kind, clock.clone())?;
     let cfg = ProcessConfig {
         scenario,

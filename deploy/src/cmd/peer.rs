@@ -10,7 +10,7 @@
 use anyhow::{Context, Result, bail};
 use proto::msg::{Message, SyncBeacon};
 use proto::node::Outgoing;
-use proto::transport::{
+use runtime::transport::{
     Event, IpcConfig, IpcLimits, StatsSnapshot, TcpConfig, TransportConfig, TransportStats, open,
 };
 use proto::{ClusterTime, MAX_FRAME_BYTES, NodeId, Role};

@@ -6,7 +6,7 @@ use node_camera::process::{ProcessConfig, SourceSpec, run};
 use proto::msg::{Message, Prior};
 use proto::node::Outgoing;
 use proto::scenario::Scenario;
-use proto::transport::{Clock, Event, InProcessHub, TransportConfig, open};
+use runtime::transport::{Clock, Event, InProcessHub, TransportConfig, open};
 use proto::{ClusterTime, NodeId, Role, TargetId, models};
 use std::sync::Arc;
 use std::time::Duration;
@@ -51,7 +51,7 @@ async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
     let clock = wall_clock();
     let cfg = camera_10(&scenario, &hub, &clock, false);
     let stop = CancellationToken::new();
-    // The camera's future is driven on this task: `proto::transport::open`'s future holds a
+    // The camera's future is driven on this task: `runtime::transport::open`'s future holds a
     // `&ShutdownHandle` (not `Sync`) across an await, so `run` cannot be `tokio::spawn`ed.
     // The driver plays the absent, then present,
     // head alongside it.

@@ -8,7 +8,7 @@ use node_head::process::{Clock, run_on};
 use proto::models::{State, camera_contribution, mat6_to_wire, vec6_to_wire};
 use proto::msg::{Contribution, Handover, Message, Mode, TrackReport};
 use proto::node::Outgoing;
-use proto::transport::{Event, InProcessHub, Inbox, TransportConfig, open};
+use runtime::transport::{Event, InProcessHub, Inbox, TransportConfig, open};
 use proto::{NodeId, Role, TargetId};
 use std::sync::Arc;
 use std::time::Duration;
@@ -215,7 +215,7 @@ async fn head_process_syncs_to_the_beacons_and_reports_its_sync_error() {
     // its error is over exactly those three, the first of which found the clock 200 ms off.
     // Then beacons every 100 ms until a status that follows at least ten more, enough to push
     // the first out of the 8-beacon window however the scheduler paces the loop.
-    let beacon = async |server: &proto::transport::Endpoint| {
+    let beacon = async |server: &runtime::transport::Endpoint| {
         let beacon = proto::msg::SyncBeacon {
             leader: NodeId(1),
             round: 0,

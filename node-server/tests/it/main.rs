@@ -7,7 +7,7 @@ use node_server::{Decision, Record};
 use proto::msg::{Handover, Message, TrackReport};
 use proto::node::Outgoing;
 use proto::scenario::Scenario;
-use proto::transport::{Event, InProcessHub, Inbox, TransportConfig, open};
+use runtime::transport::{Event, InProcessHub, Inbox, TransportConfig, open};
 use proto::{ClusterTime, NodeId, Role, TargetId};
 use std::path::PathBuf;
 use std::time::Duration;
@@ -110,7 +110,7 @@ async fn wait_for_peer(inbox: &mut Inbox, peer: NodeId) {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_server_records_stops_and_resumes_where_it_was() {
-    // `proto::transport::open` is not `Send` (the TCP path holds a `&ShutdownHandle` across an
+    // `runtime::transport::open` is not `Send` (the TCP path holds a `&ShutdownHandle` across an
     // await), so the server runs on a local task set, as `ocelli server` runs it in `block_on`.
     tokio::task::LocalSet::new()
         .run_until(records_stops_and_resumes())

@@ -3,9 +3,9 @@
 
 use super::super::{Delivery, Event, Inbox, TcpConfig, TransportConfig, open};
 use super::*;
-use crate::msg::{Command, Mode, SyncBeacon};
-use crate::node::Outgoing;
-use crate::time::ClusterTime;
+use proto::msg::{Command, Mode, SyncBeacon};
+use proto::node::Outgoing;
+use proto::time::ClusterTime;
 use futures_util::FutureExt;
 
 const WAIT: Duration = Duration::from_secs(10);

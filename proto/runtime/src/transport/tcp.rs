@@ -16,10 +16,10 @@ use super::stats::{TransportStats, bump};
 use super::{
     Backoff, Clock, Delivery, Event, OutFrame, SendError, Seqs, ShutdownHandle, TransportError, zero_clock,
 };
-use crate::ids::{NodeId, Role};
-use crate::msg::{Envelope, Hello, HelloAck, Message};
-use crate::wire::{WireError, decode, encode};
-use crate::{MAX_FRAME_BYTES, PROTOCOL_VERSION};
+use proto::ids::{NodeId, Role};
+use proto::msg::{Envelope, Hello, HelloAck, Message};
+use proto::wire::{WireError, decode, encode};
+use proto::{MAX_FRAME_BYTES, PROTOCOL_VERSION};
 use bytes::Bytes;
 use futures_util::{SinkExt, StreamExt};
 use std::collections::{BTreeMap, HashMap};

@@ -9,12 +9,12 @@
 //!
 //! [`open`] returns the same four things for each: an [`Endpoint`] to send with, an [`Inbox`]
 //! that yields [`Event`]s, the shared [`TransportStats`] and a [`ShutdownHandle`]. Every frame
-//! is one `Envelope` encoded by [`crate::wire::encode`]; the endpoint stamps source, per-link
+//! is one `Envelope` encoded by [`proto::wire::encode`]; the endpoint stamps source, per-link
 //! sequence number and the caller's cluster time. Receivers decode with
-//! [`crate::wire::decode`]; a rejected frame is logged (`tracing::warn!`), counted, and the
+//! [`proto::wire::decode`]; a rejected frame is logged (`tracing::warn!`), counted, and the
 //! receiver carries on.
 //!
-//! Queues are bounded. When one is full a [`crate::Message::droppable`] message is dropped and
+//! Queues are bounded. When one is full a [`proto::Message::droppable`] message is dropped and
 //! counted; any other message (commands, priors, handovers, …) waits for room.
 
 pub mod backoff;
@@ -25,11 +25,11 @@ mod ipc;
 pub mod stats;
 mod tcp;
 
-use crate::ids::{NodeId, Role};
-use crate::msg::{Envelope, Message};
-use crate::node::Outgoing;
-use crate::time::ClusterTime;
-use crate::wire::{WireError, encode};
+use proto::ids::{NodeId, Role};
+use proto::msg::{Envelope, Message};
+use proto::node::Outgoing;
+use proto::time::ClusterTime;
+use proto::wire::{WireError, encode};
 use bytes::Bytes;
 use std::collections::{BTreeMap, HashMap};
 use std::net::SocketAddr;

@@ -18,8 +18,8 @@
 use super::common::{accept, push_blocking};
 use super::stats::{TransportStats, bump};
 use super::{Delivery, Event, Incoming, OutFrame, SendError, ShutdownHandle, TransportError};
-use crate::MAX_FRAME_BYTES;
-use crate::ids::{NodeId, Role};
+use proto::MAX_FRAME_BYTES;
+use proto::ids::{NodeId, Role};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -533,9 +533,9 @@ mod tests {
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn delivers_in_order_rejects_garbage_and_cleans_up() {
         use super::super::{Event, TransportConfig, open};
-        use crate::msg::{Message, SyncBeacon};
-        use crate::node::Outgoing;
-        use crate::time::ClusterTime;
+        use proto::msg::{Message, SyncBeacon};
+        use proto::node::Outgoing;
+        use proto::time::ClusterTime;
         let domain = format!("unit-{}", std::process::id());
         let cfg = |me| TransportConfig::Ipc(IpcConfig::new(domain.clone(), NodeId(me), Role::Tool, 2));
         let (_a, mut ia, sa, ha) = open(cfg(1)).await.unwrap();

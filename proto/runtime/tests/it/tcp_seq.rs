@@ -4,7 +4,7 @@
 
 use proto::msg::{Message, SyncBeacon};
 use proto::node::Outgoing;
-use proto::transport::{Event, Inbox, TcpConfig, TransportConfig, open};
+use runtime::transport::{Event, Inbox, TcpConfig, TransportConfig, open};
 use proto::{ClusterTime, Envelope, NodeId, Role};
 use std::time::Duration;
 

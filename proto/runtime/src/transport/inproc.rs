@@ -5,7 +5,7 @@
 use super::common::{accept, deliver};
 use super::stats::{TransportStats, bump};
 use super::{Delivery, Event, OutFrame, SendError, TransportError};
-use crate::ids::NodeId;
+use proto::ids::NodeId;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use tokio::sync::mpsc;
@@ -100,10 +100,10 @@ impl InProcessHub {
 pub(crate) mod tests {
     use super::super::{Delivery, Event, TransportConfig, open};
     use super::*;
-    use crate::msg::{Command, Measurement, Message, Mode};
-    use crate::node::Outgoing;
-    use crate::time::ClusterTime;
-    use crate::{MAX_FRAME_BYTES, Role};
+    use proto::msg::{Command, Measurement, Message, Mode};
+    use proto::node::Outgoing;
+    use proto::time::ClusterTime;
+    use proto::{MAX_FRAME_BYTES, Role};
 
     fn cfg(hub: &InProcessHub, me: u32, queue_len: usize) -> TransportConfig {
         TransportConfig::InProcess {
@@ -128,19 +128,19 @@ pub(crate) mod tests {
             point: [0.1, -0.2],
             prev_point: None,
             cov: [1e-4, 0.0, 1e-4],
-            pixel_box: crate::msg::PixelBox {
+            pixel_box: proto::msg::PixelBox {
                 xmin: 1.0,
                 ymin: 2.0,
                 xmax: 3.0,
                 ymax: 4.0,
             },
             area: 12,
-            colour: crate::msg::ColourSignature {
+            colour: proto::msg::ColourSignature {
                 hue: 0.5,
                 saturation: 0.5,
                 intensity: 0.5,
             },
-            pose: crate::msg::PoseWire {
+            pose: proto::msg::PoseWire {
                 rvec: [0.0; 3],
                 tvec: [0.0; 3],
             },

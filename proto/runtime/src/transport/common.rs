@@ -3,9 +3,9 @@
 
 use super::stats::{TransportStats, bump};
 use super::{Delivery, Event, SendError};
-use crate::ids::NodeId;
-use crate::msg::Envelope;
-use crate::wire::{WireError, decode};
+use proto::ids::NodeId;
+use proto::msg::Envelope;
+use proto::wire::{WireError, decode};
 use tokio::sync::mpsc::{self, error::TrySendError};
 
 /// Queue `item`: a droppable item meeting a full queue is dropped and counted in `dropped`;
