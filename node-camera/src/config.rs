@@ -1,11 +1,11 @@
 //! What one camera node needs to know, built from the scenario and its node id.
 
-use crate::detect::ReferencePoint;
 use crate::segment::SegmentParams;
 use proto::NodeId;
 use proto::camera::CameraModel;
 use proto::msg::Mode;
 use proto::scenario::{Fusion, NodeRole, Scenario, ScenarioError};
+use proto::sensor::ReferencePoint;
 use thiserror::Error;
 
 /// A camera configuration that could not be built.

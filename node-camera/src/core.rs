@@ -10,14 +10,14 @@
 //! Inactive) follow the head's `Command`s; time in each is reported in `NodeStatus`.
 
 use crate::config::CameraConfig;
-use crate::detect::Detection;
-use crate::frame::Frame;
 use crate::measure::{self, Measured};
 use crate::previous::{Offer, previous_point};
 use crate::segment::Segmenter;
 use proto::msg::{Message, Mode, NodeStatus, Prior, RssiReading};
 use proto::node::Outgoing;
 use proto::scenario::Fusion;
+use proto::sensor::Detection;
+use proto::sensor::Frame;
 use proto::validate::Validate;
 use proto::{ClusterTime, Envelope, TargetId};
 use std::collections::BTreeMap;

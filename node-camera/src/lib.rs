@@ -11,7 +11,6 @@
 pub mod config;
 pub mod core;
 pub mod detect;
-pub mod frame;
 pub mod logging;
 pub mod measure;
 pub mod previous;

@@ -7,12 +7,12 @@
 
 use crate::config::CameraConfig;
 use crate::core::CameraNode;
-use crate::detect::Detection;
-use crate::frame::{Frame, FrameError};
 use crate::measure::{self, Measured};
 use crate::segment::Segmenter;
 use proto::msg::{MeasuredDetection, MeasuredFrame, Message};
 use proto::node::Outgoing;
+use proto::sensor::Detection;
+use proto::sensor::{Frame, FrameError};
 use proto::{ClusterTime, MAX_MEASURED_DETECTIONS};
 
 /// What the logger did.

@@ -3,11 +3,11 @@
 //! a [`Measurement`] (centralized, paper 000) or a [`Contribution`] Ω_i, ξ_i linearized at the
 //! broadcast μ̄ (distributed, paper 002 §III). All models come from `proto`.
 
-use crate::detect::{Detection, ReferencePoint};
 use nalgebra::{Matrix2, Vector2};
 use proto::camera::{CameraModel, UndistortError};
 use proto::models::{self, State};
 use proto::msg::{Contribution, Measurement, Mode, Prior, RssiReading};
+use proto::sensor::{Detection, ReferencePoint};
 use proto::{ClusterTime, TargetId};
 
 /// A detection with its undistorted normalized point and covariance.

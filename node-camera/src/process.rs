@@ -15,20 +15,21 @@
 
 use crate::config::{CameraConfig, ConfigError};
 use crate::core::{CameraNode, Counters};
-use crate::detect::ReferencePoint;
-use crate::frame::Frame;
 use crate::logging::{FrameLogger, LogCounters};
 use crate::radio::{self, MultipathField};
 use crate::render::SyntheticSource;
-use crate::source::{FrameSource, ImageSequence, SourceError};
+use crate::source::ImageSequence;
 use nalgebra::Vector3;
 use proto::msg::Message;
 use proto::scenario::{Scenario, TransportKind};
+use proto::sensor::Frame;
+use proto::sensor::ReferencePoint;
+use proto::sensor::{FrameSource, SourceError};
 use proto::sync::SyncEstimator;
+use proto::{ClusterTime, NodeId, Role, TargetId};
 use runtime::transport::{
     Clock, Delivery, Event, IpcConfig, StatsSnapshot, TcpConfig, TransportConfig, TransportError, open,
 };
-use proto::{ClusterTime, NodeId, Role, TargetId};
 use std::net::ToSocketAddrs;
 use std::path::PathBuf;
 use std::sync::Arc;

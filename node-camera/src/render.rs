@@ -10,11 +10,11 @@
 //! hidden where a wall is nearer. Then a slow global illumination change and seeded sensor
 //! noise. The output is a pure function of (scenario, camera, t, seed).
 
-use crate::frame::Frame;
 use nalgebra::{Vector2, Vector3};
 use proto::ClusterTime;
 use proto::camera::CameraModel;
 use proto::scenario::{Scenario, TargetSpec, World};
+use proto::sensor::Frame;
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -342,7 +342,7 @@ fn apply_gain_and_noise(data: &mut [u8], gain: i32, mut state: u64) {
     }
 }
 
-/// The synthetic world as a [`crate::source::FrameSource`]: scene time is `now − epoch`.
+/// The synthetic world as a [`proto::sensor::FrameSource`]: scene time is `now − epoch`.
 #[derive(Debug, Clone)]
 pub struct SyntheticSource {
     renderer: Renderer,
@@ -369,12 +369,12 @@ impl SyntheticSource {
     }
 }
 
-impl crate::source::FrameSource for SyntheticSource {
+impl proto::sensor::FrameSource for SyntheticSource {
     fn size(&self) -> (u32, u32) {
         self.renderer.size()
     }
 
-    fn capture(&mut self, now: ClusterTime, frame: &mut Frame) -> Result<bool, crate::source::SourceError> {
+    fn capture(&mut self, now: ClusterTime, frame: &mut Frame) -> Result<bool, proto::sensor::SourceError> {
         self.renderer
             .render(&self.targets, now.secs_since(self.epoch), now, frame);
         Ok(true)

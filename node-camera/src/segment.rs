@@ -1,11 +1,11 @@
 //! One interface over both segmentation pipelines, selected by the scenario's
 //! `method.segmentation`, with the settings each pipeline is recommended to run at.
 
-use crate::detect::Detection;
-use crate::frame::{Frame, FrameError};
 use crate::seg000::{HsiClass, Paper000, Paper000Params};
 use crate::seg004::{Paper004, Paper004Params};
 use proto::scenario::{Scenario, Segmentation};
+use proto::sensor::Detection;
+use proto::sensor::{Frame, FrameError};
 
 /// Both pipelines' parameters; only the selected one is used.
 #[derive(Clone, Debug, PartialEq, Default)]

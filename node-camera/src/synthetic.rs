@@ -5,11 +5,11 @@
 //! A target is detected when its centre is in front of the camera, inside the image and not
 //! hidden by a wall (the segment from the camera to the centre crosses no wall below its top).
 
-use crate::detect::{Detection, rgb_to_hsi};
 use nalgebra::Vector3;
 use proto::camera::CameraModel;
 use proto::msg::PixelBox;
 use proto::scenario::{TargetSpec, World};
+use proto::sensor::{Detection, rgb_to_hsi};
 use rand::Rng;
 use rand_distr::{Distribution, Normal};
 

@@ -13,10 +13,10 @@ use crate::core::{RestoreStats, ServerConfig, ServerNode};
 use crate::record::{Record, Stamped};
 use crate::recording::{Recorder, RecordingError};
 use proto::scenario::{Scenario, TransportKind};
+use proto::{ClusterTime, Envelope, NodeId, Role};
 use runtime::transport::{
     Event, IpcConfig, TcpConfig, TransportConfig, TransportError, open as open_transport,
 };
-use proto::{ClusterTime, Envelope, NodeId, Role};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;

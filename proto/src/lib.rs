@@ -15,6 +15,7 @@ pub mod msg;
 pub mod node;
 pub mod opencv;
 pub mod scenario;
+pub mod sensor;
 pub mod sync;
 pub mod time;
 pub mod validate;

@@ -10,11 +10,11 @@
 use anyhow::{Context, Result};
 use node_camera::config::CameraConfig;
 use node_camera::core::CameraNode;
-use node_camera::frame::Frame;
 use node_camera::render::Renderer;
 use node_camera::segment::{SegmentParams, Segmenter, recommended_step};
 use proto::msg::{Message, Prior};
 use proto::scenario::{Fusion, Scenario, Segmentation, TargetSpec, Trajectory};
+use proto::sensor::Frame;
 use proto::{ClusterTime, Envelope, NodeId, TargetId, models};
 use serde_json::json;
 use std::process::ExitCode;

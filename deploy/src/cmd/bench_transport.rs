@@ -8,8 +8,8 @@
 use anyhow::{Context, Result, anyhow};
 use proto::msg::*;
 use proto::node::Outgoing;
-use runtime::transport::{Event, IpcConfig, TcpConfig, TransportConfig, open};
 use proto::{ClusterTime, Envelope, NodeId, Role, TargetId, decode, encode};
+use runtime::transport::{Event, IpcConfig, TcpConfig, TransportConfig, open};
 use serde_json::{Value, json};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};

@@ -7,9 +7,9 @@
 
 use super::common::{TransportArg, load_scenario, transport_or_scenario};
 use anyhow::{Context, Result, bail};
-use node_camera::detect::ReferencePoint;
 use node_camera::process::{ProcessConfig, SourceSpec, run, transport_config};
 use proto::ClusterTime;
+use proto::sensor::ReferencePoint;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;

@@ -2,9 +2,9 @@
 //! through the camera's wire form) back as the camera core takes it, bit for bit, and the per-camera queues a replay
 //! draws its frames from.
 
-use node_camera::detect::Detection;
 use node_camera::measure::Measured;
 use node_server::{MeasuredDetection, MeasuredFrame};
+use proto::sensor::Detection;
 use proto::{ClusterTime, NodeId};
 use std::collections::{BTreeMap, VecDeque};
 

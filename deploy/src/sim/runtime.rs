@@ -19,7 +19,6 @@ use super::net::{Fate, NetworkModel, SimNetwork, SkewedClock};
 use super::queue::EventQueue;
 use node_camera::config::CameraConfig;
 use node_camera::core::CameraNode;
-use node_camera::frame::Frame;
 use node_camera::logging::FrameLogger;
 use node_camera::measure::Measured;
 use node_camera::radio::{self, MultipathField};
@@ -29,6 +28,7 @@ use node_server::{MeasuredFrame, Record, ServerConfig, ServerNode, Stamped};
 use proto::msg::Message;
 use proto::node::Outgoing;
 use proto::scenario::{NodeRole, Scenario};
+use proto::sensor::Frame;
 use proto::sync::SyncEstimator;
 use proto::{ClusterTime, Envelope, NodeId, TargetId};
 use std::collections::{BTreeMap, BTreeSet};
@@ -188,7 +188,7 @@ enum Sensed {
     /// Pixel level: the frame rendered into the slot's `frame`.
     Frame,
     /// Measurement level: the truth projected plus `sigma_px` noise.
-    Detections(Vec<node_camera::detect::Detection>),
+    Detections(Vec<proto::sensor::Detection>),
 }
 
 /// Sense at `t_s`: render the camera's view into its frame, or at measurement level project

@@ -1,13 +1,13 @@
 //! The camera process over the in-process transport: it runs with its head away (counting
 //! what it cannot deliver), answers a head that appears, and stops cleanly when told.
 
-use node_camera::detect::ReferencePoint;
 use node_camera::process::{ProcessConfig, SourceSpec, run};
 use proto::msg::{Message, Prior};
 use proto::node::Outgoing;
 use proto::scenario::Scenario;
-use runtime::transport::{Clock, Event, InProcessHub, TransportConfig, open};
+use proto::sensor::ReferencePoint;
 use proto::{ClusterTime, NodeId, Role, TargetId, models};
+use runtime::transport::{Clock, Event, InProcessHub, TransportConfig, open};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio_util::sync::CancellationToken;

@@ -1,11 +1,11 @@
 //! The synthetic world end to end: rendered frames through both pipelines.
 
 use nalgebra::Vector3;
-use node_camera::frame::Frame;
 use node_camera::render::Renderer;
 use node_camera::segment::{SegmentParams, Segmenter};
 use proto::ClusterTime;
 use proto::scenario::{Scenario, Segmentation};
+use proto::sensor::Frame;
 use std::path::Path;
 
 /// Both pipelines find the target in every camera that sees it, near the distorted

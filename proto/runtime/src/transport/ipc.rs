@@ -18,13 +18,13 @@
 use super::common::{accept, push_blocking};
 use super::stats::{TransportStats, bump};
 use super::{Delivery, Event, Incoming, OutFrame, SendError, ShutdownHandle, TransportError};
-use proto::MAX_FRAME_BYTES;
-use proto::ids::{NodeId, Role};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
+use proto::MAX_FRAME_BYTES;
+use proto::ids::{NodeId, Role};
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};

@@ -25,12 +25,12 @@ mod ipc;
 pub mod stats;
 mod tcp;
 
+use bytes::Bytes;
 use proto::ids::{NodeId, Role};
 use proto::msg::{Envelope, Message};
 use proto::node::Outgoing;
 use proto::time::ClusterTime;
 use proto::wire::{WireError, encode};
-use bytes::Bytes;
 use std::collections::{BTreeMap, HashMap};
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};

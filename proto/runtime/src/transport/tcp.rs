@@ -16,12 +16,12 @@ use super::stats::{TransportStats, bump};
 use super::{
     Backoff, Clock, Delivery, Event, OutFrame, SendError, Seqs, ShutdownHandle, TransportError, zero_clock,
 };
+use bytes::Bytes;
+use futures_util::{SinkExt, StreamExt};
 use proto::ids::{NodeId, Role};
 use proto::msg::{Envelope, Hello, HelloAck, Message};
 use proto::wire::{WireError, decode, encode};
 use proto::{MAX_FRAME_BYTES, PROTOCOL_VERSION};
-use bytes::Bytes;
-use futures_util::{SinkExt, StreamExt};
 use std::collections::{BTreeMap, HashMap};
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};

@@ -3,10 +3,10 @@
 
 use super::super::{Delivery, Event, Inbox, TcpConfig, TransportConfig, open};
 use super::*;
+use futures_util::FutureExt;
 use proto::msg::{Command, Mode, SyncBeacon};
 use proto::node::Outgoing;
 use proto::time::ClusterTime;
-use futures_util::FutureExt;
 
 const WAIT: Duration = Duration::from_secs(10);
 

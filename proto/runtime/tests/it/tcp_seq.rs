@@ -4,8 +4,8 @@
 
 use proto::msg::{Message, SyncBeacon};
 use proto::node::Outgoing;
-use runtime::transport::{Event, Inbox, TcpConfig, TransportConfig, open};
 use proto::{ClusterTime, Envelope, NodeId, Role};
+use runtime::transport::{Event, Inbox, TcpConfig, TransportConfig, open};
 use std::time::Duration;
 
 const WAIT: Duration = Duration::from_secs(10);

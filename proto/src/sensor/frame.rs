@@ -1,7 +1,7 @@
 //! The frame every source produces and every segmenter reads: an RGB8 image with its capture
 //! time. Sources fill it; the core only reads it.
 
-use proto::ClusterTime;
+use crate::time::ClusterTime;
 use thiserror::Error;
 
 /// Largest frame side the camera node accepts, pixels (a 4K sensor fits).
