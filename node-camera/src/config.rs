@@ -44,6 +44,9 @@ pub struct CameraConfig {
     pub previous_point: bool,
     pub initial_mode: Mode,
     pub fps: f64,
+    /// A logging run: measure every frame whatever the mode and send its measurements to the
+    /// server's recording ([`crate::record_all`]).
+    pub record_all: bool,
 }
 
 impl CameraConfig {
@@ -79,6 +82,7 @@ impl CameraConfig {
             previous_point: m.previous_point,
             initial_mode: Mode::Active,
             fps,
+            record_all: false,
         })
     }
 }

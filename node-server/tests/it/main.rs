@@ -150,7 +150,7 @@ async fn records_stops_and_resumes() {
     stop.cancel();
     let first = server.await.unwrap().unwrap();
     assert!(first.restored.is_none());
-    assert!(first.received >= 2);
+    assert!(first.run.received >= 2);
 
     let back = read_all(&path).unwrap();
     assert!(back.tail.is_none());

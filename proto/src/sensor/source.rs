@@ -1,8 +1,10 @@
 //! Where a node's raw input comes from, behind one interface per kind: [`FrameSource`] for
-//! cameras (files, streams, devices, or the simulated world's renderer). A node's runtime owns
+//! cameras (files, streams, devices, or the simulated world's renderer) and [`RadioSource`] for
+//! the radio tags a node hears (BLE, recorded files, or the simulated radio). A node's runtime owns
 //! its sources and hands what they deliver to the core; the core never sees a source, and a
 //! real node is given real sources only.
 
+use crate::ids::TagId;
 use crate::sensor::Frame;
 use crate::time::ClusterTime;
 use std::path::PathBuf;
@@ -48,4 +50,24 @@ pub trait FrameSource {
     /// # Errors
     /// The source failed (device gone, unreadable file); `frame` is unspecified then.
     fn capture(&mut self, now: ClusterTime, frame: &mut Frame) -> Result<bool, SourceError>;
+}
+
+/// One packet from a radio tag: who sent it, how strong it arrived, and when.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TagReading {
+    pub tag: TagId,
+    /// Received power, dBm.
+    pub dbm: f64,
+    /// When the packet was received, cluster time.
+    pub time: ClusterTime,
+}
+
+/// Something that hears radio tags.
+pub trait RadioSource {
+    /// Append the readings received up to `now` (since the last call) to `out`. `Ok(false)`
+    /// when the source is exhausted (a recorded file that ended).
+    ///
+    /// # Errors
+    /// The source failed (adapter gone, unreadable file).
+    fn read(&mut self, now: ClusterTime, out: &mut Vec<TagReading>) -> Result<bool, SourceError>;
 }

@@ -100,7 +100,7 @@ impl InProcessHub {
 pub(crate) mod tests {
     use super::super::{Delivery, Event, TransportConfig, open};
     use super::*;
-    use proto::msg::{Command, Measurement, Message, Mode};
+    use proto::msg::{Command, Message, Mode};
     use proto::node::Outgoing;
     use proto::time::ClusterTime;
     use proto::{MAX_FRAME_BYTES, Role};
@@ -121,33 +121,9 @@ pub(crate) mod tests {
         })
     }
 
+    /// A droppable message: the wire contract's measurement fixture.
     pub(crate) fn measurement() -> Message {
-        Message::Measurement(Measurement {
-            target: None,
-            step: 1,
-            point: [0.1, -0.2],
-            prev_point: None,
-            cov: [1e-4, 0.0, 1e-4],
-            pixel_box: proto::msg::PixelBox {
-                xmin: 1.0,
-                ymin: 2.0,
-                xmax: 3.0,
-                ymax: 4.0,
-            },
-            area: 12,
-            colour: proto::msg::ColourSignature {
-                hue: 0.5,
-                saturation: 0.5,
-                intensity: 0.5,
-            },
-            pose: proto::msg::PoseWire {
-                rvec: [0.0; 3],
-                tvec: [0.0; 3],
-            },
-            captured: ClusterTime(5),
-            mode: Mode::Active,
-            rssi: None,
-        })
+        proto::examples::messages()[3].body.clone()
     }
 
     #[tokio::test]
