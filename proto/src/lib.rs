@@ -12,6 +12,7 @@
 pub mod camera;
 pub mod examples;
 pub mod ids;
+pub mod log_limit;
 pub mod models;
 pub mod msg;
 pub mod node;

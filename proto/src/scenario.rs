@@ -156,6 +156,10 @@ pub struct Network {
     pub sync_beacon_ms: u64,
     /// Outgoing queue length per link; droppable messages beyond it are dropped and counted.
     pub queue_len: usize,
+    /// TCP without TLS: anyone who reaches a node's port can pose as any node. For closed
+    /// test networks only; every node logs it loudly.
+    #[serde(default)]
+    pub insecure: bool,
 }
 
 impl Default for Network {
@@ -167,6 +171,7 @@ impl Default for Network {
             liveness_timeout_ms: 1000,
             sync_beacon_ms: 1000,
             queue_len: 256,
+            insecure: false,
         }
     }
 }

@@ -5,7 +5,7 @@
 //! agree without sync; the synthetic world's t = 0 is `--epoch-ns` (default: start of this
 //! process), which `launch` sets to the same value for every camera.
 
-use super::common::{TransportArg, load_scenario, run_node, transport_or_scenario};
+use super::common::{SecurityArgs, TransportArg, load_scenario, run_node, transport_or_scenario};
 use anyhow::{Result, bail};
 use node_camera::process::{OpenFrames, ProcessConfig, run};
 use node_camera::source::ImageSequence;
@@ -33,6 +33,8 @@ pub struct Args {
     /// Transport (default: the scenario's `network.transport`).
     #[arg(long, value_enum)]
     pub transport: Option<TransportArg>,
+    #[command(flatten)]
+    pub security: SecurityArgs,
     /// Frame source: `synthetic`, `images:DIR`, `images:DIR:MANIFEST` or `v4l2:DEVICE`.
     #[arg(long, default_value = "synthetic")]
     pub source: String,
@@ -136,7 +138,14 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
     let kind = transport_or_scenario(args.transport, &scenario);
     let source = parse_source(&args.source)?;
     let clock = HostClock::follower();
-    let transport = transport_config(&scenario, NodeId(args.id), kind, &clock, None)?;
+    let transport = transport_config(
+        &scenario,
+        NodeId(args.id),
+        kind,
+        &clock,
+        None,
+        &args.security.link_security(),
+    )?;
     let epoch = args.epoch_ns.map_or_else(|| clock.now(), ClusterTime);
     let (frames, radio) = sources(source, &scenario, args.id, args.seed, epoch)?;
     let leader = scenario.server().map(|s| NodeId(s.id));

@@ -2,7 +2,7 @@
 //! own process until SIGINT/SIGTERM (a second signal aborts). Prints a JSON summary of what
 //! it did on standard output when it stops.
 
-use super::common::{TransportArg, load_scenario, run_node, transport_or_scenario};
+use super::common::{SecurityArgs, TransportArg, load_scenario, run_node, transport_or_scenario};
 use anyhow::Result;
 use node_head::HeadConfig;
 use node_head::process::run as run_head;
@@ -25,6 +25,8 @@ pub struct Args {
     /// Transport (the scenario's `network.transport` when omitted).
     #[arg(long, value_enum)]
     pub transport: Option<TransportArg>,
+    #[command(flatten)]
+    pub security: SecurityArgs,
     /// TCP: listen here instead of the scenario's address (port 0 picks one).
     #[arg(long)]
     pub listen: Option<SocketAddr>,
@@ -35,7 +37,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let kind = transport_or_scenario(args.transport, &scenario);
     let head_cfg = HeadConfig::from_scenario(&scenario, args.id)?;
     let clock = HostClock::follower();
-    let transport = transport_config(&scenario, NodeId(args.id), kind, &clock, args.listen)?;
+    let transport = transport_config(
+        &scenario,
+        NodeId(args.id),
+        kind,
+        &clock,
+        args.listen,
+        &args.security.link_security(),
+    )?;
     let summary =
         run_node(|shutdown| async move { Ok(run_head(head_cfg, transport, clock, shutdown).await?) })?;
     let c = summary.counters;

@@ -6,8 +6,10 @@
 //! clock corrected by the leader's beacons, which the loop consumes and hands the core as
 //! [`Input::Sync`]); what the core returns is sent with a bounded wait
 //! ([`ProcessConfig::send_timeout`]), so a vanished peer never stalls the node, and what could
-//! not be delivered is counted and told to the core ([`Input::Undelivered`]). A role adds its
-//! own work after each step through [`Hooks`] (the server records; a camera switches capture).
+//! not be delivered is counted and told to the core ([`Input::Undelivered`]). An `Assignment`
+//! of this node to a head makes sure the transport has a link to that head (TCP dials it). A
+//! role adds its own work after each step through [`Hooks`] (the server records; a camera
+//! switches capture).
 
 use crate::clock::HostClock;
 use crate::transport::{Delivery, Event, StatsSnapshot, TransportConfig, TransportError, open};
@@ -141,6 +143,15 @@ where
                 }
                 Some(Event::Message(m)) => {
                     summary.received += 1;
+                    // Assigned to a head this node has no link to (TCP: it dials only the
+                    // scenario's head at start): reach it now, before its priors come.
+                    if let Message::Assignment(a) = &m.env.body
+                        && a.node == me
+                        && Some(m.from) == cfg.leader
+                        && !endpoint.ensure_link(a.head)
+                    {
+                        warn!(node = %me, head = %a.head, "assigned to a head this node cannot reach");
+                    }
                     match &m.env.body {
                         Message::SyncBeacon(b) if Some(m.from) == cfg.leader => {
                             match clock.observe(b.leader_time) {

@@ -87,6 +87,10 @@ pub struct IpcConfig {
     /// the clock. Shared memory has no connection whose loss tells a peer we are gone, so
     /// liveness on the same host rests on these (as it rests on TCP's own heartbeats).
     pub heartbeat: Option<(std::time::Duration, super::Clock)>,
+    /// A peer that sent nothing (not even a heartbeat) for this long is reported down
+    /// (`Event::PeerDown`), and up again with its next frame: link liveness as TCP reports it.
+    /// `None`: peers are reported up once and never down.
+    pub liveness_timeout: Option<Duration>,
 }
 
 impl std::fmt::Debug for IpcConfig {
@@ -112,6 +116,7 @@ impl IpcConfig {
             limits: IpcLimits::for_nodes(nodes, queue_len),
             queue_len,
             heartbeat: None,
+            liveness_timeout: None,
         }
     }
 }
@@ -392,7 +397,13 @@ fn receiver_thread(
         }
     };
     let mut known: HashSet<NodeId> = HashSet::new();
+    let mut last_heard: HashMap<NodeId, std::time::Instant> = HashMap::new();
     while !stop.load(Ordering::Acquire) {
+        if let Some(limit) = cfg.liveness_timeout
+            && !report_silent(&mut known, &mut last_heard, limit, &events, &stats)
+        {
+            return;
+        }
         if let Err(e) = listener.timed_wait(|_| {}, STOP_POLL) {
             tracing::warn!(error = ?e, "iceoryx2 listener wait failed");
             std::thread::sleep(STOP_POLL);
@@ -411,6 +422,9 @@ fn receiver_thread(
             };
             drop(sample);
             let from = env.source;
+            if cfg.liveness_timeout.is_some() {
+                last_heard.insert(from, now());
+            }
             if known.insert(from) {
                 bump(&stats.peers_up);
                 if events.blocking_send(Event::PeerUp(from)).is_err() {
@@ -427,6 +441,39 @@ fn receiver_thread(
     }
     drop((sub, listener));
     drop(node);
+}
+
+/// The receiver thread's clock (a runtime owns one).
+#[allow(clippy::disallowed_methods)]
+fn now() -> std::time::Instant {
+    std::time::Instant::now()
+}
+
+/// Report peers silent for `limit` down and forget them (their next frame reports them up).
+/// False when the inbox is gone.
+fn report_silent(
+    known: &mut HashSet<NodeId>,
+    last_heard: &mut HashMap<NodeId, std::time::Instant>,
+    limit: Duration,
+    events: &mpsc::Sender<Event>,
+    stats: &TransportStats,
+) -> bool {
+    let t = now();
+    let silent: Vec<NodeId> = last_heard
+        .iter()
+        .filter(|(_, at)| t.saturating_duration_since(**at) > limit)
+        .map(|(n, _)| *n)
+        .collect();
+    for peer in silent {
+        last_heard.remove(&peer);
+        known.remove(&peer);
+        bump(&stats.peers_lost);
+        tracing::warn!(%peer, silent_ms = limit.as_millis() as u64, "peer silent; link down");
+        if events.blocking_send(Event::PeerDown(peer)).is_err() {
+            return false;
+        }
+    }
+    true
 }
 
 struct Outlet {
