@@ -6,7 +6,9 @@
 //! (`node_server::tail::Tailer`: only the newly appended records, an incomplete last record
 //! waited on), and stops in order on Ctrl-C or
 //! after the duration. Whatever happened to the children, it reaps them all and removes the
-//! domain's iceoryx2 files from `/dev/shm`.
+//! domain's iceoryx2 files from `/dev/shm`. Over TCP the nodes speak mutual TLS with a CA and
+//! certificates made for the run (`run-dir/tls`), or plain TCP if the scenario (or
+//! `--insecure`) says `insecure`.
 
 use crate::supervisor::Supervisor;
 use anyhow::{Context, Result};
@@ -59,6 +61,8 @@ struct Spawn<'a> {
     scenario_path: &'a Path,
     epoch: ClusterTime,
     opts: &'a LaunchOptions,
+    /// The run's certificates (TCP with TLS).
+    tls_dir: Option<PathBuf>,
 }
 
 fn spawn_node(sup: &mut Supervisor, how: &Spawn<'_>, role: &str, id: u32) -> Result<()> {
@@ -73,6 +77,9 @@ fn spawn_node(sup: &mut Supervisor, how: &Spawn<'_>, role: &str, id: u32) -> Res
         TransportKind::Ipc => "ipc",
         TransportKind::Tcp => "tcp",
     });
+    if let Some(dir) = &how.tls_dir {
+        cmd.arg("--tls-dir").arg(dir);
+    }
     match role {
         "server" => {
             cmd.arg("--record").arg(&opts.record);
@@ -193,6 +200,13 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
     }
     let scenario_path = opts.run_dir.join("scenario.toml");
     std::fs::write(&scenario_path, scenario.to_toml())?;
+    // Over TCP every link is mutual TLS with certificates made for this run (a CA of its own,
+    // one certificate per node), unless the scenario says insecure.
+    let tls_dir = (opts.transport == TransportKind::Tcp && !scenario.network.insecure)
+        .then(|| opts.run_dir.join("tls"));
+    if let Some(dir) = &tls_dir {
+        crate::deploy::certs::issue_all_in(&scenario, dir).context("making the run's certificates")?;
+    }
     let exe = std::env::current_exe().context("locating the ocelli binary")?;
     let mut sup = Supervisor::new(Duration::from_secs(5));
     // Cluster time is the wall clock; one epoch for every camera's synthetic world.
@@ -203,6 +217,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
         scenario_path: &scenario_path,
         epoch,
         opts,
+        tls_dir,
     };
     let by_role = |r: NodeRole| scenario.nodes.iter().filter(move |n| n.role == r).map(|n| n.id);
     for (role, name) in [

@@ -98,6 +98,9 @@ pub struct CameraNode {
     /// not synchronized yet).
     sync: (i64, i64),
     counters: Counters,
+    /// Which rejections are logged (all are counted), and the time of the input being handled.
+    log: proto::log_limit::LogLimiter,
+    now: ClusterTime,
 }
 
 impl CameraNode {
@@ -120,6 +123,8 @@ impl CameraNode {
             last_status: None,
             sync: (0, -1),
             counters: Counters::default(),
+            log: proto::log_limit::LogLimiter::default(),
+            now,
         }
     }
 
@@ -183,7 +188,9 @@ impl CameraNode {
 
     fn reject(&mut self, what: &'static str, problem: String) {
         self.counters.rejected += 1;
-        warn!(node = %self.cfg.id, what, %problem, "rejected input");
+        if let Some(more) = self.log.admit(self.now.0, what) {
+            warn!(node = %self.cfg.id, what, %problem, more, "rejected input");
+        }
     }
 
     pub(crate) fn server(&self) -> Option<NodeId> {
@@ -545,6 +552,7 @@ impl Node for CameraNode {
     }
 
     fn handle(&mut self, now: ClusterTime, input: Input<CameraInput>) -> Vec<Outgoing> {
+        self.now = now;
         match input {
             Input::Message(env) => self.on_message(now, env),
             Input::Tick => self.tick(now),

@@ -58,6 +58,8 @@ pub struct HeadNode {
     planner: Planner,
     expected: Vec<bool>,
     counters: Counters,
+    /// Which rejections are logged (all are counted).
+    log: proto::log_limit::LogLimiter,
     last: StepStats,
     history: Vec<StepStats>,
     keep_history: bool,
@@ -104,6 +106,7 @@ impl HeadNode {
             planner,
             expected: Vec::new(),
             counters: Counters::default(),
+            log: proto::log_limit::LogLimiter::default(),
             last: StepStats::default(),
             history: Vec::new(),
             keep_history: false,
@@ -212,15 +215,15 @@ impl HeadNode {
         match env.body {
             Message::Contribution(c) => match member {
                 Some(slot) => self.on_contribution(now, slot, c, &mut out),
-                None => self.reject(src, "contribution"),
+                None => self.reject(now, src, "contribution"),
             },
             Message::Measurement(m) => match member {
                 Some(slot) => self.on_measurement(now, slot, m),
-                None => self.reject(src, "measurement"),
+                None => self.reject(now, src, "measurement"),
             },
             Message::NodeStatus(s) => match member {
                 Some(slot) => self.nodes[slot].mode = s.mode,
-                None => self.reject(src, "node_status"),
+                None => self.reject(now, src, "node_status"),
             },
             Message::Handover(h) if from_server => self.on_handover(now, h),
             Message::Liveness(l) if from_server => out = self.node_liveness(now, l.node, l.up),
@@ -237,7 +240,7 @@ impl HeadNode {
                 }
             }
             Message::Handover(_) | Message::Liveness(_) | Message::Assignment(_) => {
-                self.reject(src, env.body.kind());
+                self.reject(now, src, env.body.kind());
             }
             _ => {}
         }
@@ -263,9 +266,11 @@ impl HeadNode {
         out
     }
 
-    fn reject(&mut self, src: NodeId, kind: &'static str) {
+    fn reject(&mut self, now: ClusterTime, src: NodeId, kind: &'static str) {
         self.counters.rejected += 1;
-        warn!(node = %src, kind, "message from a node not allowed to send it; ignored");
+        if let Some(more) = self.log.admit(now.0, "not allowed") {
+            warn!(node = %src, kind, more, "message from a node not allowed to send it; ignored");
+        }
     }
 
     fn on_contribution(&mut self, now: ClusterTime, slot: usize, c: Contribution, out: &mut Vec<Outgoing>) {
@@ -276,7 +281,9 @@ impl HeadNode {
             .any(|x| !x.is_finite())
         {
             self.counters.rejected += 1;
-            warn!(node = %self.nodes[slot].info.id, "contribution with non-finite numbers; ignored");
+            if let Some(more) = self.log.admit(now.0, "non-finite contribution") {
+                warn!(node = %self.nodes[slot].info.id, more, "contribution with non-finite numbers; ignored");
+            }
             return;
         }
         let Some(t) = self.tracks.iter().position(|tr| tr.local == c.target) else {
@@ -334,7 +341,9 @@ impl HeadNode {
             }
             Offer::Future => {
                 self.counters.future += 1;
-                warn!(node = %self.nodes[slot].info.id, step = c.step, current = self.step, "contribution for a future step");
+                if let Some(more) = self.log.admit(now.0, "future contribution") {
+                    warn!(node = %self.nodes[slot].info.id, step = c.step, current = self.step, more, "contribution for a future step");
+                }
             }
         }
         if self.window.complete() {
@@ -352,12 +361,15 @@ impl HeadNode {
             return true;
         }
         self.counters.stale_measurements += 1;
-        warn!(
-            node = %self.nodes[slot].info.id,
-            what,
-            off_ms = off_ns / 1_000_000,
-            "stamped too far from now (clock off?); ignored"
-        );
+        if let Some(more) = self.log.admit(now.0, "stale capture") {
+            warn!(
+                node = %self.nodes[slot].info.id,
+                what,
+                off_ms = off_ns / 1_000_000,
+                more,
+                "stamped too far from now (clock off?); ignored"
+            );
+        }
         false
     }
 

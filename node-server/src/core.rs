@@ -23,6 +23,7 @@ use crate::decision::Decision;
 use crate::membership::Membership;
 use crate::record::{MeasuredFrame, Record, Stamped};
 use crate::tracks::{GlobalTrack, TrackParams, Tracks};
+use proto::log_limit::LogLimiter;
 use proto::msg::{Assignment, Handover, HelloAck, Liveness, Message, NodeStatus, SyncBeacon};
 use proto::node::{Input, Node, Outgoing};
 use proto::scenario::Scenario;
@@ -65,6 +66,9 @@ impl ServerConfig {
 pub struct Counters {
     pub received: u64,
     pub rejected: u64,
+    /// Messages from ids that are neither members nor declared (also in `rejected`); they
+    /// reach neither the state nor the recording.
+    pub non_members: u64,
     pub handovers: u64,
     pub beacons: u64,
     /// Messages its runtime could not deliver.
@@ -83,6 +87,8 @@ pub struct ServerNode {
     status: BTreeMap<NodeId, NodeStatus>,
     journal: Vec<Stamped>,
     counters: Counters,
+    /// Which rejections are logged (all are counted).
+    log: LogLimiter,
 }
 
 /// What restoring from a recording found.
@@ -112,6 +118,7 @@ impl ServerNode {
             status: BTreeMap::new(),
             journal: Vec::new(),
             counters: Counters::default(),
+            log: LogLimiter::default(),
         }
     }
 
@@ -164,7 +171,9 @@ impl ServerNode {
 
     fn reject(&mut self, now: ClusterTime, source: Option<NodeId>, what: &str, reason: String) {
         self.counters.rejected += 1;
-        tracing::warn!(source = ?source, what, %reason, "message rejected");
+        if let Some(more) = self.log.admit(now.0, "message rejected") {
+            tracing::warn!(source = ?source, what, %reason, more, "message rejected");
+        }
         self.decide(
             now,
             Decision::Rejected {
@@ -184,21 +193,34 @@ impl ServerNode {
     /// The transport saw a link to `node` come up or go down. A closed link marks the node
     /// down at once (no need to wait for the liveness timeout); an opened one admits a declared
     /// node like any first message.
+    ///
+    /// While its link is up a member is up: liveness rests on the transport's heartbeats, not
+    /// on what the node sends (a camera's status comes about once a second, no faster than
+    /// the liveness timeout). A link event for a node that is neither a member nor declared
+    /// changes nothing and is not recorded.
     pub fn on_link(&mut self, now: ClusterTime, node: NodeId, up: bool) -> Vec<Outgoing> {
+        let declared = self.members.declared_role(node).filter(|r| *r != Role::Server);
+        if self.members.member(node).is_none() && declared.is_none() {
+            return Vec::new();
+        }
         self.journal(now, Record::Link { node, up });
         let mut out = Vec::new();
         if up {
-            let d = match (self.members.member(node), self.members.declared_role(node)) {
+            let d = match (self.members.member(node), declared) {
                 (Some(_), _) => self.members.seen(now, node),
-                (None, Some(r)) if r != Role::Server => self.members.admit(now, node, r),
-                _ => None,
+                (None, Some(r)) => self.members.admit(now, node, r),
+                (None, None) => None,
             };
+            self.members.set_linked(node, true);
             if let Some(d) = d {
                 self.decide(now, d, &mut out);
             }
-        } else if let Some(d) = self.members.mark_down(now, node) {
-            self.decide(now, d, &mut out);
-            // Its tracks move on the next tick (failover), like any other dead head's.
+        } else {
+            self.members.set_linked(node, false);
+            if let Some(d) = self.members.mark_down(now, node) {
+                self.decide(now, d, &mut out);
+                // Its tracks move on the next tick (failover), like any other dead head's.
+            }
         }
         out
     }
@@ -215,11 +237,39 @@ impl ServerNode {
             self.journal(now, Record::Measured(MeasuredFrame::from_wire(env.source, m)));
             return Vec::new();
         }
+        let src = env.source;
+        let kind = env.body.kind();
+        let tool_hello = matches!(&env.body, Message::Hello(h) if h.role == Role::Tool);
+        let declared = self.members.declared_role(src).is_some_and(|r| r != Role::Server);
+        if self.members.member(src).is_none() && !declared && !tool_hello {
+            // Not a member and not one the scenario declares: counted, logged rate-limited,
+            // answered if it says hello — and kept out of the state and the recording, so a
+            // stranger cannot fill either.
+            self.counters.received += 1;
+            self.counters.rejected += 1;
+            self.counters.non_members += 1;
+            if let Some(more) = self.log.admit(now.0, "non-member") {
+                tracing::warn!(node = %src, kind, more, "message from a node that is not a member; ignored, not recorded");
+            }
+            return match &env.body {
+                Message::Hello(h) => {
+                    let reason = self
+                        .hello_refusal(src, h)
+                        .unwrap_or_else(|| format!("{src} is not in the scenario"));
+                    vec![Outgoing::new(
+                        src,
+                        Message::HelloAck(HelloAck {
+                            accepted: false,
+                            reason,
+                        }),
+                    )]
+                }
+                _ => Vec::new(),
+            };
+        }
         self.journal(now, Record::Received(env.clone()));
         self.counters.received += 1;
         let mut out = Vec::new();
-        let src = env.source;
-        let kind = env.body.kind();
         if let Message::Hello(h) = &env.body {
             self.hello(now, src, h, &mut out);
             return out;
@@ -289,8 +339,9 @@ impl ServerNode {
         out
     }
 
-    fn hello(&mut self, now: ClusterTime, src: NodeId, h: &proto::msg::Hello, out: &mut Vec<Outgoing>) {
-        let refuse = if h.node != src {
+    /// Why a hello is refused, if it is.
+    fn hello_refusal(&self, src: NodeId, h: &proto::msg::Hello) -> Option<String> {
+        if h.node != src {
             Some(format!("hello names node {} but came from {src}", h.node))
         } else if h.version != PROTOCOL_VERSION {
             Some(format!(
@@ -305,10 +356,15 @@ impl ServerNode {
                 (Some(d), r) => Some(format!("scenario declares {src} as {d}, not {r}")),
                 (None, r) => Some(format!("{src} is not in the scenario (as {r})")),
             }
-        };
-        if let Some(reason) = refuse {
+        }
+    }
+
+    fn hello(&mut self, now: ClusterTime, src: NodeId, h: &proto::msg::Hello, out: &mut Vec<Outgoing>) {
+        if let Some(reason) = self.hello_refusal(src, h) {
             self.counters.rejected += 1;
-            tracing::warn!(node = %src, %reason, "hello refused");
+            if let Some(more) = self.log.admit(now.0, "hello refused") {
+                tracing::warn!(node = %src, %reason, more, "hello refused");
+            }
             out.push(Outgoing::new(
                 src,
                 Message::HelloAck(HelloAck {

@@ -33,10 +33,17 @@ pub struct Args {
     /// records it, so `ocelli replay` can re-run the recording with any method and policy.
     #[arg(long)]
     pub record_measurements: bool,
+    /// Over TCP, plain links without TLS (the scenario's `[network] insecure = true`): anyone
+    /// reaching a port can pose as any node. Without it a launch makes certificates for the run.
+    #[arg(long)]
+    pub insecure: bool,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
-    let scenario = load_scenario(args.scenario.as_ref())?;
+    let mut scenario = load_scenario(args.scenario.as_ref())?;
+    if args.insecure {
+        scenario.network.insecure = true;
+    }
     let opts = LaunchOptions {
         transport: args.transport.kind(),
         duration: args.duration.map(Duration::from_secs_f64),
