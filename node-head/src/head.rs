@@ -230,6 +230,14 @@ impl HeadNode {
             Message::Assignment(a) if from_server => {
                 if let Some(&slot) = self.slots.get(&a.node) {
                     let mine = a.head == self.cfg.id;
+                    // A node coming (back) into the cluster: what this head last heard of its
+                    // liveness is stale — the server told its other head since (a "down" seen
+                    // here and the "up" sent there left it down here for good, and a returning
+                    // track lost its radio-only nodes). Up, unless the server's Liveness that
+                    // follows the assignment says otherwise.
+                    if mine && !self.nodes[slot].member {
+                        self.nodes[slot].up = true;
+                    }
                     self.nodes[slot].member = mine;
                     if !mine {
                         self.window.release(slot);

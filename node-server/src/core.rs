@@ -463,6 +463,18 @@ impl ServerNode {
                         out.push(Outgoing::new(to, a.clone()));
                     }
                 }
+                // The new head learns the camera's liveness with it: what it heard of that
+                // camera before it left is stale (its ups and downs since went to the other
+                // head).
+                if self.members.is_up(head)
+                    && let Some(m) = self.members.member(camera)
+                {
+                    let up = m.up;
+                    out.push(Outgoing::new(
+                        head,
+                        Message::Liveness(Liveness { node: camera, up }),
+                    ));
+                }
             }
             Decision::Handover { global, from, to, .. } => {
                 self.counters.handovers += 1;
