@@ -236,6 +236,8 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
         .map(|c| format!("{} {}\n", c.name, c.pid()))
         .collect();
     std::fs::write(opts.run_dir.join("pids"), pids)?;
+    // The synthetic world's time 0 (cluster nanoseconds), for tests that score a run as it goes.
+    std::fs::write(opts.run_dir.join("epoch-ns"), epoch.0.to_string())?;
     tracing::info!(
         nodes = scenario.nodes.len(),
         run_dir = %opts.run_dir.display(),
