@@ -261,10 +261,12 @@ pub fn replay_recording(path: &std::path::Path, args: &Args) -> Result<(Vec<Trac
         .transpose()?;
     let loaded =
         node_server::replay::load(path, scenario).with_context(|| format!("reading {}", path.display()))?;
-    if let Some(tail) = &loaded.tail {
+    for s in &loaded.skipped {
         tracing::warn!(
-            skipped_bytes = tail.skipped_bytes,
-            "replay: torn tail of the recording skipped"
+            offset = s.offset,
+            bytes = s.bytes,
+            damage = ?s.damage,
+            "replay: damaged stretch of the recording skipped"
         );
     }
     let rec = &args.rec;

@@ -62,7 +62,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let loaded = Loaded {
         scenario: outcome.scenario,
         records: outcome.records,
-        tail: None,
+        skipped: Vec::new(),
     };
     let report = report::compute(&loaded, ClusterTime(0));
     let level = match outcome.level {

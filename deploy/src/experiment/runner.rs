@@ -194,7 +194,7 @@ pub fn run_once(
     let loaded = Loaded {
         scenario: m.scenario.clone(),
         records: outcome.records,
-        tail: None,
+        skipped: Vec::new(),
     };
     let report = report::compute_with(&loaded, ClusterTime(0), m.gate_m);
     // The report associates global tracks with the true target; score exactly those.
