@@ -452,3 +452,38 @@ proptest! {
         prop_assert_eq!(HEADER + record_bytes + back.skipped_bytes(), bytes.len() as u64);
     }
 }
+
+/// The server's start on a damaged recording: it resumes, records how many bytes it skipped in
+/// its `Resumed` decision, and keeps every record on both sides of the damage.
+#[test]
+fn the_server_resumes_a_damaged_recording_and_records_the_skip() {
+    let path = tmp("server-start");
+    let scenario = crate::testkit::scenario();
+    let id = NodeId(1);
+    let (_, rec, stats) = crate::process::start(&scenario, id, &path, ClusterTime(0)).unwrap();
+    assert!(stats.is_none());
+    let mut rec = rec;
+    for s in sample(10) {
+        rec.append(&s).unwrap();
+    }
+    drop(rec);
+    let before = read_all(&path).unwrap();
+    let mut bytes = std::fs::read(&path).unwrap();
+    let last = bytes.len() - 3;
+    bytes[last] ^= 0x20; // inside the last record
+    std::fs::write(&path, &bytes).unwrap();
+    let (_, rec, stats) = crate::process::start(&scenario, id, &path, ClusterTime(20_000)).unwrap();
+    assert!(stats.is_some());
+    drop(rec);
+    let after = read_all(&path).unwrap();
+    let n = before.records.len() - 1;
+    assert_eq!(after.records[..n], before.records[..n]);
+    let lost = before.records.last().unwrap();
+    let lost_bytes = 8 + lost.encode().unwrap().len() as u64;
+    assert_eq!(after.skipped_bytes(), lost_bytes);
+    assert!(after.records[n..].iter().any(|s| matches!(
+        s.record,
+        Record::Decision(Decision::Resumed { records, skipped_bytes })
+            if records == n as u64 && skipped_bytes == lost_bytes
+    )));
+}
