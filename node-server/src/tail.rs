@@ -13,10 +13,16 @@
 //! restarted server appended after, or a length field hit by a flipped bit).
 
 use crate::record::Stamped;
-use crate::recording::{Damage, RecordingError, Skipped, Step, io, next_valid, note_skip, read_header, step};
+use crate::recording::{
+    Damage, MAX_RECORD_BYTES, RecordingError, Skipped, Step, io, next_valid, note_skip, read_header, step,
+};
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
+
+/// Most bytes one poll reads: a long recording is taken in over several polls. More than a
+/// whole frame of the largest record, so that any record can be judged.
+const POLL_BYTES: u64 = 2 * MAX_RECORD_BYTES as u64;
 
 /// An incremental reader of a growing recording.
 #[derive(Debug)]
@@ -82,17 +88,19 @@ impl Tailer {
         };
         let len = file.metadata().map_err(io(&path))?.len();
         let from = self.offset + self.pending.len() as u64;
-        if len > from {
+        let to = len.min(from + POLL_BYTES);
+        if to > from {
             file.seek(SeekFrom::Start(from)).map_err(io(&path))?;
-            file.take(len - from)
+            file.take(to - from)
                 .read_to_end(&mut self.pending)
                 .map_err(io(&path))?;
         }
         Ok(true)
     }
 
-    /// The records appended since the last poll; none while the file does not exist yet.
-    /// Damage is skipped and added to [`Tailer::skipped`].
+    /// The records appended since the last poll (at most [`POLL_BYTES`] of the file per
+    /// poll); none while the file does not exist yet. Damage is skipped and added to
+    /// [`Tailer::skipped`].
     ///
     /// # Errors
     /// IO errors, and a header with a wrong magic or version. The offset stays where it was,
