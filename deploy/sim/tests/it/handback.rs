@@ -26,7 +26,7 @@ fn owner_rows(seed: u64, partitions: &[Partition]) -> Vec<TrackRow> {
     let loaded = Loaded {
         scenario: out.scenario,
         records: out.records,
-        tail: None,
+        skipped: Vec::new(),
     };
     track_rows(&loaded).into_iter().filter(|r| r.owner).collect()
 }
