@@ -3,7 +3,7 @@
 //! reads the launch's final JSON report and the server's recording (through `ocelli export`),
 //! and checks that no process and no `/dev/shm` file is left behind.
 
-use crate::harness::{EXE, now, owner_rows, signal};
+use crate::harness::{EXE, cluster_now_s, now, owner_rows, signal};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -30,14 +30,14 @@ fn alive(pid: u32) -> bool {
 }
 
 /// A running `ocelli launch`, killed on drop.
-struct Launch {
+pub(crate) struct Launch {
     child: Option<Child>,
-    dir: PathBuf,
-    domain: String,
+    pub(crate) dir: PathBuf,
+    pub(crate) domain: String,
 }
 
 impl Launch {
-    fn start(name: &str, transport: &str, seconds: f64, scenario: Option<&Path>) -> Launch {
+    pub(crate) fn start(name: &str, transport: &str, seconds: f64, scenario: Option<&Path>) -> Launch {
         Launch::start_with(name, transport, seconds, scenario, &[])
     }
 
@@ -82,16 +82,16 @@ impl Launch {
         }
     }
 
-    fn record(&self) -> PathBuf {
+    pub(crate) fn record(&self) -> PathBuf {
         self.dir.join("rec.ocrec")
     }
 
-    fn run_dir(&self) -> PathBuf {
+    pub(crate) fn run_dir(&self) -> PathBuf {
         self.dir.join("run")
     }
 
     /// Node name (`camera-12`, `head-2`, `server-1`) → pid, once the launch has written it.
-    fn pid_of(&self, node: &str) -> u32 {
+    pub(crate) fn pid_of(&self, node: &str) -> u32 {
         let deadline = now() + Duration::from_secs(20);
         loop {
             if let Ok(text) = std::fs::read_to_string(self.run_dir().join("pids"))
@@ -108,7 +108,7 @@ impl Launch {
         }
     }
 
-    fn all_pids(&self) -> Vec<u32> {
+    pub(crate) fn all_pids(&self) -> Vec<u32> {
         std::fs::read_to_string(self.run_dir().join("pids"))
             .unwrap_or_default()
             .lines()
@@ -121,7 +121,7 @@ impl Launch {
     }
 
     /// Wait for the launch to end by itself; its JSON report.
-    fn finish(mut self, within: Duration) -> (Value, Launch) {
+    pub(crate) fn finish(mut self, within: Duration) -> (Value, Launch) {
         let mut child = self.child.take().expect("running");
         let deadline = now() + within;
         let status = loop {
@@ -160,12 +160,12 @@ impl Launch {
         (report, self)
     }
 
-    fn launch_log(&self) -> String {
+    pub(crate) fn launch_log(&self) -> String {
         std::fs::read_to_string(self.dir.join("launch.log")).unwrap_or_default()
     }
 
     /// Nothing of the run is left: no node process, no shared-memory file of its domain.
-    fn assert_clean(&self) {
+    pub(crate) fn assert_clean(&self) {
         for pid in self.all_pids() {
             assert!(!alive(pid), "node process {pid} outlived the launch");
         }
@@ -197,7 +197,7 @@ impl Drop for Launch {
     }
 }
 
-fn f(v: &Value, key: &str) -> f64 {
+pub(crate) fn f(v: &Value, key: &str) -> f64 {
     v[key]
         .as_f64()
         .unwrap_or_else(|| panic!("report has no number {key}: {v}"))
@@ -299,7 +299,7 @@ fn owning_head_fails_over(transport: &str) {
     };
     signal(run.pid_of(&format!("head-{owner}")), libc::SIGKILL);
     // Cluster time is the wall clock in a launch.
-    let t_kill = proto::ClusterTime::wall_clock().as_secs_f64();
+    let t_kill = cluster_now_s();
     let (_report, run) = run.finish(Duration::from_secs(90));
     let error_of = robot_error(&run);
     let after: Vec<Value> = owner_rows(&run.record())
@@ -366,7 +366,7 @@ fn owning_head_fails_over(transport: &str) {
 }
 
 /// The robot's error at an exported row: the launch's scenario and synthetic-world epoch.
-fn robot_error(run: &Launch) -> impl Fn(&Value) -> f64 {
+pub(crate) fn robot_error(run: &Launch) -> impl Fn(&Value) -> f64 {
     let scenario =
         proto::scenario::Scenario::load(&run.run_dir().join("scenario.toml")).expect("the launch's scenario");
     let targets = world::targets(&scenario).expect("its targets");
@@ -387,7 +387,7 @@ fn robot_error(run: &Launch) -> impl Fn(&Value) -> f64 {
     }
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v.get(v.len() / 2).copied().unwrap_or(f64::INFINITY)
 }

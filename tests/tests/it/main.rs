@@ -1,5 +1,6 @@
 //! End-to-end tests: real `ocelli` processes.
 
+mod chaos;
 mod cluster;
 mod harness;
 mod layering;
