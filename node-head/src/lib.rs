@@ -12,6 +12,7 @@ pub mod association;
 pub mod config;
 pub mod eif;
 pub mod ekf;
+pub mod grid;
 pub mod head;
 pub mod init;
 pub mod ml;
