@@ -7,8 +7,8 @@
 //! - eq. 16: the correlation of a new ILD vector with a fingerprint,
 //!   X = ½ (cos∠(S_obs, S_i) + 1) ∈ [0, 1] ([`correlation`]). The paper prints "− 1" inside
 //!   the braces but states 0 ≤ X ≤ 1, which only "+ 1" gives;
-//! - eq. 17–18: the correlations interpolated over the plane with tensor-product cubic
-//!   B-spline basis functions ([`spline`]).
+//! - eq. 17–18: the correlations spread over the plane with tensor-product cubic B-spline
+//!   basis functions ([`spline`]), as control points (the paper) or interpolated.
 //!
 //! The fingerprint database and its versioned file format are in [`fingerprints`]. The FFT
 //! that turns audio into amplitudes lives in the acoustic node (`node-acoustic`); `proto` only
@@ -21,7 +21,7 @@ use thiserror::Error;
 pub mod fingerprints;
 pub mod spline;
 
-pub use fingerprints::{Fingerprint, FingerprintDb, RoomSignature};
+pub use fingerprints::{Fingerprint, FingerprintDb, RoomSignature, SplineFit};
 pub use spline::{Lattice, SplineSurface};
 
 /// Most frequencies one ILD vector may carry (the paper's bench used 8,192).

@@ -17,7 +17,8 @@
 //! The belief is kept as probability mass per cell (summing to 1); a density is mass / cell².
 
 use super::GridError;
-use super::layout::{Grid, Run};
+use super::convolve::Kernel;
+use super::layout::Grid;
 use serde::Serialize;
 use std::sync::Arc;
 
@@ -70,67 +71,13 @@ pub struct HeatMap {
     pub values: Vec<f32>,
 }
 
-/// The truncated Gaussian kernel for one σ, normalised to sum 1.
-#[derive(Clone, Debug)]
-struct Kernel {
-    sigma_m: f64,
-    weights: Vec<f64>,
-    radius: usize,
-}
-
-impl Kernel {
-    fn new(cell: f64, sigma_m: f64) -> Kernel {
-        let s = sigma_m / cell;
-        let radius = if s < 1e-3 { 0 } else { (3.0 * s).ceil() as usize };
-        let build = |width: f64| -> Vec<f64> {
-            let mut w: Vec<f64> = (0..=2 * radius)
-                .map(|k| {
-                    let d = k as f64 - radius as f64;
-                    if radius == 0 {
-                        1.0
-                    } else {
-                        (-0.5 * d * d / (width * width)).exp()
-                    }
-                })
-                .collect();
-            let total: f64 = w.iter().sum();
-            w.iter_mut().for_each(|v| *v /= total);
-            w
-        };
-        let variance = |w: &[f64]| -> f64 {
-            w.iter()
-                .enumerate()
-                .map(|(k, v)| v * (k as f64 - radius as f64).powi(2))
-                .sum()
-        };
-        // Truncation at 3σ and sampling lose variance (3 % at 3σ); widen the Gaussian until
-        // the discrete kernel's variance is the random walk's, q² dt.
-        let mut width = s.max(1e-3);
-        let mut weights = build(width);
-        for _ in 0..6 {
-            let v = variance(&weights);
-            if radius == 0 || v <= 0.0 || (v - s * s).abs() <= 1e-6 * s * s {
-                break;
-            }
-            width *= (s * s / v).sqrt().min(2.0);
-            weights = build(width);
-        }
-        Kernel {
-            sigma_m,
-            weights,
-            radius,
-        }
-    }
-}
-
 /// The belief over a grid.
 #[derive(Clone, Debug)]
 pub struct Belief {
     grid: Arc<Grid>,
     mass: Vec<f64>,
-    /// The row pass's output, and the column pass's input and output, transposed.
+    /// The row pass's output.
     scratch: Vec<f64>,
-    transposed: Vec<f64>,
     kernel: Option<Kernel>,
 }
 
@@ -140,7 +87,6 @@ impl Belief {
         let mut b = Belief {
             mass: vec![0.0; grid.len()],
             scratch: vec![0.0; grid.len()],
-            transposed: vec![0.0; grid.len()],
             grid,
             kernel: None,
         };
@@ -165,6 +111,7 @@ impl Belief {
         if !b.normalise() {
             b.reset_uniform();
         }
+        flush_negligible(&mut b.mass);
         b
     }
 
@@ -208,25 +155,12 @@ impl Belief {
         }
         let sigma = q * dt.sqrt();
         if self.kernel.as_ref().is_none_or(|k| k.sigma_m != sigma) {
-            self.kernel = Some(Kernel::new(self.grid.cell(), sigma));
+            self.kernel = Some(Kernel::new(&self.grid, sigma));
         }
-        let Some(kernel) = self.kernel.as_ref() else {
-            return Ok(());
-        };
-        if kernel.radius == 0 {
-            return Ok(());
+        if let Some(kernel) = &self.kernel {
+            kernel.apply(&self.grid, &mut self.mass, &mut self.scratch);
+            flush_negligible(&mut self.mass);
         }
-        let (nx, ny) = self.grid.shape();
-        convolve_lines(nx, &self.grid.row_run, kernel, &self.mass, &mut self.scratch);
-        transpose(nx, ny, &self.scratch, &mut self.transposed);
-        convolve_lines(
-            ny,
-            &self.grid.col_run_t,
-            kernel,
-            &self.transposed,
-            &mut self.scratch,
-        );
-        transpose(ny, nx, &self.scratch, &mut self.mass);
         Ok(())
     }
 
@@ -236,14 +170,24 @@ impl Belief {
     /// A likelihood of another length, or a value that is negative or not finite; the belief
     /// is unchanged.
     pub fn correct(&mut self, likelihood: &[f64]) -> Result<Correction, GridError> {
-        check_likelihood(&self.grid, likelihood)?;
-        let total: f64 = self.mass.iter().zip(likelihood).map(|(m, l)| m * l).sum();
+        if likelihood.len() != self.grid.len() {
+            check_likelihood(&self.grid, likelihood)?;
+        }
+        let (mut total, mut valid) = (0.0, true);
+        for (m, l) in self.mass.iter().zip(likelihood) {
+            valid &= l.is_finite() && *l >= 0.0;
+            total += m * l;
+        }
+        if !valid {
+            check_likelihood(&self.grid, likelihood)?;
+        }
         if total.is_finite() && total > f64::MIN_POSITIVE {
             let inv = 1.0 / total;
             self.mass
                 .iter_mut()
                 .zip(likelihood)
                 .for_each(|(m, l)| *m *= l * inv);
+            flush_negligible(&mut self.mass);
             return Ok(Correction::Applied);
         }
         for (k, (m, l)) in self.mass.iter_mut().zip(likelihood).enumerate() {
@@ -260,31 +204,42 @@ impl Belief {
     /// Mean, covariance and most likely cell.
     pub fn estimate(&self) -> Estimate {
         let (nx, _) = self.grid.shape();
-        let (mut sx, mut sy, mut best) = (0.0, 0.0, 0);
-        for (k, m) in self.mass.iter().enumerate() {
-            if *m > 0.0 {
-                let [x, y] = self.grid.centre_of(k);
-                sx += m * x;
-                sy += m * y;
-                if *m > self.mass[best] {
-                    best = k;
+        let cell = self.grid.cell();
+        // Moments in cell units about cell (0, 0)'s centre, one pass.
+        let (mut m0, mut mx, mut my, mut mxx, mut mxy, mut myy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut best, mut best_mass) = (0, f64::NEG_INFINITY);
+        for (j, row) in self.mass.chunks_exact(nx).enumerate() {
+            let y = j as f64;
+            let (mut r0, mut rx, mut rxx) = (0.0, 0.0, 0.0);
+            for (i, m) in row.iter().enumerate() {
+                let x = i as f64;
+                r0 += m;
+                rx += m * x;
+                rxx += m * x * x;
+                if *m > best_mass {
+                    best_mass = *m;
+                    best = j * nx + i;
                 }
             }
+            m0 += r0;
+            mx += rx;
+            mxx += rxx;
+            my += r0 * y;
+            mxy += rx * y;
+            myy += r0 * y * y;
         }
-        let (mut cxx, mut cxy, mut cyy) = (0.0, 0.0, 0.0);
-        for (k, m) in self.mass.iter().enumerate() {
-            if *m > 0.0 {
-                let [x, y] = self.grid.centre_of(k);
-                let (dx, dy) = (x - sx, y - sy);
-                cxx += m * dx * dx;
-                cxy += m * dx * dy;
-                cyy += m * dy * dy;
-            }
-        }
-        let cell_var = self.grid.cell().powi(2) / 12.0;
+        let m0 = if m0 > 0.0 { m0 } else { 1.0 };
+        let (ex, ey) = (mx / m0, my / m0);
+        let var = |second: f64, a: f64, b: f64| (second / m0 - a * b) * cell * cell;
+        let cell_var = cell * cell / 12.0;
+        let [x0, y0] = self.grid.centre(0, 0);
+        let cxy = var(mxy, ex, ey);
         Estimate {
-            mean: [sx, sy],
-            covariance: [[cxx + cell_var, cxy], [cxy, cyy + cell_var]],
+            mean: [x0 + ex * cell, y0 + ey * cell],
+            covariance: [
+                [var(mxx, ex, ex).max(0.0) + cell_var, cxy],
+                [cxy, var(myy, ey, ey).max(0.0) + cell_var],
+            ],
             most_likely: self.grid.centre_of(best),
             most_likely_cell: (best % nx, best / nx),
         }
@@ -315,6 +270,18 @@ impl Belief {
     }
 }
 
+/// Mass below this is set to zero: far below anything an estimate can show, and it keeps
+/// subnormal numbers (tens of times slower to compute with) out of the arithmetic.
+pub const NEGLIGIBLE_MASS: f64 = 1e-250;
+
+fn flush_negligible(mass: &mut [f64]) {
+    for m in mass {
+        if *m < NEGLIGIBLE_MASS {
+            *m = 0.0;
+        }
+    }
+}
+
 /// A likelihood must cover the grid with finite values ≥ 0.
 ///
 /// # Errors
@@ -337,54 +304,6 @@ pub fn check_likelihood(grid: &Grid, likelihood: &[f64]) -> Result<(), GridError
         )));
     }
     Ok(())
-}
-
-/// One separable pass over consecutive lines of `len` cells: each cell gathers the kernel
-/// over its run, reflected at the run's ends.
-fn convolve_lines(len: usize, runs: &[Run], kernel: &Kernel, input: &[f64], out: &mut [f64]) {
-    let r = kernel.radius;
-    let w = &kernel.weights[..];
-    for ((line_in, line_out), line_runs) in input
-        .chunks_exact(len)
-        .zip(out.chunks_exact_mut(len))
-        .zip(runs.chunks_exact(len))
-    {
-        for (i, (o, run)) in line_out.iter_mut().zip(line_runs).enumerate() {
-            let (lo, hi) = (run.lo as usize, run.hi as usize);
-            if lo > hi {
-                *o = 0.0;
-            } else if i >= lo + r && i + r <= hi {
-                let window = &line_in[i - r..=i + r];
-                *o = w.iter().zip(window).map(|(a, b)| a * b).sum();
-            } else {
-                let mut acc = 0.0;
-                for (k, wk) in w.iter().enumerate() {
-                    acc += wk * line_in[reflect(i as isize + k as isize - r as isize, lo, hi)];
-                }
-                *o = acc;
-            }
-        }
-    }
-}
-
-/// Index `m` folded into `lo..=hi` by half-sample symmetric reflection
-/// (`lo − 1 → lo`, `hi + 1 → hi`, repeatedly for a short run).
-fn reflect(m: isize, lo: usize, hi: usize) -> usize {
-    let len = (hi - lo + 1) as isize;
-    let mut x = (m - lo as isize).rem_euclid(2 * len);
-    if x >= len {
-        x = 2 * len - 1 - x;
-    }
-    lo + x as usize
-}
-
-/// `out` (cols × rows) = transpose of `input` (rows × cols, `cols` per row).
-fn transpose(cols: usize, rows: usize, input: &[f64], out: &mut [f64]) {
-    for (j, row) in input.chunks_exact(cols).enumerate().take(rows) {
-        for (i, v) in row.iter().enumerate() {
-            out[i * rows + j] = *v;
-        }
-    }
 }
 
 #[cfg(test)]

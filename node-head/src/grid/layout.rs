@@ -37,8 +37,6 @@ pub struct Grid {
     /// Per cell, its run along x (indices are x) and along y (indices are y).
     pub(crate) row_run: Vec<Run>,
     pub(crate) col_run: Vec<Run>,
-    /// `col_run` transposed (column-major), for the prediction's column pass.
-    pub(crate) col_run_t: Vec<Run>,
 }
 
 impl Grid {
@@ -76,7 +74,6 @@ impl Grid {
             free_count: 0,
             row_run: vec![NO_RUN; nx * ny],
             col_run: vec![NO_RUN; nx * ny],
-            col_run_t: vec![NO_RUN; nx * ny],
         };
         for j in 0..ny {
             for i in 0..nx {
@@ -145,10 +142,6 @@ impl Grid {
                 }
                 for k in lo..=j {
                     self.col_run[k * nx + i] = Run {
-                        lo: lo as u32,
-                        hi: j as u32,
-                    };
-                    self.col_run_t[i * ny + k] = Run {
                         lo: lo as u32,
                         hi: j as u32,
                     };

@@ -17,6 +17,7 @@
 pub mod acoustic;
 pub mod belief;
 pub mod bench;
+mod convolve;
 pub mod layout;
 pub mod locate;
 pub mod optical;

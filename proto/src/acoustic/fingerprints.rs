@@ -98,6 +98,17 @@ struct FingerprintFile {
     fingerprints: Vec<Fingerprint>,
 }
 
+/// How the correlations at the survey lattice become a surface (eq. 17).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SplineFit {
+    /// The correlations are the control points (the paper's eq. 17): smooth, within [0, 1].
+    #[default]
+    ControlPoints,
+    /// The surface passes through the correlations at the survey positions (may overshoot
+    /// slightly between them).
+    Interpolating,
+}
+
 /// The fingerprints of one room, ready to turn an ILD vector into a likelihood surface.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FingerprintDb {
@@ -334,15 +345,24 @@ impl FingerprintDb {
             .collect())
     }
 
-    /// eq. 17: the correlations at the lattice nodes, interpolated by the cubic B-spline. A
+    /// eq. 17: the correlations at the lattice nodes, through the cubic B-spline basis (`fit`
+    /// says whether they are the control points, as the paper prints it, or interpolated). A
     /// node no fingerprint was taken at gets the inverse-square-distance weighted mean of the
     /// fingerprints' correlations.
     ///
     /// # Errors
     /// As [`FingerprintDb::check_frequencies`].
-    pub fn likelihood_surface(&self, observed: &IldVector) -> Result<SplineSurface, AcousticError> {
+    pub fn likelihood_surface(
+        &self,
+        observed: &IldVector,
+        fit: SplineFit,
+    ) -> Result<SplineSurface, AcousticError> {
         let x = self.correlations(observed)?;
-        SplineSurface::interpolate(&self.lattice, &self.node_values(&x))
+        let values = self.node_values(&x);
+        match fit {
+            SplineFit::ControlPoints => SplineSurface::from_control_points(&self.lattice, &values),
+            SplineFit::Interpolating => SplineSurface::interpolate(&self.lattice, &values),
+        }
     }
 
     /// One value per lattice node from one value per fingerprint (missing nodes filled).
@@ -414,7 +434,7 @@ mod tests {
         assert_eq!(best, source);
         assert_abs_diff_eq!(x[source], 1.0, epsilon = 1e-12);
         // The interpolated surface peaks there too, at the knot, among a fine sweep.
-        let s = db.likelihood_surface(&obs).unwrap();
+        let s = db.likelihood_surface(&obs, SplineFit::Interpolating).unwrap();
         let mut peak = (f64::MIN, 0.0, 0.0);
         for a in 0..=40 {
             for b in 0..=20 {

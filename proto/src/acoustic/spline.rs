@@ -3,10 +3,12 @@
 //! uniform cubic B-spline in each natural coordinate.
 //!
 //! The paper uses T-splines over a T-mesh; on a regular lattice a T-spline is a tensor-product
-//! B-spline, which is what this is. The control coefficients c are solved so the surface passes
-//! through the values at the lattice nodes (the tridiagonal (1, 4, 1)/6 system per axis, mirror
-//! boundaries): values are reproduced at the knots, and the surface is C² between them.
-//! Outside the lattice the natural coordinates are clamped to its edge.
+//! B-spline, which is what this is. Two ways to set the control coefficients c:
+//! [`SplineSurface::from_control_points`] takes the values themselves (eq. 17 as printed:
+//! smoothing, within the values' range), [`SplineSurface::interpolate`] solves for c so the
+//! surface passes through the values at the lattice nodes (the tridiagonal (1, 4, 1)/6 system
+//! per axis, mirror boundaries). Either surface is C² between knots. Outside the lattice the
+//! natural coordinates are clamped to its edge.
 
 use super::{AcousticError, invalid};
 use serde::{Deserialize, Serialize};
@@ -250,6 +252,30 @@ impl SplineSurface {
         })
     }
 
+    /// The surface Σ_i μ_i(ξ) v_i with the values themselves as control coefficients — eq. 17
+    /// as the paper prints it. It smooths rather than interpolates (a knot gets (v_{i−1} +
+    /// 4 v_i + v_{i+1}) / 6 along each axis) and never leaves the values' range (the basis is
+    /// a partition of unity), so a likelihood built from values in [0, 1] stays in [0, 1].
+    ///
+    /// # Errors
+    /// As [`SplineSurface::interpolate`].
+    pub fn from_control_points(lattice: &Lattice, values: &[f64]) -> Result<Self, AcousticError> {
+        let [nx, ny] = lattice.shape;
+        if values.len() != nx * ny {
+            return Err(invalid(
+                "spline values",
+                format!("{} values for a {nx}×{ny} lattice", values.len()),
+            ));
+        }
+        if let Some(v) = values.iter().find(|v| !v.is_finite()) {
+            return Err(invalid("spline values", format!("{v} is not finite")));
+        }
+        Ok(SplineSurface {
+            lattice: lattice.clone(),
+            coefficients: values.to_vec(),
+        })
+    }
+
     /// The surface at world position `(x, y)` (clamped to the lattice).
     pub fn eval(&self, x: f64, y: f64) -> f64 {
         let [nx, ny] = self.lattice.shape;
@@ -344,6 +370,21 @@ mod tests {
         let right = (s.eval(x0 + h, y) - s.eval(x0, y)) / h;
         assert_abs_diff_eq!(left, right, epsilon = 1e-4);
         assert_abs_diff_eq!(s.eval(x0 - 1e-12, y), s.eval(x0 + 1e-12, y), epsilon = 1e-9);
+    }
+
+    /// eq. 17 as printed: a knot gets (v₋ + 4 v + v₊)/6 per axis, and the surface stays in
+    /// the values' range.
+    #[test]
+    fn control_point_surface_smooths_within_the_range() {
+        let l = lattice(3, 1);
+        let s = SplineSurface::from_control_points(&l, &[0.0, 1.0, 0.5]).unwrap();
+        assert_abs_diff_eq!(s.eval(1.5, -2.0), (0.0 + 4.0 + 0.5) / 6.0, epsilon = 1e-12);
+        // The first knot mirrors: (v₁ + 4 v₀ + v₁)/6.
+        assert_abs_diff_eq!(s.eval(1.0, -2.0), 2.0 / 6.0, epsilon = 1e-12);
+        for k in 0..=100 {
+            let v = s.eval(1.0 + k as f64 * 0.01, -2.0);
+            assert!((0.0..=1.0).contains(&v), "{v}");
+        }
     }
 
     #[test]
