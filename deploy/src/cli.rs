@@ -58,13 +58,13 @@ pub enum Command {
 #[derive(Subcommand, Debug)]
 pub enum Bench {
     /// The head's EIF update and activation decision.
-    Head(cmd::bench_head::Args),
+    Head(cmd::bench::ScaleArgs),
     /// Camera node: segmentation + undistortion + contribution per frame.
-    Camera(cmd::bench_camera::Args),
+    Camera(cmd::bench::CameraArgs),
     /// Server core (track reports, ticks), recording appends and restore.
-    Server(cmd::bench_server::Args),
+    Server(cmd::bench::ScaleArgs),
     /// One-way latency over iceoryx2 and TCP, encode/decode cost per message kind.
-    Transport(cmd::bench_transport::Args),
+    Transport(cmd::bench::TransportArgs),
 }
 
 /// Install the tracing subscriber (`RUST_LOG`, default `info`) on standard error.
@@ -126,10 +126,10 @@ pub fn main() -> ExitCode {
         Command::Head(args) => cmd::head::run(args),
         Command::Replay(args) => cmd::replay::run(args),
         Command::Experiment(args) => cmd::experiment::run(args),
-        Command::Bench(Bench::Head(args)) => cmd::bench_head::run(args),
-        Command::Bench(Bench::Camera(args)) => cmd::bench_camera::run(args),
-        Command::Bench(Bench::Server(args)) => cmd::bench_server::run(args),
-        Command::Bench(Bench::Transport(args)) => cmd::bench_transport::run(args),
+        Command::Bench(Bench::Head(args)) => cmd::bench::head(args),
+        Command::Bench(Bench::Camera(args)) => cmd::bench::camera(args),
+        Command::Bench(Bench::Server(args)) => cmd::bench::server(args),
+        Command::Bench(Bench::Transport(args)) => cmd::bench::transport(args),
         Command::Peer(args) => cmd::peer::run(args),
     };
     match result {

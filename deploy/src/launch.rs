@@ -132,7 +132,7 @@ impl Progress {
 
     /// One line per global track reported in the last two seconds: position, σ, sensors and,
     /// with truth, error.
-    fn lines(&self, scenario: &Scenario, epoch: ClusterTime) -> Vec<String> {
+    fn lines(&self, targets: &[world::Target], epoch: ClusterTime) -> Vec<String> {
         let newest = self
             .latest
             .values()
@@ -142,8 +142,7 @@ impl Progress {
             .values()
             .filter(|r| r.t >= newest - 2.0)
             .map(|r| {
-                let err = scenario
-                    .targets
+                let err = targets
                     .iter()
                     .map(|t| {
                         let x = t.truth_at(r.t - epoch.as_secs_f64());
@@ -163,7 +162,7 @@ impl Progress {
 /// Remove every iceoryx2 file of `domain` from `/dev/shm` (the domain is this launch's own,
 /// and every process of it has been reaped).
 fn remove_domain_files(domain: &str) -> usize {
-    let prefix = proto::transport::file_prefix(domain);
+    let prefix = runtime::transport::file_prefix(domain);
     let Ok(dir) = std::fs::read_dir("/dev/shm") else {
         return 0;
     };
@@ -179,8 +178,11 @@ fn remove_domain_files(domain: &str) -> usize {
 /// The run directory or a child cannot be created, or the recording cannot be read at the end.
 pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report> {
     let scenario = effective_scenario(scenario, opts.transport)?;
-    // The cameras' synthetic radio is the room the default RSSI model is surveyed in.
-    let scenario = node_camera::radio::surveyed(&scenario, crate::cmd::camera::SYNTHETIC_SEED);
+    // The cameras' synthetic world is the room the scenario is prepared for (its default RSSI
+    // model surveyed in it, what the method needs of the targets filled in); every node reads
+    // the prepared file.
+    let scenario = world::prepare(&scenario, crate::cmd::camera::SYNTHETIC_SEED)?;
+    let targets = world::targets(&scenario)?;
     std::fs::create_dir_all(&opts.run_dir).with_context(|| format!("creating {}", opts.run_dir.display()))?;
     // A recording left by an earlier launch would be resumed by the server: keep it aside.
     if opts.record.exists() {
@@ -242,7 +244,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
             }
             if let Some(p) = progress.as_mut() {
                 p.update();
-                for line in p.lines(&scenario, epoch) {
+                for line in p.lines(&targets, epoch) {
                     eprintln!("{line}");
                 }
             }
@@ -274,16 +276,20 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
     }
     let loaded = node_server::replay::load(&opts.record, Some(scenario.clone()))
         .with_context(|| format!("reading the recording {}", opts.record.display()))?;
-    Ok(report::compute(&loaded, epoch))
+    let truth = sim::WorldTruth::of(&loaded.scenario, epoch)?;
+    Ok(report::compute(
+        &loaded,
+        truth.as_ref().map(|t| t as &dyn report::Truth),
+    ))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::runtime::{Level, Sim, SimOptions};
     use node_server::Recorder;
     use node_server::export::track_rows;
     use node_server::replay::Loaded;
+    use sim::{Level, Sim, SimOptions};
 
     /// Progress read in pieces while the recording grows ends where a reading of the whole
     /// file does: the same latest owner row for every global track.
@@ -325,7 +331,11 @@ mod tests {
         }
         assert!(!expected.is_empty(), "the sim tracked something");
         assert_eq!(progress.latest, expected);
-        assert!(!progress.lines(&scenario, ClusterTime::ZERO).is_empty());
+        assert!(
+            !progress
+                .lines(&world::targets(&scenario).unwrap(), ClusterTime::ZERO)
+                .is_empty()
+        );
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -2,8 +2,5 @@
 pub mod cli;
 pub mod cmd;
 pub mod deploy;
-pub mod experiment;
 pub mod launch;
-pub mod replay;
-pub mod sim;
 pub mod supervisor;

@@ -1,11 +1,11 @@
 //! What one camera node needs to know, built from the scenario and its node id.
 
-use crate::detect::ReferencePoint;
 use crate::segment::SegmentParams;
 use proto::NodeId;
 use proto::camera::CameraModel;
 use proto::msg::Mode;
 use proto::scenario::{Fusion, NodeRole, Scenario, ScenarioError};
+use proto::sensor::ReferencePoint;
 use thiserror::Error;
 
 /// A camera configuration that could not be built.
@@ -44,6 +44,9 @@ pub struct CameraConfig {
     pub previous_point: bool,
     pub initial_mode: Mode,
     pub fps: f64,
+    /// A logging run: measure every frame whatever the mode and send its measurements to the
+    /// server's recording ([`crate::record_all`]).
+    pub record_all: bool,
 }
 
 impl CameraConfig {
@@ -79,6 +82,7 @@ impl CameraConfig {
             previous_point: m.previous_point,
             initial_mode: Mode::Active,
             fps,
+            record_all: false,
         })
     }
 }

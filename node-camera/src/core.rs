@@ -1,27 +1,52 @@
-//! The camera node's sans-IO state machine.
+//! The camera node's sans-IO state machine, a [`proto::node::Node`] whose sensors deliver
+//! [`CameraInput`]s: frames, detections made elsewhere, a replay's measured frames, and tag
+//! readings.
 //!
-//! Inputs: messages from its head and the server ([`CameraNode::on_message`]), frames
-//! ([`CameraNode::on_frame`]), RSSI readings of target tags ([`CameraNode::on_rssi`]) and
-//! ticks ([`CameraNode::tick`]), each with the current cluster time. Outputs: messages to
-//! send. In distributed mode it answers every `Prior` with one `Contribution` built from the
-//! newest frame's detection gated to that target (all-zero Ω when it has none); detections
-//! gated to no prior go out as `Measurement { target: None }` so heads can start tracks. In
-//! centralized mode every detection goes out as a `Measurement`. Modes (Active, CameraOff,
-//! Inactive) follow the head's `Command`s; time in each is reported in `NodeStatus`.
+//! In distributed mode it answers every `Prior` with one `Contribution` built from the newest
+//! frame's detection gated to that target (all-zero Ω when it has none) and the fresh tag
+//! readings; detections gated to no prior go out as `Measurement { target: None }` so heads
+//! can start tracks. In centralized mode every detection goes out as a `Measurement`. Modes
+//! (Active, CameraOff, Inactive) follow the head's `Command`s; time in each, the runtime's
+//! sync estimate and what it could not deliver are reported in a `NodeStatus` every status
+//! period. In a logging run ([`crate::record_all`]) every frame is measured whatever the mode
+//! and its measurements go to the server's recording.
 
 use crate::config::CameraConfig;
-use crate::detect::Detection;
-use crate::frame::Frame;
 use crate::measure::{self, Measured};
 use crate::previous::{Offer, previous_point};
+use crate::record_all::RecordAll;
 use crate::segment::Segmenter;
-use proto::msg::{Message, Mode, NodeStatus, Prior, RssiReading};
-use proto::node::Outgoing;
-use proto::scenario::Fusion;
+use proto::msg::{Message, Mode, NodeStatus, Prior};
+use proto::node::{Input, Node, Outgoing};
+use proto::observation::RssiReading;
+use proto::sensor::{Detection, Frame, TagReading};
 use proto::validate::Validate;
-use proto::{ClusterTime, Envelope, TargetId};
+use proto::{ClusterTime, Envelope, NodeId, TagId, TargetId};
 use std::collections::BTreeMap;
 use tracing::{debug, warn};
+
+/// What a camera's sensors deliver.
+#[derive(Debug)]
+pub enum CameraInput {
+    /// A captured frame: segmented in Active mode (every frame in a logging run).
+    Frame(Frame),
+    /// Detections made elsewhere (the measurement-level simulation projects the truth and adds
+    /// noise instead of rendering and segmenting), handled exactly as a segmented frame's.
+    Detections {
+        captured: ClusterTime,
+        detections: Vec<Detection>,
+    },
+    /// Detections already segmented and undistorted: a replay of a logging run's recording.
+    /// `segmented`: they came from this node's segmentation of frames, not from the
+    /// measurement-level simulation's projection of the truth.
+    Measured {
+        captured: ClusterTime,
+        measured: Vec<Measured>,
+        segmented: bool,
+    },
+    /// A packet from a radio tag.
+    Tag(TagReading),
+}
 
 /// Counters of what the node did and refused.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -47,6 +72,8 @@ pub struct Counters {
     /// Motion-segmented detections no prior gated that were not sent because they had not
     /// moved since the previous frame (or there was no recent previous frame to tell).
     pub still_unassociated: u64,
+    /// Tag readings refused as impossible.
+    pub tag_readings: u64,
 }
 
 /// The camera node core.
@@ -59,7 +86,10 @@ pub struct CameraNode {
     previous: Vec<Measured>,
     captured: Option<ClusterTime>,
     priors: BTreeMap<TargetId, (ClusterTime, Prior)>,
-    rssi: BTreeMap<TargetId, RssiReading>,
+    /// The newest reading of each tag heard while the radio was on.
+    tags: BTreeMap<TagId, RssiReading>,
+    /// A logging run's measuring of every frame, whatever the mode.
+    record_all: Option<RecordAll>,
     mode: Mode,
     mode_since: ClusterTime,
     time_in_mode_ns: [u64; 3],
@@ -73,6 +103,7 @@ pub struct CameraNode {
 impl CameraNode {
     pub fn new(cfg: CameraConfig, now: ClusterTime) -> CameraNode {
         let segmenter = Segmenter::new(&cfg.segment);
+        let record_all = cfg.record_all.then(|| RecordAll::new(&cfg));
         CameraNode {
             mode: cfg.initial_mode,
             cfg,
@@ -82,7 +113,8 @@ impl CameraNode {
             previous: Vec::with_capacity(64),
             captured: None,
             priors: BTreeMap::new(),
-            rssi: BTreeMap::new(),
+            tags: BTreeMap::new(),
+            record_all,
             mode_since: now,
             time_in_mode_ns: [0; 3],
             last_status: None,
@@ -115,15 +147,14 @@ impl CameraNode {
         t
     }
 
-    /// The runtime's time-sync estimate (`proto::sync::SyncEstimator`), reported in the next
-    /// `NodeStatus`: offset to the leader and sync error, ns; a negative error means unknown.
-    pub fn set_sync(&mut self, offset_ns: i64, error_ns: i64) {
-        self.sync = (offset_ns, error_ns);
+    /// Whether the camera should capture now: in Active mode, or always in a logging run.
+    pub fn capturing(&self) -> bool {
+        self.record_all.is_some() || self.mode.camera_on()
     }
 
-    /// The runtime reports messages it could not deliver.
-    pub fn record_dropped(&mut self, n: u64) {
-        self.counters.dropped += n;
+    /// What a logging run measured, if this is one.
+    pub fn record_all(&self) -> Option<&RecordAll> {
+        self.record_all.as_ref()
     }
 
     fn switch_mode(&mut self, now: ClusterTime, mode: Mode) {
@@ -140,7 +171,7 @@ impl CameraNode {
             self.captured = None;
         }
         if !mode.radio_on() {
-            self.rssi.clear();
+            self.tags.clear();
         }
     }
 
@@ -155,6 +186,10 @@ impl CameraNode {
         warn!(node = %self.cfg.id, what, %problem, "rejected input");
     }
 
+    pub(crate) fn server(&self) -> Option<NodeId> {
+        self.cfg.server
+    }
+
     fn send_to_head(&mut self, body: Message, out: &mut Vec<Outgoing>) {
         match self.cfg.head {
             Some(h) => out.push(Outgoing::new(h, body)),
@@ -163,7 +198,7 @@ impl CameraNode {
     }
 
     /// A message from the head or the server.
-    pub fn on_message(&mut self, now: ClusterTime, env: Envelope) -> Vec<Outgoing> {
+    pub(crate) fn on_message(&mut self, now: ClusterTime, env: Envelope) -> Vec<Outgoing> {
         let mut out = Vec::new();
         if let Err(e) = env.validate() {
             self.reject("message", e.to_string());
@@ -176,10 +211,10 @@ impl CameraNode {
                     return out;
                 }
                 self.counters.priors += 1;
-                if self.cfg.fusion == Fusion::DistributedEif {
+                if self.cfg.fusion.distributed() {
                     let c = self.answer(now, &p);
                     self.counters.contributions += 1;
-                    self.counters.camera_contributions += u64::from(c.camera);
+                    self.counters.camera_contributions += u64::from(c.folded.camera());
                     out.push(Outgoing::new(env.source, Message::Contribution(c)));
                 }
                 self.priors.insert(p.target, (now, p));
@@ -210,11 +245,7 @@ impl CameraNode {
 
     /// The contribution for one prior from the newest frame.
     fn answer(&self, now: ClusterTime, prior: &Prior) -> proto::msg::Contribution {
-        let rssi = self
-            .rssi
-            .get(&prior.target)
-            .copied()
-            .filter(|r| self.fresh(r.time, now));
+        let rssi = self.fresh_tags(now);
         let captured = self.captured.filter(|&t| self.fresh(t, now));
         // The prior's mean is for the step the head opened as it sent it; its arrival here
         // stands for that time on this node's own clock (the link's latency is small against a
@@ -236,12 +267,27 @@ impl CameraNode {
             captured.unwrap_or(now),
             age_s,
             self.mode,
-            rssi,
+            &rssi,
         )
     }
 
-    /// A captured frame. Segmented only in Active mode.
-    pub fn on_frame(&mut self, now: ClusterTime, frame: &Frame) -> Vec<Outgoing> {
+    /// The newest reading of every tag heard within the freshness bound.
+    fn fresh_tags(&self, now: ClusterTime) -> Vec<RssiReading> {
+        self.tags
+            .values()
+            .filter(|r| self.fresh(r.time, now))
+            .copied()
+            .collect()
+    }
+
+    /// A captured frame. Segmented only in Active mode; in a logging run every frame is
+    /// measured for the recording first.
+    pub(crate) fn on_frame(&mut self, now: ClusterTime, frame: &Frame) -> Vec<Outgoing> {
+        if let Some(mut all) = self.record_all.take() {
+            let out = all.frame(self, now, frame);
+            self.record_all = Some(all);
+            return out;
+        }
         let mut out = Vec::new();
         if !self.mode.camera_on() {
             self.counters.frames_skipped += 1;
@@ -272,12 +318,17 @@ impl CameraNode {
 
     /// Detections made elsewhere (the measurement-level simulation projects the truth and adds
     /// noise instead of rendering and segmenting). Handled exactly as a segmented frame's.
-    pub fn on_detections(
+    pub(crate) fn on_detections(
         &mut self,
         now: ClusterTime,
         captured: ClusterTime,
         detections: &[Detection],
     ) -> Vec<Outgoing> {
+        if let Some(mut all) = self.record_all.take() {
+            let out = all.detections(self, now, captured, detections);
+            self.record_all = Some(all);
+            return out;
+        }
         let mut out = Vec::new();
         if !self.mode.camera_on() {
             self.counters.frames_skipped += 1;
@@ -294,7 +345,7 @@ impl CameraNode {
     /// node's segmentation of frames, not from the measurement-level simulation's projection
     /// of the truth); ignored when the camera is off. Non-finite points or covariances reject
     /// the whole frame and change no state.
-    pub fn on_measured(
+    pub(crate) fn on_measured(
         &mut self,
         now: ClusterTime,
         captured: ClusterTime,
@@ -340,7 +391,7 @@ impl CameraNode {
         let Segmenter::Paper004(seg) = &self.segmenter else {
             return Offer::All;
         };
-        if self.cfg.fusion != Fusion::DistributedEif {
+        if !self.cfg.fusion.distributed() {
             return Offer::All;
         }
         let memory_s = seg.params().restart_gap_ms as f64 / 1e3;
@@ -394,7 +445,7 @@ impl CameraNode {
             .iter()
             .map(|a| a.map(|i| (priors[i].0.target, priors[i].0.step)))
             .collect();
-        let centralized = self.cfg.fusion != Fusion::DistributedEif;
+        let centralized = !self.cfg.fusion.distributed();
         let mut msgs = Vec::new();
         for (m, target) in self.measured.iter().zip(targets) {
             if target.is_some() && !centralized {
@@ -404,9 +455,12 @@ impl CameraNode {
                 self.counters.still_unassociated += 1;
                 continue;
             }
-            let rssi = target
-                .and_then(|(t, _)| self.rssi.get(&t).copied())
-                .filter(|r| self.fresh(r.time, now));
+            // Tag readings go with a detection gated to a track, as they go with a contribution.
+            let rssi = if target.is_some() {
+                self.fresh_tags(now)
+            } else {
+                Vec::new()
+            };
             let prev = self
                 .cfg
                 .previous_point
@@ -414,12 +468,10 @@ impl CameraNode {
                 .flatten();
             msgs.push(Message::Measurement(measure::measurement(
                 &self.cfg.camera,
-                m,
+                measure::pinhole(m, prev, captured),
                 target,
-                prev,
-                captured,
                 self.mode,
-                rssi,
+                &rssi,
             )));
         }
         for body in msgs {
@@ -433,20 +485,30 @@ impl CameraNode {
         self.priors.retain(|_, (t, _)| now - *t <= timeout);
     }
 
-    /// An RSSI reading of `target`'s tag, dBm.
-    pub fn on_rssi(&mut self, now: ClusterTime, target: TargetId, dbm: f64) {
+    /// A packet from a radio tag: kept as the tag's newest reading while the radio is on (and
+    /// for a logging run's recording whatever the mode).
+    pub(crate) fn on_tag(&mut self, reading: TagReading) {
+        let TagReading { tag, dbm, time } = reading;
         if !(dbm.is_finite() && (-200.0..=30.0).contains(&dbm)) {
-            self.reject("rssi", format!("{dbm} dBm is not a finite reading in -200..30"));
+            self.counters.tag_readings += 1;
+            self.reject(
+                "rssi",
+                format!("tag {tag}: {dbm} dBm is not a finite reading in -200..30"),
+            );
             return;
+        }
+        let r = RssiReading { tag, dbm, time };
+        if let Some(all) = self.record_all.as_mut() {
+            all.heard(r);
         }
         if !self.cfg.rssi || !self.mode.radio_on() {
             return;
         }
-        self.rssi.insert(target, RssiReading { dbm, time: now });
+        self.tags.insert(tag, r);
     }
 
     /// Periodic work: forget stale priors, send `NodeStatus` every status period.
-    pub fn tick(&mut self, now: ClusterTime) -> Vec<Outgoing> {
+    pub(crate) fn tick(&mut self, now: ClusterTime) -> Vec<Outgoing> {
         let mut out = Vec::new();
         self.forget_stale(now);
         let period = self.cfg.status_period_ms as i64 * 1_000_000;
@@ -472,6 +534,44 @@ impl CameraNode {
             None => self.counters.unsent += 1,
         }
         out
+    }
+}
+
+impl Node for CameraNode {
+    type Sensor = CameraInput;
+
+    fn id(&self) -> NodeId {
+        self.cfg.id
+    }
+
+    fn handle(&mut self, now: ClusterTime, input: Input<CameraInput>) -> Vec<Outgoing> {
+        match input {
+            Input::Message(env) => self.on_message(now, env),
+            Input::Tick => self.tick(now),
+            Input::Sensor(CameraInput::Frame(f)) => self.on_frame(now, &f),
+            Input::Sensor(CameraInput::Detections { captured, detections }) => {
+                self.on_detections(now, captured, &detections)
+            }
+            Input::Sensor(CameraInput::Measured {
+                captured,
+                measured,
+                segmented,
+            }) => self.on_measured(now, captured, &measured, segmented),
+            Input::Sensor(CameraInput::Tag(r)) => {
+                self.on_tag(r);
+                Vec::new()
+            }
+            Input::Sync { offset_ns, error_ns } => {
+                self.sync = (offset_ns, error_ns);
+                Vec::new()
+            }
+            Input::Undelivered(n) => {
+                self.counters.dropped += n;
+                Vec::new()
+            }
+            // The head's or the server's link: what cannot reach them is counted as undelivered.
+            Input::Link { .. } => Vec::new(),
+        }
     }
 }
 

@@ -3,11 +3,12 @@
 //! a [`Measurement`] (centralized, paper 000) or a [`Contribution`] Ω_i, ξ_i linearized at the
 //! broadcast μ̄ (distributed, paper 002 §III). All models come from `proto`.
 
-use crate::detect::{Detection, ReferencePoint};
 use nalgebra::{Matrix2, Vector2};
 use proto::camera::{CameraModel, UndistortError};
 use proto::models::{self, State};
-use proto::msg::{Contribution, Measurement, Mode, Prior, RssiReading};
+use proto::msg::{Contribution, Measurement, Mode, Prior};
+use proto::observation::{Kinds, Observation, ObservationKind, PinholePoint, RssiReading};
+use proto::sensor::{Detection, ReferencePoint};
 use proto::{ClusterTime, TargetId};
 
 /// A detection with its undistorted normalized point and covariance.
@@ -80,8 +81,9 @@ pub fn associate(
 }
 
 /// The contribution Ω_i, ξ_i of one measured point at the prior's mean, or the all-zero
-/// contribution (`camera: false`) when there is none or it cannot be linearized. The point was
-/// captured `age_s` seconds before the prior's time ([`models::camera_contribution_aged`]).
+/// contribution (nothing folded) when there is none or it cannot be linearized. The point was
+/// captured `age_s` seconds before the prior's time ([`models::camera_contribution_aged`]). Tag
+/// readings go along raw, for the head to model.
 pub fn contribution(
     camera: &CameraModel,
     prior: &Prior,
@@ -89,52 +91,62 @@ pub fn contribution(
     captured: ClusterTime,
     age_s: f64,
     mode: Mode,
-    rssi: Option<RssiReading>,
+    rssi: &[RssiReading],
 ) -> Contribution {
     let mean: State = models::vec6_from_wire(&prior.mean);
     let info =
         measured.and_then(|m| models::camera_contribution_aged(camera, &m.point, &m.cov, &mean, age_s));
-    let (info_matrix, info_vector, used) = match info {
-        Some((omega, xi)) => (models::mat6_to_wire(&omega), models::vec6_to_wire(&xi), true),
-        None => ([[0.0; 6]; 6], [0.0; 6], false),
+    let (info_matrix, info_vector, folded) = match info {
+        Some((omega, xi)) => (
+            models::mat6_to_wire(&omega),
+            models::vec6_to_wire(&xi),
+            Kinds::of(ObservationKind::Pinhole),
+        ),
+        None => ([[0.0; 6]; 6], [0.0; 6], Kinds::NONE),
     };
     Contribution {
         target: prior.target,
         step: prior.step,
         info_matrix,
         info_vector,
-        camera: used,
+        folded,
         captured,
         mode,
-        rssi,
+        observations: rssi.iter().copied().map(Observation::Rssi).collect(),
     }
 }
 
-/// The centralized-mode measurement of one detection.
-#[allow(clippy::too_many_arguments)]
-pub fn measurement(
-    camera: &CameraModel,
-    m: &Measured,
-    target: Option<(TargetId, u64)>,
-    prev_point: Option<Vector2<f64>>,
-    captured: ClusterTime,
-    mode: Mode,
-    rssi: Option<RssiReading>,
-) -> Measurement {
+/// The pin-hole observation of one measured detection.
+pub fn pinhole(m: &Measured, prev_point: Option<Vector2<f64>>, captured: ClusterTime) -> PinholePoint {
     let d = &m.detection;
-    Measurement {
-        target: target.map(|t| t.0),
-        step: target.map_or(0, |t| t.1),
+    PinholePoint {
         point: [m.point.x, m.point.y],
-        prev_point: prev_point.map(|p| [p.x, p.y]),
         cov: [m.cov[(0, 0)], m.cov[(0, 1)], m.cov[(1, 1)]],
+        prev_point: prev_point.map(|p| [p.x, p.y]),
         pixel_box: d.bbox,
         area: d.area,
         colour: d.colour,
-        pose: camera.pose.to_wire(),
         captured,
+    }
+}
+
+/// The measurement of one detection for the head to model (centralized mode, or no prior
+/// gated it), with the tag readings of its frame.
+pub fn measurement(
+    camera: &CameraModel,
+    point: PinholePoint,
+    target: Option<(TargetId, u64)>,
+    mode: Mode,
+    rssi: &[RssiReading],
+) -> Measurement {
+    Measurement {
+        target: target.map(|t| t.0),
+        step: target.map_or(0, |t| t.1),
+        pose: camera.pose.to_wire(),
         mode,
-        rssi,
+        observations: std::iter::once(Observation::Pinhole(point))
+            .chain(rssi.iter().copied().map(Observation::Rssi))
+            .collect(),
     }
 }
 
@@ -255,7 +267,7 @@ mod tests {
     fn an_old_frame_contributes_at_its_own_time() {
         let (c, p, m) = moving_prior_and_old_frame();
         let mean = models::vec6_from_wire(&p.mean);
-        let got = contribution(&c, &p, Some(&m), ClusterTime(5), 0.2, Mode::Active, None);
+        let got = contribution(&c, &p, Some(&m), ClusterTime(5), 0.2, Mode::Active, &[]);
         let (omega, xi) = models::camera_contribution_aged(&c, &m.point, &m.cov, &mean, 0.2).unwrap();
         assert_eq!(got.info_matrix, models::mat6_to_wire(&omega));
         assert_eq!(got.info_vector, models::vec6_to_wire(&xi));
@@ -283,26 +295,32 @@ mod tests {
         let a = Vector3::new(3.5, 2.2, 0.25);
         let m = measured_at(&c, &a, 18.0);
         let p = prior(1, a, 0.3);
-        let got = contribution(&c, &p, Some(&m), ClusterTime(5), 0.0, Mode::Active, None);
-        assert!(got.camera);
+        let got = contribution(&c, &p, Some(&m), ClusterTime(5), 0.0, Mode::Active, &[]);
+        assert_eq!(got.folded, Kinds::of(ObservationKind::Pinhole));
         let (omega, xi) =
             models::camera_contribution(&c, &m.point, &m.cov, &models::vec6_from_wire(&p.mean)).unwrap();
         assert_eq!(got.info_matrix, models::mat6_to_wire(&omega));
         assert_eq!(got.info_vector, models::vec6_to_wire(&xi));
         assert_eq!((got.target, got.step), (TargetId(1), 7));
-        let empty = contribution(&c, &p, None, ClusterTime(5), 0.0, Mode::CameraOff, None);
-        assert!(!empty.camera);
+        let empty = contribution(&c, &p, None, ClusterTime(5), 0.0, Mode::CameraOff, &[]);
+        assert!(empty.folded.is_empty());
         assert!(empty.info_matrix.iter().flatten().all(|&v| v == 0.0));
+        let tag = RssiReading {
+            tag: proto::TagId(9),
+            dbm: -60.0,
+            time: ClusterTime(4),
+        };
         let meas = measurement(
             &c,
-            &m,
+            pinhole(&m, None, ClusterTime(5)),
             Some((TargetId(1), 7)),
-            None,
-            ClusterTime(5),
             Mode::Active,
-            None,
+            &[tag],
         );
         assert_eq!(meas.target, Some(TargetId(1)));
+        assert_eq!(meas.observations.len(), 2);
+        assert!(matches!(&meas.observations[0], Observation::Pinhole(p) if p.captured == ClusterTime(5)));
+        assert_eq!(meas.observations[1], Observation::Rssi(tag));
         assert_eq!(meas.pose, c.pose.to_wire());
     }
 }

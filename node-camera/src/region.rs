@@ -2,8 +2,9 @@
 //! growing with merging of nearby areas (paper 004 §3.2.1) and 8-neighbour region growing
 //! (paper 000 §6.1.1). Masks are one byte per processing-grid pixel, 0 = background.
 
-use crate::detect::{Detection, RegionStats};
-use crate::frame::Frame;
+use crate::detect::RegionStats;
+use proto::sensor::Detection;
+use proto::sensor::Frame;
 
 /// A processing grid: every `step`-th pixel of every `step`-th row of the frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -7,9 +7,9 @@
 //! image (an addition to the paper, which assumes a static scene; `adapt = false` turns it
 //! off). Without colour classes, the changed pixels of moving windows form the regions.
 
-use crate::detect::{Detection, hue_distance, rgb_to_hsi};
-use crate::frame::{Frame, FrameError};
 use crate::region::{Grid, grow_8};
+use proto::sensor::{Detection, hue_distance, rgb_to_hsi};
+use proto::sensor::{Frame, FrameError};
 
 /// A colour the target can be characterized by, in HSI.
 #[derive(Clone, Copy, Debug, PartialEq)]

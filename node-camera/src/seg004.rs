@@ -9,9 +9,9 @@
 //! with merging ([`crate::region`]). All buffers are allocated on the first frame; later frames
 //! allocate nothing.
 
-use crate::detect::Detection;
-use crate::frame::{Frame, FrameError};
 use crate::region::{Grid, erode4, grow_boxes};
+use proto::sensor::Detection;
+use proto::sensor::{Frame, FrameError};
 
 /// Parameters of the paper 004 pipeline.
 #[derive(Clone, Debug, PartialEq)]

@@ -1,11 +1,11 @@
 //! One interface over both segmentation pipelines, selected by the scenario's
 //! `method.segmentation`, with the settings each pipeline is recommended to run at.
 
-use crate::detect::Detection;
-use crate::frame::{Frame, FrameError};
 use crate::seg000::{HsiClass, Paper000, Paper000Params};
 use crate::seg004::{Paper004, Paper004Params};
 use proto::scenario::{Scenario, Segmentation};
+use proto::sensor::Detection;
+use proto::sensor::{Frame, FrameError};
 
 /// Both pipelines' parameters; only the selected one is used.
 #[derive(Clone, Debug, PartialEq, Default)]
@@ -23,16 +23,17 @@ pub fn recommended_step(width: u32) -> u32 {
 
 impl SegmentParams {
     /// The scenario's pipeline at the recommended step for `width`; paper 000's colour classes
-    /// come from the scenario's target colours (its §6.1.1 assumes the colour is known).
+    /// are the scenario's `method.target-colours` (its §6.1.1 assumes the colour is known).
     pub fn for_scenario(scenario: &Scenario, width: u32) -> SegmentParams {
         let step = recommended_step(width);
         SegmentParams {
             kind: scenario.method.segmentation,
             paper000: Paper000Params {
                 classes: scenario
-                    .targets
+                    .method
+                    .target_colours
                     .iter()
-                    .map(|t| HsiClass::around_rgb(t.colour))
+                    .map(|&rgb| HsiClass::around_rgb(rgb))
                     .collect(),
                 step,
                 min_pixels: (48 / (step * step)).max(4),
@@ -93,7 +94,7 @@ mod tests {
         let s = Scenario::default_scenario();
         let p = SegmentParams::for_scenario(&s, 352);
         assert_eq!(p.kind, Segmentation::Paper004);
-        assert_eq!(p.paper000.classes.len(), s.targets.len());
+        assert_eq!(p.paper000.classes.len(), s.method.target_colours.len());
         assert_eq!(Segmenter::new(&p).kind(), Segmentation::Paper004);
     }
 }

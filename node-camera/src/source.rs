@@ -2,52 +2,9 @@
 //! of PNG/JPEG frames, and live V4L2 capture (cargo feature `v4l2`, see [`crate::v4l2`]).
 //! The runtime owns the source and hands frames to the core; the core never sees a source.
 
-use crate::frame::Frame;
 use proto::ClusterTime;
+use proto::sensor::{Frame, FrameSource, SourceError};
 use std::path::{Path, PathBuf};
-use thiserror::Error;
-
-/// Why a source could not deliver a frame.
-#[derive(Debug, Error)]
-pub enum SourceError {
-    #[error("cannot read {path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
-    #[error("cannot decode image {path}: {message}")]
-    Decode { path: PathBuf, message: String },
-    #[error("{path}: no PNG or JPEG frames")]
-    Empty { path: PathBuf },
-    #[error("{path}:{line}: {problem}")]
-    Manifest {
-        path: PathBuf,
-        line: usize,
-        problem: String,
-    },
-    #[error("frame rate must be positive and finite, got {0}")]
-    Rate(f64),
-    #[error("image {path} is {got_w}x{got_h}, the sequence is {want_w}x{want_h}")]
-    Size {
-        path: PathBuf,
-        got_w: u32,
-        got_h: u32,
-        want_w: u32,
-        want_h: u32,
-    },
-    #[error("capture device: {0}")]
-    Device(String),
-}
-
-/// Something that produces frames.
-pub trait FrameSource {
-    /// Frame size, pixels.
-    fn size(&self) -> (u32, u32);
-
-    /// Capture the frame due at `now` into `frame` (resized if needed). `Ok(false)` when the
-    /// source is exhausted.
-    ///
-    /// # Errors
-    /// The source failed (device gone, unreadable file); `frame` is unspecified then.
-    fn capture(&mut self, now: ClusterTime, frame: &mut Frame) -> Result<bool, SourceError>;
-}
 
 /// A directory of PNG/JPEG frames, in file-name order.
 ///

@@ -11,9 +11,9 @@
 //! ```
 //! The tests never open a device.
 
-use crate::frame::Frame;
-use crate::source::{FrameSource, SourceError};
 use proto::ClusterTime;
+use proto::sensor::Frame;
+use proto::sensor::{FrameSource, SourceError};
 
 /// A V4L2 capture device.
 pub struct V4l2Source {

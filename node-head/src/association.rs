@@ -11,7 +11,7 @@ use crate::init::{RayObservation, single_camera_prior, state_from_position, tria
 use nalgebra::{Matrix2, Matrix6, Vector2};
 use proto::camera::CameraModel;
 use proto::models::{State, gate_distance2, pinhole};
-use proto::msg::RssiReading;
+use proto::observation::RssiReading;
 use proto::{ClusterTime, NodeId, TargetId};
 
 /// One detection as the head sees it.
@@ -24,7 +24,8 @@ pub struct Detection {
     pub point: Vector2<f64>,
     pub cov: Matrix2<f64>,
     pub prev_point: Option<Vector2<f64>>,
-    pub rssi: Option<RssiReading>,
+    /// Tag readings of the same frame (sent with detections gated to a track).
+    pub rssi: Vec<RssiReading>,
     /// The track the camera gated it to, if any.
     pub hint: Option<TargetId>,
     /// When the camera captured the frame.
@@ -220,7 +221,7 @@ mod tests {
             point: cams[slot].normalized(&p).0,
             cov: Matrix2::identity() * (18.0f64 / 320.0).powi(2),
             prev_point: None,
-            rssi: None,
+            rssi: Vec::new(),
             hint: None,
             captured: ClusterTime::ZERO,
         }

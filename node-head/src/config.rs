@@ -2,7 +2,7 @@
 //! table of every camera node it may be given (camera model, position, power figures, cost
 //! factor), with the ones the scenario assigns to it marked as members.
 
-use crate::ml::DepthHandling;
+use crate::fusion::ml::DepthHandling;
 use nalgebra::Vector3;
 use proto::NodeId;
 use proto::camera::CameraModel;
@@ -79,8 +79,7 @@ impl HeadConfig {
                 member: members.contains(&NodeId(spec.id)),
             });
         }
-        // Targets' centres: half their height; without targets, half a person.
-        let target_plane_z = scenario.targets.first().map(|t| t.size[2] * 0.5).unwrap_or(0.5);
+        let target_plane_z = scenario.method.target_plane_z();
         let member_count = nodes.iter().filter(|n| n.member).count();
         Ok(HeadConfig {
             id: NodeId(id),

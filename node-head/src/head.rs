@@ -9,14 +9,16 @@
 use crate::activation::Planner;
 use crate::association::Detection;
 use crate::config::{HeadConfig, NodeInfo};
+use crate::fusion::{self, Fusion};
 use crate::stats::{Counters, StepStats};
 use crate::step::{Offer, StepWindow};
 use crate::track::Track;
 use nalgebra::{Matrix2, Matrix6, Vector2};
 use proto::models::{State, mat6_from_wire, mat6_to_wire, vec6_from_wire, vec6_to_wire};
-use proto::msg::{Contribution, Handover, Measurement, Prior};
-use proto::node::Outgoing;
-use proto::scenario::{Activation, Fusion};
+use proto::msg::{Contribution, Handover, Measurement, NodeStatus, Prior};
+use proto::node::{Input, Node, Outgoing};
+use proto::observation::{Kinds, ObservationKind};
+use proto::scenario::Activation;
 use proto::{ClusterTime, Envelope, Message, Mode, NodeId, TargetId};
 use std::collections::HashMap;
 use tracing::{debug, info, warn};
@@ -27,6 +29,8 @@ pub const MAX_DETECTIONS_PER_STEP: usize = 4096;
 /// dropped: no target is there, and RSSI readings (which refresh a track without cameras)
 /// kept one diverged track flying 30 m out of the room for seconds (Table I, pixel level).
 pub const OUTSIDE_MARGIN_M: f64 = 1.0;
+/// How often a head tells the server its sync estimate and failures in a `NodeStatus`, ms.
+pub const STATUS_PERIOD_MS: i64 = 1000;
 
 #[derive(Clone, Debug)]
 struct NodeState {
@@ -40,6 +44,7 @@ struct NodeState {
 #[derive(Debug)]
 pub struct HeadNode {
     cfg: HeadConfig,
+    fusion: Box<dyn Fusion>,
     nodes: Vec<NodeState>,
     slots: HashMap<NodeId, usize>,
     cameras: Vec<proto::camera::CameraModel>,
@@ -56,6 +61,12 @@ pub struct HeadNode {
     last: StepStats,
     history: Vec<StepStats>,
     keep_history: bool,
+    /// When the head started, its last status, its sync estimate (offset, error ns; error −1:
+    /// not synchronized) and what its runtime could not deliver.
+    started: Option<ClusterTime>,
+    last_status: Option<ClusterTime>,
+    sync: (i64, i64),
+    undelivered: u64,
 }
 
 impl HeadNode {
@@ -78,6 +89,7 @@ impl HeadNode {
             Planner::default()
         };
         HeadNode {
+            fusion: fusion::build(cfg.method.fusion),
             cfg,
             nodes,
             slots,
@@ -95,6 +107,10 @@ impl HeadNode {
             last: StepStats::default(),
             history: Vec::new(),
             keep_history: false,
+            started: None,
+            last_status: None,
+            sync: (0, -1),
+            undelivered: 0,
         }
     }
 
@@ -138,9 +154,11 @@ impl HeadNode {
         )
     }
 
-    /// Advance time: close a step past its deadline, open one when it is due.
+    /// Advance time: close a step past its deadline, open one when it is due, tell the server
+    /// its status every [`STATUS_PERIOD_MS`].
     pub fn tick(&mut self, now: ClusterTime) -> Vec<Outgoing> {
         let mut out = Vec::new();
+        self.status(now, &mut out);
         if self.window.past_deadline(now) {
             self.close_step(now, &mut out);
         }
@@ -155,6 +173,33 @@ impl HeadNode {
             self.next_step_at = Some(if next <= now { now + period } else { next });
         }
         out
+    }
+
+    /// The head's `NodeStatus` for the server: always Active since it started, what its runtime
+    /// could not deliver, the messages it rejected, and its sync estimate.
+    fn status(&mut self, now: ClusterTime, out: &mut Vec<Outgoing>) {
+        let started = *self.started.get_or_insert(now);
+        let Some(server) = self.cfg.server else { return };
+        if self
+            .last_status
+            .is_some_and(|t| now - t < STATUS_PERIOD_MS * 1_000_000)
+        {
+            return;
+        }
+        self.last_status = Some(now);
+        out.push(Outgoing::new(
+            server,
+            Message::NodeStatus(NodeStatus {
+                mode: Mode::Active,
+                time_in_mode_ns: [u64::try_from(now - started).unwrap_or(0), 0, 0],
+                frames: 0,
+                detections: 0,
+                dropped: self.undelivered,
+                rejected: self.counters.rejected,
+                sync_offset_ns: self.sync.0,
+                sync_error_ns: self.sync.1,
+            }),
+        ));
     }
 
     /// Handle one message. Messages from nodes not allowed to send them are counted and
@@ -242,25 +287,40 @@ impl HeadNode {
         match self.window.offer(slot, t, c.step, now) {
             Offer::Apply => {
                 self.counters.applied += 1;
-                let rssi = c
-                    .rssi
-                    .filter(|_| self.nodes[slot].info.rssi)
-                    .filter(|r| self.fresh(now, r.time, slot, "RSSI packet"));
+                let camera = c.folded.camera();
+                let rssi: Vec<_> = if self.nodes[slot].info.rssi {
+                    let readings: Vec<_> = c.rssi().copied().collect();
+                    readings
+                        .into_iter()
+                        .filter(|r| self.fresh(now, r.time, slot, "RSSI packet"))
+                        .collect()
+                } else {
+                    Vec::new()
+                };
+                self.counters.unfused_observations += c
+                    .observations
+                    .iter()
+                    .filter(|o| !crate::observe::fused_by_eif(o.kind()))
+                    .count() as u64;
                 let node = &mut self.nodes[slot];
                 node.mode = c.mode;
                 let track = &mut self.tracks[t];
-                if c.camera {
+                if camera {
                     self.planner.camera_delivered(node.info.id);
                     track.acc.add_wire(&c.info_matrix, &c.info_vector);
                     track.aux_acc.add_wire(&c.info_matrix, &c.info_vector);
                     track.last_seen = now;
                 }
-                let heard = rssi.is_some_and(|r| track.hear(slot, r.dbm, track.time.secs_since(r.time)));
-                if c.camera || heard {
+                let mut kinds = if camera { c.folded } else { Kinds::NONE };
+                for r in &rssi {
+                    if track.hear(slot, r.dbm, track.time.secs_since(r.time)) {
+                        kinds.insert(ObservationKind::Rssi);
+                    }
+                }
+                if !kinds.is_empty() {
                     track.contributors.push(proto::msg::Contributor {
                         node: node.info.id,
-                        camera: c.camera,
-                        rssi: heard,
+                        kinds,
                     });
                 }
             }
@@ -303,10 +363,19 @@ impl HeadNode {
 
     fn on_measurement(&mut self, now: ClusterTime, slot: usize, m: Measurement) {
         self.nodes[slot].mode = m.mode;
-        if !self.fresh(now, m.captured, slot, "measurement") {
+        let Some(point) = m.pinhole() else {
+            // Only pin-hole detections start or feed tracks here.
+            self.counters.unfused_observations += m.observations.len() as u64;
+            return;
+        };
+        if !self.fresh(now, point.captured, slot, "measurement") {
             return;
         }
-        let rssi = m.rssi.filter(|r| self.fresh(now, r.time, slot, "RSSI packet"));
+        let readings: Vec<_> = m.rssi().copied().collect();
+        let rssi = readings
+            .into_iter()
+            .filter(|r| self.fresh(now, r.time, slot, "RSSI packet"))
+            .collect();
         self.planner.camera_delivered(self.nodes[slot].info.id);
         if self.detections.len() >= MAX_DETECTIONS_PER_STEP {
             self.counters.overflow += 1;
@@ -315,12 +384,12 @@ impl HeadNode {
         self.detections.push(Detection {
             node: self.nodes[slot].info.id,
             slot,
-            point: Vector2::from(m.point),
-            cov: Matrix2::new(m.cov[0], m.cov[1], m.cov[1], m.cov[2]),
-            prev_point: m.prev_point.map(Vector2::from),
+            point: Vector2::from(point.point),
+            cov: Matrix2::new(point.cov[0], point.cov[1], point.cov[1], point.cov[2]),
+            prev_point: point.prev_point.map(Vector2::from),
             rssi,
             hint: m.target,
-            captured: m.captured,
+            captured: point.captured,
         });
     }
 
@@ -453,7 +522,7 @@ impl HeadNode {
         self.step += 1;
         self.step_time = now;
         // Detections are kept: those that arrived between steps are associated at the close.
-        let distributed = self.cfg.method.fusion == Fusion::DistributedEif;
+        let distributed = self.fusion.distributed();
         self.expected.clear();
         self.expected.extend(
             self.nodes
@@ -478,6 +547,32 @@ impl HeadNode {
             {
                 out.push(Outgoing::new(n.info.id, Message::Prior(prior.clone())));
             }
+        }
+    }
+}
+
+impl Node for HeadNode {
+    type Sensor = std::convert::Infallible;
+
+    fn id(&self) -> NodeId {
+        self.cfg.id
+    }
+
+    fn handle(&mut self, now: ClusterTime, input: Input<Self::Sensor>) -> Vec<Outgoing> {
+        match input {
+            Input::Message(env) => self.on_message(now, env),
+            Input::Tick => self.tick(now),
+            // A link to a camera that drops means the camera is down until it comes back.
+            Input::Link { peer, up } => self.node_liveness(now, peer, up),
+            Input::Sync { offset_ns, error_ns } => {
+                self.sync = (offset_ns, error_ns);
+                Vec::new()
+            }
+            Input::Undelivered(n) => {
+                self.undelivered += n;
+                Vec::new()
+            }
+            Input::Sensor(never) => match never {},
         }
     }
 }

@@ -48,6 +48,9 @@ pub struct Counters {
     pub rejected: u64,
     /// Measurements beyond the per-step limit.
     pub overflow: u64,
+    /// Observations of kinds this head's fusion does not use (ground-plane people, acoustic
+    /// ILD vectors under an EIF), counted and ignored.
+    pub unfused_observations: u64,
     /// Measurements and RSSI packets stamped too far from the head's time to fuse (a clock
     /// that is off), refused.
     pub stale_measurements: u64,

@@ -5,9 +5,10 @@ use crate::association::Detection;
 use crate::eif::{Accumulator, Eif, FilterError};
 use crate::rssi_noise::RssiNoise;
 use crate::rssi_training::RssiTrainer;
-use nalgebra::{Matrix6, Vector3};
+use nalgebra::{Matrix3, Matrix6, Vector3};
 use proto::models::{MotionModel, RssiModel, State};
 use proto::msg::Contributor;
+use proto::observation::Kinds;
 use proto::{ClusterTime, TargetId};
 
 /// Steps with camera information a born track needs before it is reported (one second at the
@@ -51,7 +52,8 @@ pub struct Track {
     pub time: ClusterTime,
     /// Last time a measurement carried information about it.
     pub last_seen: ClusterTime,
-    /// ML's previous fix, for its velocity.
+    /// ML's lifted points of this step, and its previous fix (for its velocity).
+    pub ml_points: Vec<(Vector3<f64>, Matrix3<f64>)>,
     pub ml_prev: Option<(Vector3<f64>, ClusterTime)>,
     /// Steps in which cameras measured it.
     pub camera_steps: u32,
@@ -96,6 +98,7 @@ impl Track {
             rssi_heard: vec![false; nodes],
             time: now,
             last_seen: now,
+            ml_points: Vec::new(),
             ml_prev: None,
             camera_steps: 0,
             anchor: None,
@@ -120,6 +123,7 @@ impl Track {
         self.aux_acc.clear();
         self.rssi.clear();
         self.detections.clear();
+        self.ml_points.clear();
         self.contributors.clear();
         Ok(())
     }
@@ -164,12 +168,11 @@ impl Track {
     }
 
     /// Record one node's share in the report.
-    pub fn note(&mut self, node: proto::NodeId, camera: bool, rssi: bool) {
+    pub fn note(&mut self, node: proto::NodeId, kinds: Kinds) {
         if let Some(c) = self.contributors.iter_mut().find(|c| c.node == node) {
-            c.camera |= camera;
-            c.rssi |= rssi;
+            c.kinds = c.kinds.union(kinds);
         } else {
-            self.contributors.push(Contributor { node, camera, rssi });
+            self.contributors.push(Contributor { node, kinds });
         }
     }
 }

@@ -24,7 +24,7 @@ use crate::membership::Membership;
 use crate::record::{MeasuredFrame, Record, Stamped};
 use crate::tracks::{GlobalTrack, TrackParams, Tracks};
 use proto::msg::{Assignment, Handover, HelloAck, Liveness, Message, NodeStatus, SyncBeacon};
-use proto::node::Outgoing;
+use proto::node::{Input, Node, Outgoing};
 use proto::scenario::Scenario;
 use proto::{ClusterTime, Envelope, NodeId, PROTOCOL_VERSION, Role, TargetId};
 use std::collections::BTreeMap;
@@ -67,6 +67,8 @@ pub struct Counters {
     pub rejected: u64,
     pub handovers: u64,
     pub beacons: u64,
+    /// Messages its runtime could not deliver.
+    pub undelivered: u64,
 }
 
 /// The server core.
@@ -548,5 +550,28 @@ impl ServerNode {
         }
         stats.decisions_mismatched += replayed.len().saturating_sub(recorded.len()) as u64;
         (node, stats)
+    }
+}
+
+impl Node for ServerNode {
+    type Sensor = std::convert::Infallible;
+
+    fn id(&self) -> NodeId {
+        self.cfg.id
+    }
+
+    fn handle(&mut self, now: ClusterTime, input: Input<Self::Sensor>) -> Vec<Outgoing> {
+        match input {
+            Input::Message(env) => self.on_message(now, env),
+            Input::Link { peer, up } => self.on_link(now, peer, up),
+            Input::Tick => self.tick(now),
+            Input::Undelivered(n) => {
+                self.counters.undelivered += n;
+                Vec::new()
+            }
+            // The server leads time sync: it follows nobody.
+            Input::Sync { .. } => Vec::new(),
+            Input::Sensor(never) => match never {},
+        }
     }
 }

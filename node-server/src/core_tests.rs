@@ -158,7 +158,11 @@ fn a_cameras_measured_frame_is_recorded_and_nothing_else() {
     let mut s = server();
     let frame = proto::msg::MeasuredFrame {
         captured: ms(40),
-        rssi_dbm: Some(-60.0),
+        rssi: vec![proto::msg::RssiReading {
+            tag: proto::TagId(5),
+            dbm: -60.0,
+            time: ms(39),
+        }],
         detections: Vec::new(),
     };
     let out = s.on_message(ms(42), env(CAM, Message::MeasuredFrame(frame.clone())));

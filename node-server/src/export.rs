@@ -78,8 +78,8 @@ pub fn track_row(node: &ServerNode, s: &Stamped) -> Option<TrackRow> {
         vz: r.mean[5],
         sigma_m: (r.cov[0][0] + r.cov[1][1] + r.cov[2][2]).max(0.0).sqrt(),
         owner,
-        cameras: r.contributors.iter().filter(|c| c.camera).count() as u32,
-        rssi_nodes: r.contributors.iter().filter(|c| c.rssi).count() as u32,
+        cameras: r.contributors.iter().filter(|c| c.camera()).count() as u32,
+        rssi_nodes: r.contributors.iter().filter(|c| c.rssi()).count() as u32,
     })
 }
 

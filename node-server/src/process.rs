@@ -1,24 +1,22 @@
-//! The server process: the [`ServerNode`] core driven by tokio, a transport and the wall clock,
-//! with every input, decision and sent frame appended to the recording.
+//! The server as an OS process: the [`ServerNode`] core driven by `runtime::process::run`, with
+//! every input, decision and sent frame appended to the recording after each step.
 //!
 //! The server is the time leader, so its cluster time is its wall clock (ns since the Unix
 //! epoch): continuous across restarts. On start it opens the recording; if the file exists it
 //! replays it ([`ServerNode::restore`]) to rebuild membership, global ids and last posteriors,
 //! gives every known node a reconnection grace ([`ServerNode::resume`]) and appends from there.
-//!
-//! One event loop `select!`s over shutdown, the transport's inbox, the tick timer and the
-//! recording's `sync_data` timer.
+//! A recording that fails stops the server: nothing may be lost silently.
 
 use crate::core::{RestoreStats, ServerConfig, ServerNode};
 use crate::record::{Record, Stamped};
 use crate::recording::{Recorder, RecordingError};
-use proto::scenario::{Scenario, TransportKind};
-use proto::transport::{
-    Event, IpcConfig, TcpConfig, TransportConfig, TransportError, open as open_transport,
-};
-use proto::{ClusterTime, Envelope, NodeId, Role};
+use proto::node::Outgoing;
+use proto::scenario::Scenario;
+use proto::{ClusterTime, Envelope, NodeId};
+use runtime::process::no_sensors;
+use runtime::transport::{TransportConfig, TransportError};
+use runtime::{Hooks, HostClock, RunError, RunSummary};
 use std::path::PathBuf;
-use std::sync::Arc;
 use std::time::Duration;
 use thiserror::Error;
 use tokio_util::sync::CancellationToken;
@@ -43,60 +41,14 @@ pub enum ProcessError {
     Recording(#[from] RecordingError),
     #[error("transport: {0}")]
     Transport(#[from] TransportError),
-    #[error("scenario: {0}")]
-    Config(String),
 }
 
 /// What a run did.
 #[derive(Clone, Debug, Default)]
-pub struct RunSummary {
+pub struct Summary {
     pub restored: Option<RestoreStats>,
-    pub received: u64,
-    pub sent: u64,
-    pub send_failures: u64,
     pub records: u64,
-}
-
-/// The wall clock as cluster time (the leader's time base).
-#[allow(clippy::disallowed_methods)] // the process runtime owns the clock
-pub fn wall_now() -> ClusterTime {
-    ClusterTime::wall_clock()
-}
-
-/// The transport configuration the scenario asks for.
-///
-/// # Errors
-/// A server without a valid `listen` address for TCP.
-pub fn transport_for(
-    scenario: &Scenario,
-    id: NodeId,
-    kind: TransportKind,
-) -> Result<TransportConfig, ProcessError> {
-    let net = &scenario.network;
-    Ok(match kind {
-        TransportKind::Tcp => {
-            let listen = scenario
-                .node(id.0)
-                .and_then(|n| n.listen.as_deref())
-                .ok_or_else(|| ProcessError::Config(format!("server {id} has no `listen` address")))?;
-            let listen = listen
-                .parse()
-                .map_err(|e| ProcessError::Config(format!("server {id} listen `{listen}`: {e}")))?;
-            let mut c = TcpConfig::new(id, Role::Server);
-            c.listen = Some(listen);
-            c.heartbeat = Duration::from_millis(net.heartbeat_ms);
-            c.liveness_timeout = Duration::from_millis(net.liveness_timeout_ms);
-            c.queue_len = net.queue_len;
-            c.clock = Arc::new(wall_now);
-            TransportConfig::Tcp(c)
-        }
-        TransportKind::Ipc => {
-            let mut c = IpcConfig::new(net.domain.clone(), id, Role::Server, scenario.nodes.len());
-            c.queue_len = net.queue_len;
-            c.heartbeat = Some((Duration::from_millis(net.heartbeat_ms.max(1)), Arc::new(wall_now)));
-            TransportConfig::Ipc(c)
-        }
-    })
+    pub run: RunSummary,
 }
 
 /// Open the recording and build the core, resuming from the recording if it has records.
@@ -132,98 +84,90 @@ pub fn start(
     Ok((node, rec, Some(stats)))
 }
 
+/// After each step: the core's journal, then the frames it sent, into the recording; the
+/// recording synced to disk every `sync_every`.
+struct Recording {
+    rec: Recorder,
+    records: u64,
+    sync_every_ns: i64,
+    last_sync: Option<ClusterTime>,
+    syncs: u64,
+}
+
+impl Hooks<ServerNode> for Recording {
+    type Error = RecordingError;
+    const KEEP_SENT: bool = true;
+
+    fn after(
+        &mut self,
+        node: &mut ServerNode,
+        now: ClusterTime,
+        sent: &[Outgoing],
+    ) -> Result<(), RecordingError> {
+        for r in node.take_records() {
+            self.rec.append(&r)?;
+            self.records += 1;
+        }
+        for o in sent {
+            // The transport stamps the per-link sequence number; it is not known here.
+            let env = Envelope {
+                source: node.id(),
+                seq: 0,
+                time: now,
+                body: o.body.clone(),
+            };
+            if let Err(e) = self
+                .rec
+                .append(&Stamped::new(now, Record::Sent { to: o.to, env }))
+            {
+                tracing::warn!(error = %e, "sent frame not recorded");
+            }
+            self.records += 1;
+        }
+        if self.last_sync.is_none_or(|t| now - t >= self.sync_every_ns) {
+            self.rec.sync()?;
+            self.last_sync = Some(now);
+            self.syncs += 1;
+            if self.syncs.is_multiple_of(20) {
+                log_status(node);
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Run the server until `shutdown` is cancelled.
 ///
 /// # Errors
 /// The recording or the transport failing; a failing recording stops the server (nothing may
 /// be lost silently).
-pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<RunSummary, ProcessError> {
-    let (mut node, mut rec, restored) = start(&cfg.scenario, cfg.id, &cfg.record, wall_now())?;
-    let (endpoint, mut inbox, _stats, handle) = open_transport(cfg.transport.clone()).await?;
-    tracing::info!(id = %cfg.id, record = %cfg.record.display(), addr = ?endpoint.local_addr(), "server running");
-    let mut summary = RunSummary {
-        restored,
-        ..RunSummary::default()
+pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<Summary, ProcessError> {
+    let clock = HostClock::leader();
+    let (mut node, rec, restored) = start(&cfg.scenario, cfg.id, &cfg.record, clock.now())?;
+    tracing::info!(id = %cfg.id, record = %cfg.record.display(), "server starting");
+    let mut recording = Recording {
+        rec,
+        records: 0,
+        sync_every_ns: i64::try_from(cfg.sync_every.as_nanos()).unwrap_or(i64::MAX),
+        last_sync: None,
+        syncs: 0,
     };
-    let mut tick = tokio::time::interval(cfg.tick);
-    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    let mut sync = tokio::time::interval(cfg.sync_every);
-    sync.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    let mut syncs = 0u64;
-    let result = loop {
-        let out = tokio::select! {
-            biased;
-            () = shutdown.cancelled() => break Ok(()),
-            ev = inbox.recv() => {
-                let now = wall_now();
-                match ev {
-                    Some(Event::Message(inc)) => {
-                        summary.received += 1;
-                        (now, node.on_message(now, inc.env))
-                    }
-                    Some(Event::PeerUp(n)) => (now, node.on_link(now, n, true)),
-                    Some(Event::PeerDown(n)) => (now, node.on_link(now, n, false)),
-                    None => break Ok(()),
-                }
-            }
-            _ = tick.tick() => {
-                let now = wall_now();
-                (now, node.tick(now))
-            }
-            _ = sync.tick() => {
-                if let Err(e) = rec.sync() {
-                    break Err(e.into());
-                }
-                syncs += 1;
-                if syncs.is_multiple_of(20) {
-                    log_status(&node);
-                }
-                continue;
-            }
-        };
-        let (now, out) = out;
-        if let Err(e) = flush(&mut node, &mut rec, &mut summary) {
-            break Err(e);
-        }
-        for o in out {
-            let to = o.to;
-            let body = o.body.clone();
-            match endpoint.send(o, now).await {
-                Ok(_) => {
-                    summary.sent += 1;
-                    // The transport stamps the per-link sequence number; it is not known here.
-                    let env = Envelope {
-                        source: cfg.id,
-                        seq: 0,
-                        time: now,
-                        body,
-                    };
-                    if let Err(e) = rec.append(&Stamped::new(now, Record::Sent { to, env })) {
-                        tracing::warn!(error = %e, "sent frame not recorded");
-                    }
-                    summary.records += 1;
-                }
-                Err(e) => {
-                    summary.send_failures += 1;
-                    tracing::debug!(%to, error = %e, "send failed");
-                }
-            }
-        }
+    let process = runtime::ProcessConfig::new(cfg.transport.clone(), None, cfg.tick);
+    let result = runtime::run(&mut node, process, clock, no_sensors(), &mut recording, shutdown).await;
+    // Whatever ended the run, what was recorded reaches the disk.
+    let synced = recording.rec.sync();
+    let run = match result {
+        Ok(run) => run,
+        Err(RunError::Transport(e)) => return Err(e.into()),
+        Err(RunError::Node(e)) => return Err(e.into()),
     };
-    let synced = rec.sync();
-    handle.shutdown().await;
-    result?;
     synced?;
-    tracing::info!(received = summary.received, sent = summary.sent, "server stopped");
-    Ok(summary)
-}
-
-fn flush(node: &mut ServerNode, rec: &mut Recorder, summary: &mut RunSummary) -> Result<(), ProcessError> {
-    for r in node.take_records() {
-        rec.append(&r)?;
-        summary.records += 1;
-    }
-    Ok(())
+    tracing::info!(received = run.received, sent = run.sent, "server stopped");
+    Ok(Summary {
+        restored,
+        records: recording.records,
+        run,
+    })
 }
 
 /// Membership, tracks and the worst visible sync error, for the operator.
@@ -239,7 +183,7 @@ fn log_status(node: &ServerNode) {
         tracks = node.globals().count(),
         handovers = node.counters().handovers,
         rejected = node.counters().rejected,
-        worst_sync_ms = ?worst_sync_ms,
+        worst_sync_ms = worst_sync_ms.unwrap_or(-1.0),
         "server status"
     );
 }

@@ -41,8 +41,8 @@ pub struct MeasuredFrame {
     pub camera: NodeId,
     /// Capture time, the camera's cluster time.
     pub captured: ClusterTime,
-    /// The RSSI of the scenario's tag at the camera's radio at capture time, dBm.
-    pub rssi_dbm: Option<f64>,
+    /// The tag readings the camera's radio received since its previous frame.
+    pub rssi: Vec<proto::msg::RssiReading>,
     pub detections: Vec<MeasuredDetection>,
 }
 
@@ -58,15 +58,18 @@ impl MeasuredFrame {
         MeasuredFrame {
             camera,
             captured: m.captured,
-            rssi_dbm: m.rssi_dbm,
+            rssi: m.rssi.clone(),
             detections: m.detections.clone(),
         }
     }
 
     /// Why the frame cannot be used, if it cannot: a non-finite number or a negative variance.
     pub fn problem(&self) -> Option<String> {
-        if self.rssi_dbm.is_some_and(|d| !d.is_finite()) {
-            return Some(format!("camera {}: RSSI is not finite", self.camera));
+        if let Some(r) = self.rssi.iter().find(|r| !r.dbm.is_finite()) {
+            return Some(format!(
+                "camera {}: RSSI of tag {} is not finite",
+                self.camera, r.tag
+            ));
         }
         self.detections.iter().enumerate().find_map(|(i, d)| {
             let finite = d.point.iter().chain(&d.cov).all(|x| x.is_finite());
@@ -249,7 +252,7 @@ mod tests {
             Record::Measured(frame()),
             Record::Measured(MeasuredFrame {
                 detections: Vec::new(),
-                rssi_dbm: None,
+                rssi: Vec::new(),
                 ..frame()
             }),
         ];
@@ -263,7 +266,11 @@ mod tests {
         MeasuredFrame {
             camera: NodeId(12),
             captured: ClusterTime(1_234_567_891),
-            rssi_dbm: Some(-61.25),
+            rssi: vec![proto::msg::RssiReading {
+                tag: proto::TagId(0x0200_0000_0001),
+                dbm: -61.25,
+                time: ClusterTime(1_234_500_000),
+            }],
             detections: vec![MeasuredDetection {
                 centre: [320.5, 240.25],
                 foot: [320.5, 300.0],
@@ -291,7 +298,7 @@ mod tests {
         let want = frame();
         let wire = proto::msg::MeasuredFrame {
             captured: want.captured,
-            rssi_dbm: want.rssi_dbm,
+            rssi: want.rssi.clone(),
             detections: want.detections.clone(),
         };
         let got = MeasuredFrame::from_wire(want.camera, &wire);

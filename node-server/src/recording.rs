@@ -20,8 +20,9 @@ use thiserror::Error;
 
 /// File magic.
 pub const MAGIC: [u8; 8] = *b"OCELLIRC";
-/// Format version of the recording file.
-pub const FORMAT_VERSION: u16 = 1;
+/// Format version of the recording file. Records hold wire envelopes, so it moves with
+/// `proto::PROTOCOL_VERSION`: format 1 was recorded with protocol 1, format 2 with protocol 2.
+pub const FORMAT_VERSION: u16 = 2;
 /// Largest record payload accepted; a length beyond it is corruption, not an allocation.
 pub const MAX_RECORD_BYTES: u32 = 16 * 1024 * 1024;
 
@@ -32,7 +33,10 @@ pub enum RecordingError {
     Io { path: PathBuf, source: std::io::Error },
     #[error("recording {path}: not an Ocelli recording (bad magic)")]
     BadMagic { path: PathBuf },
-    #[error("recording {path}: format version {got} is not supported (this build reads {FORMAT_VERSION})")]
+    #[error(
+        "recording {path}: recorded with protocol {got} (format version {got}); this build reads protocol {FORMAT_VERSION} \
+         only: use the Ocelli release that made it"
+    )]
     Version { path: PathBuf, got: u16 },
     #[error("recording {path}: header is truncated")]
     TruncatedHeader { path: PathBuf },

@@ -31,7 +31,7 @@ use crate::record::Record;
 use crate::replay::Loaded;
 use proto::msg::{Message, NodeStatus};
 use proto::scenario::NodeRole;
-use proto::{ClusterTime, Mode, NodeId};
+use proto::{Mode, NodeId};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -129,21 +129,27 @@ fn status_energy(s: &NodeStatus, power: &proto::scenario::PowerFigures) -> (f64,
     (energy_mj * 1e-3, secs)
 }
 
-/// Compute the report with the default association gate; `t0` is the cluster time at which
-/// the scenario's trajectories start.
-pub fn compute(loaded: &Loaded, t0: ClusterTime) -> Report {
-    compute_with(loaded, t0, ASSOCIATION_GATE_M)
+/// Where the true targets were, for scoring a run. Only a simulation knows it (the lab gives
+/// it from the simulated world); a real deployment's report scores nothing it cannot know.
+pub trait Truth {
+    /// The true targets' ids.
+    fn ids(&self) -> Vec<u32>;
+    /// Where target `index` (of [`Truth::ids`]) truly was at cluster time `t` seconds, metres.
+    fn position(&self, index: usize, t: f64) -> [f64; 3];
+}
+
+/// Compute the report with the default association gate, scoring against `truth` if given.
+pub fn compute(loaded: &Loaded, truth: Option<&dyn Truth>) -> Report {
+    compute_with(loaded, truth, ASSOCIATION_GATE_M)
 }
 
 /// Compute the report with an association gate (m).
-pub fn compute_with(loaded: &Loaded, t0: ClusterTime, gate_m: f64) -> Report {
+pub fn compute_with(loaded: &Loaded, truth_of: Option<&dyn Truth>, gate_m: f64) -> Report {
     let sc = &loaded.scenario;
     let rows: Vec<_> = track_rows(loaded).into_iter().filter(|r| r.owner).collect();
-    let truth = !sc.targets.is_empty();
-    let true_pos = |target: usize, t: f64| {
-        let s = sc.targets[target].truth_at(t - t0.as_secs_f64());
-        [s[0], s[1], s[2]]
-    };
+    let ids = truth_of.map(|t| t.ids()).unwrap_or_default();
+    let truth = truth_of.is_some() && !ids.is_empty();
+    let true_pos = |target: usize, t: f64| truth_of.map_or([f64::NAN; 3], |tr| tr.position(target, t));
     let d3 = |a: [f64; 3], r: &crate::export::TrackRow| {
         ((a[0] - r.x).powi(2) + (a[1] - r.y).powi(2) + (a[2] - r.z).powi(2)).sqrt()
     };
@@ -156,7 +162,7 @@ pub fn compute_with(loaded: &Loaded, t0: ClusterTime, gate_m: f64) -> Report {
     let (mut false_tracks, mut false_samples) = (0u64, 0u64);
     if truth {
         for (g, rs) in &by_global {
-            let best = (0..sc.targets.len())
+            let best = (0..ids.len())
                 .map(|k| {
                     let d: f64 = rs.iter().map(|r| d3(true_pos(k, r.t), r)).sum();
                     (k, d / rs.len() as f64)
@@ -181,7 +187,7 @@ pub fn compute_with(loaded: &Loaded, t0: ClusterTime, gate_m: f64) -> Report {
         .map(|(k, (e, gs))| {
             let (m, s, r) = mean_std(e);
             TargetError {
-                target: sc.targets[*k].id,
+                target: ids[*k],
                 samples: e.len() as u64,
                 mean_error_m: m,
                 error_std_m: s,

@@ -9,10 +9,28 @@ use crate::report::*;
 use crate::{ServerConfig, ServerNode};
 use proto::msg::{Contributor, Hello, TrackReport};
 use proto::msg::{Message, NodeStatus};
+use proto::observation::{Kinds, ObservationKind};
 use proto::{ClusterTime, Mode, NodeId};
 use proto::{Envelope, PROTOCOL_VERSION, Role, TargetId};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
+
+/// The test scenario's targets as the report's truth (scenario time 0 at cluster time 0).
+struct WorldTruth(Vec<world::Target>);
+
+impl Truth for WorldTruth {
+    fn ids(&self) -> Vec<u32> {
+        self.0.iter().map(|t| t.id).collect()
+    }
+    fn position(&self, index: usize, t: f64) -> [f64; 3] {
+        let p = self.0[index].position_at(t);
+        [p.x, p.y, p.z]
+    }
+}
+
+fn truth() -> WorldTruth {
+    WorldTruth(world::targets(&crate::testkit::scenario()).unwrap())
+}
 
 /// Record a 10 s run of the test scenario: the owning head reports the truth shifted 0.1 m
 /// in x with two camera and one RSSI-only contributor; heads follow handovers.
@@ -70,15 +88,18 @@ fn record_run(name: &str) -> PathBuf {
     let mut carried = None;
     for k in 0..50i64 {
         let t = ClusterTime::from_millis(k * 200);
-        let truth = sc.targets[0].truth_at(t.as_secs_f64());
+        let truth = world::targets(&sc).unwrap()[0].truth_at(t.as_secs_f64());
         let mut cov = [[0.0; 6]; 6];
         for (i, row) in cov.iter_mut().enumerate() {
             row[i] = 0.01;
         }
-        let c = |n, camera| Contributor {
+        let c = |n, camera: bool| Contributor {
             node: NodeId(n),
-            camera,
-            rssi: true,
+            kinds: if camera {
+                Kinds::of(ObservationKind::Pinhole).union(Kinds::of(ObservationKind::Rssi))
+            } else {
+                Kinds::of(ObservationKind::Rssi)
+            },
         };
         let r = TrackReport {
             target: TargetId(if owner == NodeId(2) { 5 } else { 9 }),
@@ -154,7 +175,7 @@ fn record_run(name: &str) -> PathBuf {
 fn report_from_a_recorded_run() {
     let path = record_run("report");
     let loaded = load(&path, None).unwrap();
-    let r = compute(&loaded, ClusterTime::ZERO);
+    let r = compute(&loaded, Some(&truth()));
     assert!(r.truth);
     assert_eq!(r.steps, 50);
     assert!(
@@ -200,13 +221,11 @@ fn report_from_a_recorded_run() {
 #[test]
 fn without_truth_errors_are_absent_and_power_falls_back_to_reports() {
     let path = record_run("notruth");
-    let mut sc = crate::testkit::scenario();
-    sc.targets.clear();
-    let mut loaded = load(&path, Some(sc)).unwrap();
+    let mut loaded = load(&path, None).unwrap();
     loaded
         .records
         .retain(|s| !matches!(&s.record, Record::Received(e) if matches!(e.body, Message::NodeStatus(_))));
-    let r = compute(&loaded, ClusterTime::ZERO);
+    let r = compute(&loaded, None);
     assert!(!r.truth);
     assert_eq!(r.mean_error_m, None);
     assert!(r.energy.iter().all(|e| e.source == "track_report"));
@@ -261,7 +280,7 @@ fn a_ghost_track_is_a_false_track_not_an_error() {
         loaded.records.push(Stamped::new(at, Record::Received(env)));
     }
     loaded.records.sort_by_key(|s| s.at);
-    let r = compute(&loaded, ClusterTime::ZERO);
+    let r = compute(&loaded, Some(&truth()));
     assert_eq!(r.false_tracks, 1);
     assert!(r.false_track_samples > 10);
     assert!((r.mean_error_m.unwrap() - 0.1).abs() < 1e-9);

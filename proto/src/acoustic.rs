@@ -14,6 +14,8 @@
 //! that turns audio into amplitudes lives in the acoustic node (`node-acoustic`); `proto` only
 //! sees amplitudes.
 
+use crate::observation;
+use crate::time::ClusterTime;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use thiserror::Error;
@@ -253,6 +255,62 @@ impl IldVector {
     }
 }
 
+impl IldVector {
+    /// The wire observation (`proto::observation::IldVector`): evenly spaced bands from
+    /// `first_hz` by `step_hz`, values as `f32`.
+    ///
+    /// # Errors
+    /// Frequencies that are not evenly spaced (beyond 10⁻⁶ of the step) or more than
+    /// [`crate::observation::MAX_BINS`] of them.
+    pub fn to_observation(&self, captured: ClusterTime) -> Result<observation::IldVector, AcousticError> {
+        let f = &self.frequencies_hz;
+        if f.len() > observation::MAX_BINS {
+            return Err(invalid(
+                "ILD observation",
+                format!(
+                    "{} bands, the wire carries at most {}",
+                    f.len(),
+                    observation::MAX_BINS
+                ),
+            ));
+        }
+        let step = if f.len() > 1 {
+            (f[f.len() - 1] - f[0]) / (f.len() - 1) as f64
+        } else {
+            0.0
+        };
+        if let Some((j, x)) = f
+            .iter()
+            .enumerate()
+            .find(|(j, x)| (f[0] + step * *j as f64 - **x).abs() > 1e-6 * step.max(1.0))
+        {
+            return Err(invalid(
+                "ILD observation",
+                format!("frequency {j} ({x} Hz) breaks the even spacing of {step} Hz"),
+            ));
+        }
+        Ok(observation::IldVector {
+            first_hz: f[0] as f32,
+            // A single band has no spacing; the wire wants a positive one.
+            step_hz: if f.len() > 1 { step as f32 } else { 1.0 },
+            ild_db: self.values.iter().map(|v| *v as f32).collect(),
+            captured,
+        })
+    }
+
+    /// From the wire observation.
+    ///
+    /// # Errors
+    /// As [`IldVector::new`].
+    pub fn from_observation(o: &observation::IldVector) -> Result<IldVector, AcousticError> {
+        let (first, step) = (f64::from(o.first_hz), f64::from(o.step_hz));
+        IldVector::new(
+            (0..o.ild_db.len()).map(|j| first + step * j as f64).collect(),
+            o.ild_db.iter().map(|v| f64::from(*v)).collect(),
+        )
+    }
+}
+
 pub(crate) fn validate_frequencies(what: &str, f: &[f64]) -> Result<(), AcousticError> {
     if f.is_empty() || f.len() > MAX_ILD_FREQUENCIES {
         return Err(invalid(
@@ -350,6 +408,26 @@ mod tests {
             0.853_553_39,
             epsilon = 1e-8
         );
+    }
+
+    /// Through the wire observation and back: the frequencies a fingerprint database
+    /// expects, the values to f32 precision; uneven bands are refused.
+    #[test]
+    fn wire_observation_round_trip() {
+        let s = IldSettings::default();
+        let values: Vec<f64> = (0..s.frequencies).map(|j| (j as f64 * 0.7).sin() * 3.0).collect();
+        let v = IldVector::new(s.sampled_frequencies(), values).unwrap();
+        let o = v.to_observation(ClusterTime(42)).unwrap();
+        assert_eq!(o.ild_db.len(), s.frequencies);
+        let back = IldVector::from_observation(&o).unwrap();
+        for (a, b) in back.frequencies_hz.iter().zip(&v.frequencies_hz) {
+            assert!((a - b).abs() <= 1e-6 * b, "{a} vs {b}");
+        }
+        for (a, b) in back.values.iter().zip(&v.values) {
+            assert_abs_diff_eq!(a, b, epsilon = 1e-6);
+        }
+        let uneven = IldVector::new(vec![100.0, 200.0, 350.0], vec![0.0; 3]).unwrap();
+        assert!(uneven.to_observation(ClusterTime(0)).is_err());
     }
 
     #[test]

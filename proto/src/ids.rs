@@ -11,6 +11,45 @@ pub struct NodeId(pub u32);
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub struct TargetId(pub u32);
 
+/// A radio tag's identity, as a BLE device is known by its 48-bit MAC address.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct TagId(pub u64);
+
+impl TagId {
+    /// The tag of simulated target `target`: a locally administered unicast MAC
+    /// (`02:00:00:00:xx:xx`), so simulated tags never collide with real ones.
+    pub fn simulated(target: u32) -> TagId {
+        TagId(0x0200_0000_0000 | u64::from(target & 0xffff))
+    }
+
+    /// Parse `aa:bb:cc:dd:ee:ff` (or with `-`), case-insensitive.
+    pub fn parse_mac(s: &str) -> Option<TagId> {
+        let parts: Vec<&str> = s.trim().split([':', '-']).collect();
+        if parts.len() != 6 {
+            return None;
+        }
+        let mut v = 0u64;
+        for p in parts {
+            if p.len() != 2 {
+                return None;
+            }
+            v = (v << 8) | u64::from(u8::from_str_radix(p, 16).ok()?);
+        }
+        Some(TagId(v))
+    }
+}
+
+impl fmt::Display for TagId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let b = self.0.to_be_bytes();
+        write!(
+            f,
+            "{:02x}:{:02x}:{:02x}:{:02x}:{:02x}:{:02x}",
+            b[2], b[3], b[4], b[5], b[6], b[7]
+        )
+    }
+}
+
 impl fmt::Display for NodeId {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "n{}", self.0)
@@ -41,5 +80,30 @@ impl fmt::Display for Role {
             Role::Server => "server",
             Role::Tool => "tool",
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tag_ids_print_and_parse_as_macs() {
+        let t = TagId::simulated(7);
+        assert_eq!(t.to_string(), "02:00:00:00:00:07");
+        assert_eq!(TagId::parse_mac("02:00:00:00:00:07"), Some(t));
+        assert_eq!(
+            TagId::parse_mac("AA-bb-CC-dd-EE-ff"),
+            Some(TagId(0xaabb_ccdd_eeff))
+        );
+        for bad in [
+            "",
+            "aa:bb",
+            "aa:bb:cc:dd:ee:fg",
+            "aaa:bb:cc:dd:ee:ff",
+            "aa:bb:cc:dd:ee:ff:00",
+        ] {
+            assert_eq!(TagId::parse_mac(bad), None, "{bad:?}");
+        }
     }
 }

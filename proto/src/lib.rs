@@ -1,7 +1,8 @@
 //! `proto` is the contract every Ocelli node shares.
 //!
 //! What two nodes must agree on lives here and nowhere else: the messages and their wire
-//! encoding ([`msg`], [`wire`]), the transports ([`transport`]), units and frames ([`ids`],
+//! encoding ([`msg`], [`observation`], [`wire`]), what sensors deliver to a node core and the
+//! core's contract ([`sensor`], [`node`]), units and frames ([`ids`],
 //! [`time`]), the camera model ([`camera`], [`opencv`]), the state layout, motion and
 //! measurement models ([`models`]) and the scenario file ([`scenario`]).
 //!
@@ -10,26 +11,28 @@
 
 pub mod acoustic;
 pub mod camera;
+pub mod examples;
 pub mod ids;
 pub mod models;
 pub mod msg;
 pub mod node;
+pub mod observation;
 pub mod opencv;
 pub mod scenario;
+pub mod sensor;
 pub mod sync;
 pub mod time;
-pub mod transport;
 pub mod validate;
 pub mod wire;
 
-pub use ids::{NodeId, Role, TargetId};
+pub use ids::{NodeId, Role, TagId, TargetId};
 pub use msg::{Envelope, Message, Mode};
 pub use time::ClusterTime;
 pub use wire::{WireError, decode, encode};
 
 /// Version of the wire protocol. Carried in every frame header and in the handshake; a
 /// mismatch is rejected before the body is decoded.
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// Largest encoded frame any transport accepts, in bytes.
 pub const MAX_FRAME_BYTES: usize = 16 * 1024;

@@ -5,6 +5,7 @@
 //! byte vectors in `wire`'s tests pin the current layout.
 
 use crate::ids::{NodeId, Role, TargetId};
+pub use crate::observation::{Kinds, Observation, ObservationKind, RssiReading};
 use crate::time::ClusterTime;
 use serde::{Deserialize, Serialize};
 
@@ -73,15 +74,6 @@ pub struct PoseWire {
     pub tvec: [f64; 3],
 }
 
-/// A received-signal-strength reading of the target's tag.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct RssiReading {
-    /// Received power, dBm.
-    pub dbm: f64,
-    /// When the packet was received, cluster time.
-    pub time: ClusterTime,
-}
-
 /// A detection's colour signature: mean hue (rad), saturation and intensity in `[0, 1]`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ColourSignature {
@@ -92,27 +84,37 @@ pub struct ColourSignature {
 
 // ---------------------------------------------------------------- camera → head
 
-/// One undistorted detection (centralized mode, paper 000): the head linearizes.
+/// Observations the head models itself (paper 000's centralized mode, and detections no prior
+/// gated, from which heads start tracks): one region's pin-hole point and the tag readings of
+/// the same frame, or any other kind.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Measurement {
-    /// Target the camera gated this detection to, or `None` when it matched no prior.
+    /// Target the camera gated these observations to, or `None` when they matched no prior.
     pub target: Option<TargetId>,
     /// Filter step of the prior it was gated against (0 when none).
     pub step: u64,
-    /// Normalized pin-hole point `[x, y]` (undistorted).
-    pub point: [f64; 2],
-    /// Previous-frame normalized point of the same detection, if tracked (paper 000 eq. 13).
-    pub prev_point: Option<[f64; 2]>,
-    /// Covariance of `point`, `[σxx, σxy, σyy]` in normalized units².
-    pub cov: [f64; 3],
-    pub pixel_box: PixelBox,
-    /// Region area in pixels.
-    pub area: u32,
-    pub colour: ColourSignature,
     pub pose: PoseWire,
-    pub captured: ClusterTime,
     pub mode: Mode,
-    pub rssi: Option<RssiReading>,
+    /// At most [`crate::observation::MAX_OBSERVATIONS`].
+    pub observations: Vec<Observation>,
+}
+
+impl Measurement {
+    /// The pin-hole point among the observations, if any (the first).
+    pub fn pinhole(&self) -> Option<&crate::observation::PinholePoint> {
+        self.observations.iter().find_map(|o| match o {
+            Observation::Pinhole(p) => Some(p),
+            _ => None,
+        })
+    }
+
+    /// The tag readings among the observations.
+    pub fn rssi(&self) -> impl Iterator<Item = &RssiReading> {
+        self.observations.iter().filter_map(|o| match o {
+            Observation::Rssi(r) => Some(r),
+            _ => None,
+        })
+    }
 }
 
 /// A node's information contribution to one distributed EIF step (paper 002 §III).
@@ -120,18 +122,29 @@ pub struct Measurement {
 pub struct Contribution {
     pub target: TargetId,
     pub step: u64,
-    /// Ω_i = Hᵀ Q⁻¹ H, symmetric positive semi-definite; all zero when the camera had nothing.
-    /// H and h are taken where μ̄ puts the target at the frame's capture time
+    /// Ω_i = Hᵀ Q⁻¹ H, symmetric positive semi-definite; all zero when the node folded
+    /// nothing in. H and h are taken where μ̄ puts the target at the frame's capture time
     /// (`models::camera_contribution_aged`).
     pub info_matrix: Mat6,
     /// ξ_i = Hᵀ Q⁻¹ (z − h(μ̄) + H μ̄).
     pub info_vector: Vec6,
-    /// Whether a camera measurement is folded into Ω_i, ξ_i.
-    pub camera: bool,
+    /// The kinds of observation the node folded into Ω_i, ξ_i.
+    pub folded: Kinds,
     pub captured: ClusterTime,
     pub mode: Mode,
-    /// The raw RSSI of the target's tag; the head linearizes it with the node's RSSI model.
-    pub rssi: Option<RssiReading>,
+    /// Observations the head models itself (tag readings, linearized with the node's trained
+    /// RSSI model), at most [`crate::observation::MAX_OBSERVATIONS`].
+    pub observations: Vec<Observation>,
+}
+
+impl Contribution {
+    /// The raw tag readings the head models itself.
+    pub fn rssi(&self) -> impl Iterator<Item = &RssiReading> {
+        self.observations.iter().filter_map(|o| match o {
+            Observation::Rssi(r) => Some(r),
+            _ => None,
+        })
+    }
 }
 
 /// Camera node health and energy accounting, sent periodically to its head and the server.
@@ -175,12 +188,23 @@ pub struct Command {
 
 // ---------------------------------------------------------------- head → server
 
-/// One node's share in a step.
+/// One node's share in a step: the kinds of observation of it that were fused.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Contributor {
     pub node: NodeId,
-    pub camera: bool,
-    pub rssi: bool,
+    pub kinds: Kinds,
+}
+
+impl Contributor {
+    /// Whether a camera observation of this node was fused.
+    pub fn camera(&self) -> bool {
+        self.kinds.camera()
+    }
+
+    /// Whether a tag reading of this node was fused.
+    pub fn rssi(&self) -> bool {
+        self.kinds.contains(ObservationKind::Rssi)
+    }
 }
 
 /// The posterior of one track after a step.
@@ -261,8 +285,9 @@ pub struct MeasuredDetection {
 pub struct MeasuredFrame {
     /// Capture time, the camera's cluster time.
     pub captured: ClusterTime,
-    /// RSSI of the scenario's tag at the camera's radio at capture time, dBm.
-    pub rssi_dbm: Option<f64>,
+    /// The tag readings the node's radio received since its previous frame, at most
+    /// [`crate::observation::MAX_OBSERVATIONS`].
+    pub rssi: Vec<RssiReading>,
     pub detections: Vec<MeasuredDetection>,
 }
 

@@ -7,7 +7,7 @@
 //! types cannot (unique ids, cameras that name an existing head, finite geometry).
 
 use crate::camera::{CameraModel, Distortion, Intrinsics, Pose};
-use crate::ids::{NodeId, TargetId};
+use crate::ids::NodeId;
 use crate::models::{MotionModel, RssiModel};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -35,8 +35,10 @@ pub struct Scenario {
     #[serde(default)]
     pub power: PowerFigures,
     pub nodes: Vec<NodeSpec>,
-    #[serde(default)]
-    pub targets: Vec<TargetSpec>,
+    /// The simulated world's targets (trajectory, size, colour, tag), opaque here: only the
+    /// simulation reads them (crate `world`), so no node can see where a target truly is.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub targets: Vec<toml::Table>,
 }
 
 /// The room and what occludes inside it.
@@ -182,6 +184,14 @@ pub enum Fusion {
     Ml,
 }
 
+impl Fusion {
+    /// Whether nodes answer the head's priors with their information contribution Ω_i, ξ_i
+    /// (otherwise they send measurements and the head models them).
+    pub fn distributed(self) -> bool {
+        self == Fusion::DistributedEif
+    }
+}
+
 /// Which sensors the head keeps on.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -248,6 +258,16 @@ pub struct Method {
     /// on counts as its mode says.
     #[serde(default)]
     pub drop_lost_cameras: bool,
+    /// Height above the floor of the point a track's position stands for, metres (a robot's
+    /// centre, a person's mid-height): where a lone camera's ray is cut to start a track and
+    /// where ML fusion lifts detections. Absent: 0.5, or in the simulation half the height of
+    /// its first target.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_plane_z: Option<f64>,
+    /// RGB colours the reference-colour segmentation looks for (paper 000 §6.1.1 assumes the
+    /// target's colour is known). Empty: in the simulation, its targets' colours.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub target_colours: Vec<[u8; 3]>,
 }
 
 impl Method {
@@ -257,6 +277,11 @@ impl Method {
     /// along the track. Cameras and heads share this bound.
     pub fn capture_max_age_ms(&self) -> u64 {
         (2 * self.step_ms).max(500)
+    }
+
+    /// [`Method::target_plane_z`] or its default, metres.
+    pub fn target_plane_z(&self) -> f64 {
+        self.target_plane_z.unwrap_or(0.5)
     }
 }
 
@@ -279,6 +304,8 @@ impl Default for Method {
             track_timeout_ms: 3000,
             gate_chi2: 13.8,
             drop_lost_cameras: false,
+            target_plane_z: None,
+            target_colours: Vec::new(),
         }
     }
 }
@@ -413,31 +440,6 @@ impl PoseSpec {
             PoseSpec::Rodrigues { rvec, tvec } => Some(Pose::from_rvec_tvec(rvec, tvec)),
         }
     }
-}
-
-/// A simulated target.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case")]
-pub struct TargetSpec {
-    pub id: u32,
-    pub trajectory: Trajectory,
-    /// Width, depth, height of the coloured solid, metres.
-    pub size: [f64; 3],
-    /// RGB colour of the solid.
-    pub colour: [u8; 3],
-    /// Whether it carries an RSSI tag.
-    #[serde(default = "yes")]
-    pub rssi_tag: bool,
-}
-
-/// Where a target is over time.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case", tag = "kind")]
-pub enum Trajectory {
-    /// Closed polygon of floor waypoints `[x, y]` driven at constant speed, starting at the first.
-    Loop { waypoints: Vec<[f64; 2]>, speed: f64 },
-    /// Open polyline, stopping at the end.
-    Path { waypoints: Vec<[f64; 2]>, speed: f64 },
 }
 
 /// A scenario that could not be loaded.
@@ -582,60 +584,5 @@ impl Scenario {
             }
         }
         out
-    }
-
-    pub fn target_ids(&self) -> Vec<TargetId> {
-        self.targets.iter().map(|t| TargetId(t.id)).collect()
-    }
-}
-
-impl Trajectory {
-    fn parts(&self) -> (&[[f64; 2]], f64, bool) {
-        match self {
-            Trajectory::Loop { waypoints, speed } => (waypoints, *speed, true),
-            Trajectory::Path { waypoints, speed } => (waypoints, *speed, false),
-        }
-    }
-
-    /// Floor position `[x, y]` and velocity `[vx, vy]` at `t` seconds after the start.
-    pub fn at(&self, t: f64) -> ([f64; 2], [f64; 2]) {
-        let (w, speed, closed) = self.parts();
-        let n = if closed { w.len() } else { w.len() - 1 };
-        let seg_len = |i: usize| {
-            let (a, b) = (w[i], w[(i + 1) % w.len()]);
-            ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt()
-        };
-        let total: f64 = (0..n).map(seg_len).sum();
-        if total <= 0.0 {
-            return (w[0], [0.0, 0.0]);
-        }
-        let mut s = (t.max(0.0) * speed).min(if closed { f64::INFINITY } else { total });
-        if closed {
-            s %= total;
-        }
-        for i in 0..n {
-            let l = seg_len(i);
-            if s <= l || i == n - 1 {
-                let (a, b) = (w[i], w[(i + 1) % w.len()]);
-                let f = if l > 0.0 { (s / l).min(1.0) } else { 0.0 };
-                let moving = closed || t * speed < total;
-                let v = if l > 0.0 && moving {
-                    [(b[0] - a[0]) / l * speed, (b[1] - a[1]) / l * speed]
-                } else {
-                    [0.0, 0.0]
-                };
-                return ([a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])], v);
-            }
-            s -= l;
-        }
-        (w[0], [0.0, 0.0])
-    }
-}
-
-impl TargetSpec {
-    /// Ground truth: the state `[X Y Z Vx Vy Vz]` of the target's centre at `t` seconds.
-    pub fn truth_at(&self, t: f64) -> crate::models::State {
-        let ([x, y], [vx, vy]) = self.trajectory.at(t);
-        crate::models::State::new(x, y, self.size[2] * 0.5, vx, vy, 0.0)
     }
 }

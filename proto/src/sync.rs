@@ -211,6 +211,23 @@ impl SyncEstimator {
     pub fn error_ns(&self) -> Option<f64> {
         self.fit.and_then(|f| f.rms_residual_ns)
     }
+
+    /// A node's cluster time at local reading `local_ns`: the fit's, or the local reading
+    /// itself before the first beacon. Every runtime (processes and the simulation) keeps its
+    /// nodes' time this way.
+    pub fn corrected(&self, local_ns: i64) -> ClusterTime {
+        self.to_cluster(local_ns).unwrap_or(ClusterTime(local_ns))
+    }
+
+    /// What a node reports of its sync in `NodeStatus`: the offset at `local_ns` and the
+    /// visible error ([`Self::prediction_error_ns`]), ns; the error is −1 before the first
+    /// beacon.
+    pub fn report(&self, local_ns: i64) -> (i64, i64) {
+        (
+            self.offset_ns(local_ns),
+            self.prediction_error_ns().map_or(-1, |e| e.round() as i64),
+        )
+    }
 }
 
 #[cfg(test)]

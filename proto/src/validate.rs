@@ -4,6 +4,7 @@
 //! indefinite beyond [`PSD_TOLERANCE`]; sane sizes; plausible ranges.
 
 use crate::msg::*;
+use crate::observation::{MAX_BINS, MAX_OBSERVATIONS};
 use crate::{MAX_CONTRIBUTORS, MAX_MEASURED_DETECTIONS, PROTOCOL_VERSION};
 use nalgebra::{Matrix6, SymmetricEigen};
 use thiserror::Error;
@@ -122,30 +123,14 @@ impl Validate for Message {
             }
             Message::Heartbeat => Ok(()),
             Message::Measurement(m) => {
-                finite("measurement.point", &m.point)?;
-                if let Some(p) = m.prev_point {
-                    finite("measurement.prev_point", &p)?;
-                }
-                check_cov2("measurement.cov", &m.cov)?;
-                check_box("measurement.pixel_box", &m.pixel_box)?;
-                finite32(
-                    "measurement.colour",
-                    &[m.colour.hue, m.colour.saturation, m.colour.intensity],
-                )?;
                 finite("measurement.pose.rvec", &m.pose.rvec)?;
                 finite("measurement.pose.tvec", &m.pose.tvec)?;
-                if let Some(r) = &m.rssi {
-                    check_rssi("measurement.rssi", r)?;
-                }
-                Ok(())
+                check_observations("measurement.observations", &m.observations)
             }
             Message::Contribution(c) => {
                 check_psd6("contribution.info_matrix", &c.info_matrix)?;
                 finite("contribution.info_vector", &c.info_vector)?;
-                if let Some(r) = &c.rssi {
-                    check_rssi("contribution.rssi", r)?;
-                }
-                Ok(())
+                check_observations("contribution.observations", &c.observations)
             }
             Message::NodeStatus(_) => Ok(()),
             Message::Prior(p) => {
@@ -191,8 +176,17 @@ impl Validate for Message {
                         ),
                     ));
                 }
-                if let Some(dbm) = f.rssi_dbm {
-                    check_dbm("measured_frame.rssi_dbm", dbm)?;
+                if f.rssi.len() > MAX_OBSERVATIONS {
+                    return Err(err(
+                        "measured_frame.rssi",
+                        format!(
+                            "{} entries exceed the maximum of {MAX_OBSERVATIONS}",
+                            f.rssi.len()
+                        ),
+                    ));
+                }
+                for r in &f.rssi {
+                    check_dbm("measured_frame.rssi", r.dbm)?;
                 }
                 for d in &f.detections {
                     finite32("measured_frame.detections.centre", &d.centre)?;
@@ -212,8 +206,74 @@ impl Validate for Message {
     }
 }
 
-fn check_rssi(field: &'static str, r: &RssiReading) -> Result<(), ValidationError> {
-    check_dbm(field, r.dbm)
+/// Each observation of a list: finite numbers, proper covariances, sane sizes.
+fn check_observations(field: &'static str, obs: &[Observation]) -> Result<(), ValidationError> {
+    if obs.len() > MAX_OBSERVATIONS {
+        return Err(err(
+            field,
+            format!("{} entries exceed the maximum of {MAX_OBSERVATIONS}", obs.len()),
+        ));
+    }
+    obs.iter().try_for_each(|o| {
+        o.validate()
+            .map_err(|e| err(field, format!("{}: {}", e.field, e.problem)))
+    })
+}
+
+impl Validate for Observation {
+    fn validate(&self) -> Result<(), ValidationError> {
+        match self {
+            Observation::Pinhole(p) => {
+                finite("pinhole.point", &p.point)?;
+                if let Some(q) = p.prev_point {
+                    finite("pinhole.prev_point", &q)?;
+                }
+                check_cov2("pinhole.cov", &p.cov)?;
+                check_box("pinhole.pixel_box", &p.pixel_box)?;
+                finite32(
+                    "pinhole.colour",
+                    &[p.colour.hue, p.colour.saturation, p.colour.intensity],
+                )
+            }
+            Observation::Rssi(r) => check_dbm("rssi.dbm", r.dbm),
+            Observation::Ground(g) => {
+                finite("ground.position", &g.position)?;
+                check_cov2("ground.cov", &g.cov)?;
+                finite32("ground.size", &[g.width_m, g.height_m, g.confidence])?;
+                if g.width_m < 0.0 || g.height_m < 0.0 {
+                    return Err(err("ground.size", "negative width or height"));
+                }
+                if !(0.0..=1.0).contains(&g.confidence) {
+                    return Err(err(
+                        "ground.confidence",
+                        format!("{} is outside 0..1", g.confidence),
+                    ));
+                }
+                check_bins("ground.histogram", &g.histogram)?;
+                if g.histogram.iter().any(|x| *x < 0.0) {
+                    return Err(err("ground.histogram", "negative bin"));
+                }
+                Ok(())
+            }
+            Observation::Acoustic(a) => {
+                finite32("acoustic.bands", &[a.first_hz, a.step_hz])?;
+                if a.first_hz < 0.0 || a.step_hz <= 0.0 {
+                    return Err(err("acoustic.bands", "expected first ≥ 0 Hz and a positive step"));
+                }
+                check_bins("acoustic.ild_db", &a.ild_db)
+            }
+        }
+    }
+}
+
+fn check_bins(field: &'static str, xs: &[f32]) -> Result<(), ValidationError> {
+    if xs.len() > MAX_BINS {
+        return Err(err(
+            field,
+            format!("{} bins exceed the maximum of {MAX_BINS}", xs.len()),
+        ));
+    }
+    finite32(field, xs)
 }
 
 fn check_dbm(field: &'static str, dbm: f64) -> Result<(), ValidationError> {

@@ -5,16 +5,18 @@
 //! agree without sync; the synthetic world's t = 0 is `--epoch-ns` (default: start of this
 //! process), which `launch` sets to the same value for every camera.
 
-use super::common::{TransportArg, load_scenario, transport_or_scenario};
-use anyhow::{Context, Result, bail};
-use node_camera::detect::ReferencePoint;
-use node_camera::process::{ProcessConfig, SourceSpec, run, transport_config};
-use proto::ClusterTime;
+use super::common::{TransportArg, load_scenario, run_node, transport_or_scenario};
+use anyhow::{Result, bail};
+use node_camera::process::{OpenFrames, ProcessConfig, run};
+use node_camera::source::ImageSequence;
+use proto::scenario::Scenario;
+use proto::sensor::{FrameSource, RadioSource, ReferencePoint};
+use proto::{ClusterTime, NodeId};
+use runtime::HostClock;
+use runtime::config::transport_config;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Arc;
 use std::time::Duration;
-use tokio_util::sync::CancellationToken;
 
 /// Seed of a camera's synthetic world unless `--seed` says otherwise (every camera of a launch
 /// shares it).
@@ -55,6 +57,18 @@ pub enum Reference {
     Foot,
 }
 
+/// Where a camera's frames come from.
+#[derive(Clone, Debug)]
+enum SourceSpec {
+    /// The scenario's simulated world (frames and radio).
+    Synthetic,
+    /// A directory of PNG/JPEG frames, at the camera's rate or with a manifest; loops.
+    Images { dir: PathBuf, manifest: Option<PathBuf> },
+    /// A V4L2 device.
+    #[cfg(feature = "v4l2")]
+    V4l2 { device: String },
+}
+
 fn parse_source(s: &str) -> Result<SourceSpec> {
     if s == "synthetic" {
         return Ok(SourceSpec::Synthetic);
@@ -74,75 +88,88 @@ fn parse_source(s: &str) -> Result<SourceSpec> {
     bail!("unknown --source {s:?}: expected synthetic, images:DIR[:MANIFEST] or v4l2:DEVICE")
 }
 
+/// The camera's sources: a real camera is given its device or files; `synthetic` injects the
+/// simulated world's frames and radio (what `ocelli launch` runs).
+fn sources(
+    spec: SourceSpec,
+    scenario: &Scenario,
+    id: u32,
+    seed: u64,
+    epoch: ClusterTime,
+) -> Result<(OpenFrames, Option<Box<dyn RadioSource + Send>>)> {
+    let fps = scenario
+        .node(id)
+        .and_then(|n| n.camera.as_ref())
+        .map_or(5.0, |c| c.fps);
+    Ok(match spec {
+        SourceSpec::Synthetic => {
+            let frames = world::sources::SyntheticFrames::new(scenario, id, seed, epoch)?;
+            let radio = world::sources::SyntheticRadio::new(scenario, id, seed, epoch)?;
+            let open: OpenFrames = Box::new(move || Ok(Box::new(frames) as Box<dyn FrameSource>));
+            (open, Some(Box::new(radio)))
+        }
+        SourceSpec::Images { dir, manifest } => {
+            let open: OpenFrames = Box::new(move || {
+                let seq = match manifest {
+                    Some(m) => ImageSequence::with_manifest(&dir, &m)?,
+                    None => ImageSequence::with_rate(&dir, fps)?,
+                };
+                Ok(Box::new(seq.looping(true)) as Box<dyn FrameSource>)
+            });
+            (open, None)
+        }
+        #[cfg(feature = "v4l2")]
+        SourceSpec::V4l2 { device } => {
+            let k = scenario.camera_model(id)?.intrinsics;
+            let open: OpenFrames = Box::new(move || {
+                Ok(Box::new(node_camera::v4l2::V4l2Source::open(
+                    &device, k.width, k.height, fps,
+                )?) as Box<dyn FrameSource>)
+            });
+            (open, None)
+        }
+    })
+}
+
 pub fn run_cmd(args: Args) -> Result<ExitCode> {
     let scenario = load_scenario(args.scenario.as_ref())?;
     let kind = transport_or_scenario(args.transport, &scenario);
     let source = parse_source(&args.source)?;
-    #[allow(clippy::disallowed_methods)] // the process runtime owns the clock
-    let clock: proto::transport::Clock = Arc::new(ClusterTime::wall_clock);
-    let transport = transport_config(&scenario, args.id, kind, clock.clone())?;
+    let clock = HostClock::follower();
+    let transport = transport_config(&scenario, NodeId(args.id), kind, &clock, None)?;
+    let epoch = args.epoch_ns.map_or_else(|| clock.now(), ClusterTime);
+    let (frames, radio) = sources(source, &scenario, args.id, args.seed, epoch)?;
+    let leader = scenario.server().map(|s| NodeId(s.id));
     let cfg = ProcessConfig {
-        scenario,
         id: args.id,
-        transport,
-        source,
-        seed: args.seed,
-        epoch: args.epoch_ns.map_or_else(|| clock(), ClusterTime),
-        clock,
-        tick: Duration::from_millis(100),
+        process: runtime::ProcessConfig::new(transport, leader, Duration::from_millis(100)),
+        frames,
+        radio,
         reference: match args.reference {
             Reference::Centre => ReferencePoint::Centre,
             Reference::Foot => ReferencePoint::Foot,
         },
         record_measurements: args.record_measurements,
+        scenario,
     };
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .context("tokio runtime")?;
-    rt.block_on(async move {
-        let stop = CancellationToken::new();
-        let signals = stop.clone();
-        tokio::spawn(async move {
-            let mut term = match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-                Ok(s) => s,
-                Err(e) => {
-                    tracing::warn!(error = %e, "no SIGTERM handler");
-                    return;
-                }
-            };
-            tokio::select! {
-                _ = tokio::signal::ctrl_c() => {}
-                _ = term.recv() => {}
-            }
-            tracing::info!("stopping (signal again to abort)");
-            signals.cancel();
-            tokio::select! {
-                _ = tokio::signal::ctrl_c() => {}
-                _ = term.recv() => {}
-            }
-            std::process::exit(130);
-        });
-        let summary = run(cfg, stop).await?;
-        println!(
-            "{}",
-            serde_json::json!({
-                "event": "stopped",
-                "frames": summary.counters.frames,
-                "detections": summary.counters.detections,
-                "contributions": summary.counters.contributions,
-                "measurements": summary.counters.measurements,
-                "dropped": summary.counters.dropped,
-                "rejected": summary.counters.rejected,
-                "still_unassociated": summary.counters.still_unassociated,
-                "frames_lost": summary.frames_lost,
-                "send_failures": summary.send_failures,
-                "measured_frames": summary.logged.frames,
-                "measured_dropped": summary.measured_dropped,
-                "transport": summary.transport,
-            })
-        );
-        Ok(ExitCode::SUCCESS)
-    })
+    let summary = run_node(|shutdown| async move { Ok(run(cfg, clock, shutdown).await?) })?;
+    println!(
+        "{}",
+        serde_json::json!({
+            "event": "stopped",
+            "frames": summary.counters.frames,
+            "detections": summary.counters.detections,
+            "contributions": summary.counters.contributions,
+            "measurements": summary.counters.measurements,
+            "dropped": summary.counters.dropped,
+            "rejected": summary.counters.rejected,
+            "still_unassociated": summary.counters.still_unassociated,
+            "frames_lost": summary.frames_lost,
+            "send_failures": summary.run.send_failures,
+            "measured_frames": summary.logged.frames,
+            "measured_dropped": summary.measured_dropped(),
+            "transport": summary.run.transport,
+        })
+    );
+    Ok(ExitCode::SUCCESS)
 }

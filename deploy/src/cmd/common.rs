@@ -44,8 +44,8 @@ pub struct NetArgs {
 }
 
 impl NetArgs {
-    pub fn model(&self) -> crate::sim::net::NetworkModel {
-        crate::sim::net::NetworkModel {
+    pub fn model(&self) -> sim::net::NetworkModel {
+        sim::net::NetworkModel {
             latency_ms: self.latency_ms,
             jitter_ms: self.jitter_ms,
             loss: self.loss,
@@ -86,4 +86,34 @@ pub async fn stop_signal() {
             let _ = tokio::signal::ctrl_c().await;
         }
     }
+}
+
+/// Run one node process: a tokio runtime, the node's future `run(shutdown)`, and the stop
+/// signals — the first cancels `shutdown` (the node stops cleanly), a second aborts.
+///
+/// # Errors
+/// The runtime cannot start, or the node's own error.
+pub fn run_node<T, F, Fut>(run: F) -> Result<T>
+where
+    F: FnOnce(tokio_util::sync::CancellationToken) -> Fut,
+    Fut: std::future::Future<Output = Result<T>>,
+{
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .map_err(|e| anyhow::anyhow!("cannot start the tokio runtime: {e}"))?;
+    rt.block_on(async move {
+        let shutdown = tokio_util::sync::CancellationToken::new();
+        let token = shutdown.clone();
+        tokio::spawn(async move {
+            stop_signal().await;
+            tracing::info!("stopping (a second signal aborts)");
+            token.cancel();
+            stop_signal().await;
+            eprintln!("second signal: aborting");
+            std::process::exit(130);
+        });
+        run(shutdown).await
+    })
 }

@@ -2,9 +2,9 @@
 //! the papers' experiments in the simulation runtime and print our table beside the paper's
 //! (see `experiment`).
 
-use crate::experiment::{self, NAMES, Options, plot, table};
-use crate::sim::runtime::Level;
 use anyhow::Result;
+use lab::experiment::{self, NAMES, Options, plot, table};
+use sim::Level;
 use std::path::PathBuf;
 use std::process::ExitCode;
 

@@ -2,14 +2,17 @@
 //! own process until SIGINT/SIGTERM (a second signal aborts). Prints a JSON summary of what
 //! it did on standard output when it stops.
 
-use super::common::{TransportArg, load_scenario, stop_signal, transport_or_scenario};
-use anyhow::{Context, Result};
-use node_head::process::{ProcessConfig, run as run_head};
+use super::common::{TransportArg, load_scenario, run_node, transport_or_scenario};
+use anyhow::Result;
+use node_head::HeadConfig;
+use node_head::process::run as run_head;
+use proto::NodeId;
+use runtime::HostClock;
+use runtime::config::transport_config;
 use serde_json::json;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use tokio_util::sync::CancellationToken;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -29,31 +32,12 @@ pub struct Args {
 
 pub fn run(args: Args) -> Result<ExitCode> {
     let scenario = load_scenario(args.scenario.as_ref())?;
-    let transport = transport_or_scenario(args.transport, &scenario);
-    let cfg = ProcessConfig {
-        scenario,
-        id: args.id,
-        transport,
-        listen: args.listen,
-    };
-    // The transport's futures are not `Send`: one thread drives the head, others serve IO.
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .context("cannot start the tokio runtime")?;
-    let summary = rt.block_on(async {
-        let token = CancellationToken::new();
-        let stop = token.clone();
-        tokio::spawn(async move {
-            stop_signal().await;
-            tracing::info!("stopping (a second signal aborts)");
-            stop.cancel();
-            stop_signal().await;
-            eprintln!("second signal: aborting");
-            std::process::exit(130);
-        });
-        run_head(cfg, token).await
-    })?;
+    let kind = transport_or_scenario(args.transport, &scenario);
+    let head_cfg = HeadConfig::from_scenario(&scenario, args.id)?;
+    let clock = HostClock::follower();
+    let transport = transport_config(&scenario, NodeId(args.id), kind, &clock, args.listen)?;
+    let summary =
+        run_node(|shutdown| async move { Ok(run_head(head_cfg, transport, clock, shutdown).await?) })?;
     let c = summary.counters;
     let out = json!({
         "head": args.id,
@@ -72,9 +56,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         "mean_active_cameras": c.mean_active_cameras(),
         "mean_rssi_nodes": c.mean_rssi_nodes(),
         "mean_power_mw": c.mean_power_mw(),
-        "sent": summary.sent,
-        "send_failures": summary.send_failures,
-        "peers_down": summary.peers_down,
+        "sent": summary.run.sent,
+        "send_failures": summary.run.send_failures,
+        "peers_down": summary.run.peers_down,
     });
     println!("{out}");
     Ok(ExitCode::SUCCESS)

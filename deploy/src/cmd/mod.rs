@@ -1,9 +1,6 @@
 //! One module per `ocelli` subcommand.
 
-pub mod bench_camera;
-pub mod bench_head;
-pub mod bench_server;
-pub mod bench_transport;
+pub mod bench;
 pub mod camera;
 pub mod common;
 pub mod deploy;

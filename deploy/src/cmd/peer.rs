@@ -10,10 +10,10 @@
 use anyhow::{Context, Result, bail};
 use proto::msg::{Message, SyncBeacon};
 use proto::node::Outgoing;
-use proto::transport::{
+use proto::{ClusterTime, MAX_FRAME_BYTES, NodeId, Role};
+use runtime::transport::{
     Event, IpcConfig, IpcLimits, StatsSnapshot, TcpConfig, TransportConfig, TransportStats, open,
 };
-use proto::{ClusterTime, MAX_FRAME_BYTES, NodeId, Role};
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::io::Write;

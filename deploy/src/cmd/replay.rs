@@ -1,25 +1,20 @@
 //! `ocelli replay`: estimates as JSON Lines on standard output, from either
 //! - a logging run's recording (`ocelli replay RECORDING --fusion … --activation …`): its
 //!   recorded camera measurements re-run through the heads with any method and policy
-//!   ([`crate::replay::rerun`]), followed by the run report of the replay (`ocelli report`'s);
+//!   (`lab::replay::rerun`), followed by the run report of the replay (`ocelli report`'s);
 //! - external detections (`--detections FILE`, JSON Lines, any detector) through a fusion
 //!   method, with cameras from a scenario (ids = node ids) or an OpenCV calibration folder (ids
 //!   from the file names).
 
 use super::common::NetArgs;
-use crate::replay::cameras::Cameras;
-use crate::replay::detections::read_detections;
-use crate::replay::ml::{Estimate, MlOptions, replay_ml};
-use crate::replay::rerun::{RerunOptions, recording_t0, rerun};
-use crate::replay::track::{RssiNodes, TrackOptions, track_with_rssi};
-use crate::sim::net::NetworkModel;
-use crate::sim::runtime::SimOptions;
 use anyhow::{Context, Result};
-use node_server::export::{TrackRow, track_rows};
-use node_server::report::Report;
+use lab::replay::fuse::{CameraSource, FuseMethod, FuseOptions, fuse};
+use lab::replay::rerun::{RerunOptions, recording_t0, replay_recording};
 use proto::ClusterTime;
 use proto::scenario::{Activation, Fusion};
-use std::io::{BufRead, BufReader, Write};
+use sim::SimOptions;
+use sim::net::NetworkModel;
+use std::io::{BufReader, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -166,140 +161,53 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((n(w)?, n(h)?))
 }
 
-/// Load cameras and detections, fuse, and return the estimates (the library entry point).
-///
-/// # Errors
-/// Unreadable or malformed cameras or detections, or invalid options.
-pub fn replay(args: &Args, input: impl BufRead) -> Result<Vec<Estimate>> {
-    anyhow::ensure!(
-        args.pixel_sigma.is_finite() && args.pixel_sigma > 0.0,
-        "--pixel-sigma {} must be a positive number",
-        args.pixel_sigma
-    );
-    anyhow::ensure!(
-        args.gate.is_finite() && args.gate > 0.0,
-        "--gate {} must be a positive number",
-        args.gate
-    );
-    if let Some(h) = args.plane_z {
-        anyhow::ensure!(h.is_finite(), "--plane-z {h} must be finite");
-    }
-    let (cameras, motion, rssi_model) = match (&args.scenario, &args.opencv_calibration) {
-        (Some(path), _) => {
-            let scenario = proto::scenario::Scenario::load(path)?;
-            (
-                Cameras::from_scenario(&scenario)?,
-                scenario.method.motion,
-                scenario.method.rssi_default,
-            )
-        }
-        (None, Some(dir)) => (
-            Cameras::from_opencv_dir(dir, Some(args.image_size))?,
-            proto::models::MotionModel::default(),
-            proto::models::RssiModel::default(),
-        ),
-        (None, None) => anyhow::bail!("give --scenario or --opencv-calibration"),
-    };
-    let detections = read_detections(input).context("reading detections")?;
-    let options = MlOptions {
-        plane_z: args.plane_z,
-        pixel_sigma: args.pixel_sigma,
-        gate_m: args.gate,
-        min_cameras: args.min_cameras,
-        ..MlOptions::default()
-    };
-    let (estimates, skipped) = replay_ml(&detections, &cameras, &options);
-    tracing::info!(
-        detections = detections.len(),
-        estimates = estimates.len(),
-        ?skipped,
-        "ML fusion done"
-    );
-    Ok(match args.method {
-        ReplayMethod::Ml => estimates,
-        ReplayMethod::Eif => {
-            // A detection's RSSI names a node; camera nodes carry the radios, so a node's
-            // position is its camera's centre.
-            let nodes = RssiNodes {
-                positions: cameras
-                    .models
-                    .iter()
-                    .map(|(id, m)| (id.clone(), cameras.to_user(&m.pose.centre())))
-                    .collect(),
-                model: rssi_model,
-            };
-            let (tracked, counts) = track_with_rssi(
-                &estimates,
-                &TrackOptions {
-                    motion,
-                    ..TrackOptions::default()
-                },
-                &nodes,
-            );
-            tracing::info!(tracked = tracked.len(), ?counts, "EIF tracking done");
-            if counts.rssi_unknown_node > 0 {
-                tracing::warn!(
-                    readings = counts.rssi_unknown_node,
-                    "RSSI readings from nodes that are not cameras of the replay, not used"
-                );
-            }
-            tracked
-        }
-    })
-}
-
-/// Re-run a recording's measurements through the heads: the replay's owner track rows (one per
-/// global track and step) and its report.
-///
-/// # Errors
-/// An unreadable recording or scenario, or a recording without measurements.
-pub fn replay_recording(path: &std::path::Path, args: &Args) -> Result<(Vec<TrackRow>, Report)> {
-    let scenario = args
-        .scenario
-        .as_deref()
-        .map(proto::scenario::Scenario::load)
-        .transpose()?;
-    let loaded =
-        node_server::replay::load(path, scenario).with_context(|| format!("reading {}", path.display()))?;
-    if let Some(tail) = &loaded.tail {
-        tracing::warn!(
-            skipped_bytes = tail.skipped_bytes,
-            "replay: torn tail of the recording skipped"
-        );
-    }
-    let rec = &args.rec;
-    let network = if rec.ideal_network {
-        NetworkModel::default()
-    } else {
-        rec.net.model()
-    };
-    let opts = RerunOptions {
-        fusion: rec.fusion.map(FusionArg::fusion),
-        activation: rec.activation.map(ActivationArg::activation),
-        sim: SimOptions {
-            seed: rec.seed,
-            network,
-            level: match rec.recorded_level {
-                super::sim::LevelArg::Pixel => crate::sim::runtime::Level::Pixel,
-                super::sim::LevelArg::Measurement => crate::sim::runtime::Level::Measurement,
+impl Args {
+    /// The fusion options these flags ask for.
+    ///
+    /// # Errors
+    /// Neither `--scenario` nor `--opencv-calibration`.
+    pub fn fuse_options(&self) -> Result<FuseOptions> {
+        let cameras = match (&self.scenario, &self.opencv_calibration) {
+            (Some(path), _) => CameraSource::Scenario(path.clone()),
+            (None, Some(dir)) => CameraSource::OpenCv {
+                dir: dir.clone(),
+                image_size: self.image_size,
             },
-            ..SimOptions::default()
-        },
-        t0: rec.t0_ns.map_or_else(|| recording_t0(&loaded), ClusterTime),
-    };
-    let replay = rerun(&loaded, &opts)?;
-    tracing::info!(
-        frames = replay.frames,
-        unknown_camera_frames = replay.unknown_camera_frames,
-        superseded_frames = replay.superseded_frames,
-        fusion = ?replay.scenario.method.fusion,
-        activation = ?replay.scenario.method.activation,
-        "replay done"
-    );
-    let replayed = replay.loaded();
-    let rows = track_rows(&replayed).into_iter().filter(|r| r.owner).collect();
-    // The replay's records are on its own virtual clock, where scenario time 0 is 0.
-    Ok((rows, node_server::report::compute(&replayed, ClusterTime(0))))
+            (None, None) => anyhow::bail!("give --scenario or --opencv-calibration"),
+        };
+        Ok(FuseOptions {
+            cameras,
+            method: match self.method {
+                ReplayMethod::Ml => FuseMethod::Ml,
+                ReplayMethod::Eif => FuseMethod::Eif,
+            },
+            plane_z: self.plane_z,
+            pixel_sigma: self.pixel_sigma,
+            gate: self.gate,
+            min_cameras: self.min_cameras,
+        })
+    }
+
+    /// The re-run options these flags ask for, for a loaded recording.
+    fn rerun_options(&self, loaded: &node_server::replay::Loaded) -> RerunOptions {
+        let rec = &self.rec;
+        let network = if rec.ideal_network {
+            NetworkModel::default()
+        } else {
+            rec.net.model()
+        };
+        RerunOptions {
+            fusion: rec.fusion.map(FusionArg::fusion),
+            activation: rec.activation.map(ActivationArg::activation),
+            sim: SimOptions {
+                seed: rec.seed,
+                network,
+                level: rec.recorded_level.level(),
+                ..SimOptions::default()
+            },
+            t0: rec.t0_ns.map_or_else(|| recording_t0(loaded), ClusterTime),
+        }
+    }
 }
 
 fn write_lines<T: serde::Serialize>(items: &[T], out: &mut impl Write) -> Result<bool> {
@@ -317,7 +225,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     if let Some(path) = &args.recording {
-        let (rows, report) = replay_recording(path, &args)?;
+        let scenario = args
+            .scenario
+            .as_deref()
+            .map(proto::scenario::Scenario::load)
+            .transpose()?;
+        let (rows, report) = replay_recording(path, scenario, |loaded| args.rerun_options(loaded))?;
         if !write_lines(&rows, &mut out)? {
             return Ok(ExitCode::SUCCESS);
         }
@@ -327,11 +240,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
             eprint!("{}", report.to_table());
         }
     } else {
+        let opts = args.fuse_options()?;
         let estimates = match args.detections.as_deref() {
-            Some("-") | None => replay(&args, std::io::stdin().lock())?,
+            Some("-") | None => fuse(&opts, std::io::stdin().lock())?,
             Some(p) => {
                 let file = std::fs::File::open(p).with_context(|| format!("cannot open {p}"))?;
-                replay(&args, BufReader::new(file))?
+                fuse(&opts, BufReader::new(file))?
             }
         };
         if !write_lines(&estimates, &mut out)? {

@@ -30,7 +30,13 @@ pub struct Args {
 pub fn run(args: Args) -> Result<ExitCode> {
     let scenario = args.scenario.as_deref().map(Scenario::load).transpose()?;
     let loaded = load(&args.recording, scenario)?;
-    let report = compute(&loaded, ClusterTime(args.t0_ns));
+    // Scored against the scenario's simulated targets when it has any, as they were at
+    // `--t0-ns` on the recording's clock.
+    let truth = sim::WorldTruth::of(&loaded.scenario, ClusterTime(args.t0_ns))?;
+    let report = compute(
+        &loaded,
+        truth.as_ref().map(|t| t as &dyn node_server::report::Truth),
+    );
     let json = serde_json::to_string_pretty(&report)?;
     if let Some(p) = &args.write {
         std::fs::write(p, &json).with_context(|| format!("writing {}", p.display()))?;

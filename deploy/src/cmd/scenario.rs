@@ -2,11 +2,11 @@
 //! scenario's simulated room for its default RSSI model.
 
 use anyhow::Result;
-use node_camera::radio::{SURVEY_READINGS_PER_PAIR, survey};
 use proto::models::{RssiModel, fit_log_distance};
 use proto::scenario::{DEFAULT_SCENARIO_TOML, Scenario};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use world::radio::{SURVEY_READINGS_PER_PAIR, survey};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -36,12 +36,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
         Action::Default => print!("{DEFAULT_SCENARIO_TOML}"),
         Action::Check { path } => {
             let s = Scenario::load(&path)?;
+            // The simulated world's part (targets) is checked too.
+            let targets = world::targets(&s)?;
             println!(
                 "{}: {} cameras, {} heads, {} targets — ok",
                 s.name,
                 s.cameras().count(),
                 s.heads().count(),
-                s.targets.len()
+                targets.len()
             );
         }
         Action::Survey { path, seed } => {

@@ -1,14 +1,15 @@
 //! `ocelli server`: run the server process (membership, handover, global ids, time leader,
 //! recording) from a scenario, over iceoryx2 or TCP. Restarting it on the same recording resumes.
 
-use super::common::{TransportArg, load_scenario, stop_signal, transport_or_scenario};
+use super::common::{TransportArg, load_scenario, run_node, transport_or_scenario};
 use anyhow::{Context, Result};
-use node_server::process::{ProcessConfig, run as run_server, transport_for};
+use node_server::process::{ProcessConfig, run as run_server};
 use proto::NodeId;
+use runtime::HostClock;
+use runtime::config::transport_config;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
-use tokio_util::sync::CancellationToken;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -41,31 +42,22 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }
     };
     let kind = transport_or_scenario(args.transport, &scenario);
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()?;
-    rt.block_on(async move {
-        let transport = transport_for(&scenario, NodeId(id), kind)?;
-        let cfg = ProcessConfig {
-            scenario,
-            id: NodeId(id),
-            transport,
-            record: args.record,
-            tick: Duration::from_millis(args.tick_ms.max(1)),
-            sync_every: Duration::from_millis(500),
-        };
-        let shutdown = CancellationToken::new();
-        let token = shutdown.clone();
-        tokio::spawn(async move {
-            stop_signal().await;
-            tracing::info!("stopping (signal again to abort)");
-            token.cancel();
-            stop_signal().await;
-            std::process::exit(130);
-        });
-        let summary = run_server(cfg, shutdown).await?;
-        tracing::info!(?summary, "server exited");
-        anyhow::Ok(ExitCode::SUCCESS)
-    })
+    // The leader's clock stamps the transport's own frames.
+    let transport = transport_config(&scenario, NodeId(id), kind, &HostClock::leader(), None)?;
+    let cfg = ProcessConfig {
+        scenario,
+        id: NodeId(id),
+        transport,
+        record: args.record,
+        tick: Duration::from_millis(args.tick_ms.max(1)),
+        sync_every: Duration::from_millis(500),
+    };
+    let summary = run_node(|shutdown| async move { Ok(run_server(cfg, shutdown).await?) })?;
+    tracing::info!(
+        records = summary.records,
+        received = summary.run.received,
+        sent = summary.run.sent,
+        "server exited"
+    );
+    Ok(ExitCode::SUCCESS)
 }

@@ -2,11 +2,11 @@
 //! Same seed, same bytes out.
 
 use super::common::{NetArgs, load_scenario};
-use crate::sim::runtime::{Level, Sim, SimOptions};
 use anyhow::Result;
 use node_server::replay::Loaded;
 use node_server::report;
 use proto::ClusterTime;
+use sim::{Level, Sim, SimOptions, WorldTruth};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -42,15 +42,21 @@ pub enum LevelArg {
     Measurement,
 }
 
+impl LevelArg {
+    pub fn level(self) -> Level {
+        match self {
+            LevelArg::Pixel => Level::Pixel,
+            LevelArg::Measurement => Level::Measurement,
+        }
+    }
+}
+
 pub fn run(args: Args) -> Result<ExitCode> {
     let scenario = load_scenario(args.scenario.as_ref())?;
     let opts = SimOptions {
         seed: args.seed,
         duration_s: args.duration,
-        level: match args.level {
-            LevelArg::Pixel => Level::Pixel,
-            LevelArg::Measurement => Level::Measurement,
-        },
+        level: args.level.level(),
         network: args.net.model(),
         record_measurements: args.record_measurements,
         ..SimOptions::default()
@@ -59,12 +65,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
     if let Some(path) = &args.record {
         outcome.write_recording(path)?;
     }
+    let truth = WorldTruth::of(&outcome.scenario, ClusterTime(0))?;
     let loaded = Loaded {
         scenario: outcome.scenario,
         records: outcome.records,
         tail: None,
     };
-    let report = report::compute(&loaded, ClusterTime(0));
+    let report = report::compute(&loaded, truth.as_ref().map(|t| t as &dyn report::Truth));
     let level = match outcome.level {
         Level::Pixel => "pixel",
         Level::Measurement => "measurement (truth projected plus noise)",

@@ -1,6 +1,3 @@
-//! Integration tests of the `deploy` crate (one binary).
+//! Integration tests of the `ocelli` binary (one binary).
 
-mod experiment;
-mod replay;
-mod rerun;
-mod sim;
+mod cli;

@@ -1,10 +1,11 @@
 use super::*;
-use crate::render::Renderer;
 use nalgebra::{Matrix6, Vector3};
 use proto::NodeId;
 use proto::models;
 use proto::msg::{Command, Prior};
-use proto::scenario::Scenario;
+use proto::scenario::{Fusion, Scenario};
+use world::Target;
+use world::render::Renderer;
 
 const CAM: u32 = 10;
 
@@ -14,6 +15,19 @@ fn setup(fusion: Fusion) -> (Scenario, CameraNode, Renderer) {
     let cfg = CameraConfig::from_scenario(&s, CAM).unwrap();
     let r = Renderer::for_node(&s, CAM, 3).unwrap();
     (s, CameraNode::new(cfg, ClusterTime::ZERO), r)
+}
+
+/// The default scenario's targets (the simulated world's).
+fn targets(s: &Scenario) -> Vec<Target> {
+    world::targets(s).unwrap()
+}
+
+fn tag(t: f64, dbm: f64) -> TagReading {
+    TagReading {
+        tag: TagId::simulated(1),
+        dbm,
+        time: ClusterTime::from_secs_f64(t),
+    }
 }
 
 fn env(body: Message) -> Envelope {
@@ -26,7 +40,7 @@ fn env(body: Message) -> Envelope {
 }
 
 fn prior(s: &Scenario, t: f64, offset: f64, step: u64) -> Prior {
-    let mut mean = s.targets[0].truth_at(t);
+    let mut mean = targets(s)[0].truth_at(t);
     mean[0] += offset;
     Prior {
         target: TargetId(1),
@@ -44,7 +58,7 @@ fn run(node: &mut CameraNode, s: &Scenario, r: &Renderer, t0: f64, t1: f64) -> V
     let mut t = t0;
     while t <= t1 + 1e-9 {
         let now = ClusterTime::from_secs_f64(t);
-        r.render(&s.targets, t, now, &mut f);
+        r.render(&targets(s), t, now, &mut f);
         out.extend(node.on_frame(now, &f));
         t += 0.2;
     }
@@ -58,7 +72,7 @@ fn run(node: &mut CameraNode, s: &Scenario, r: &Renderer, t0: f64, t1: f64) -> V
 fn a_frame_is_gated_against_where_the_prior_puts_the_target_then() {
     let (s, mut node, r) = setup(Fusion::CentralizedEif);
     run(&mut node, &s, &r, 0.0, 5.8);
-    let truth = s.targets[0].truth_at(6.0);
+    let truth = targets(&s)[0].truth_at(6.0);
     let mut mean = truth;
     mean[3] = 10.0;
     mean[4] = 0.0;
@@ -73,7 +87,7 @@ fn a_frame_is_gated_against_where_the_prior_puts_the_target_then() {
     node.on_message(ClusterTime::from_secs_f64(5.9), env(Message::Prior(p)));
     let mut f = Frame::new(0, 0, ClusterTime::ZERO);
     let now = ClusterTime::from_secs_f64(6.0);
-    r.render(&s.targets, 6.0, now, &mut f);
+    r.render(&targets(&s), 6.0, now, &mut f);
     let out = node.on_frame(now, &f);
     let gated: Vec<_> = out
         .iter()
@@ -98,7 +112,7 @@ fn a_frame_far_from_the_prior_is_not_used_either_way() {
             panic!("expected a contribution, got {:?}", got[0].body)
         };
         assert!(
-            !c.camera,
+            !c.folded.camera(),
             "a frame 10 s from the prior was used (arrival {arrival} s)"
         );
     }
@@ -123,13 +137,13 @@ fn answers_a_prior_with_the_gated_detection() {
         panic!("expected a contribution, got {:?}", got[0].body)
     };
     assert_eq!(
-        (c.target, c.step, c.camera, c.mode),
+        (c.target, c.step, c.folded.camera(), c.mode),
         (TargetId(1), 31, true, Mode::Active)
     );
     assert_eq!(got[0].to, NodeId(2), "answers the head that asked");
     // Recover the measured point from ξ and Ω: the measurement the camera used lies
     // within a few pixels of the true centre's projection.
-    let truth = s.targets[0].truth_at(t);
+    let truth = targets(&s)[0].truth_at(t);
     let m = node
         .latest()
         .iter()
@@ -148,7 +162,7 @@ fn answers_a_prior_with_the_gated_detection() {
         c.captured,
         now.secs_since(c.captured),
         Mode::Active,
-        None,
+        &[],
     );
     assert_eq!(
         c.info_vector, expected.info_vector,
@@ -192,7 +206,7 @@ fn still_regions_are_not_offered_for_new_tracks() {
         let now = ClusterTime::from_secs_f64(t);
         for o in node.on_frame(now, &block_frame(&s, t, x)) {
             if let Message::Measurement(m) = o.body {
-                offered.push((x, m.pixel_box));
+                offered.push((x, m.pinhole().unwrap().pixel_box));
             }
         }
         t += if t > 1.7 && t < 2.0 { 5.0 } else { 0.2 };
@@ -230,7 +244,7 @@ fn empty_answer_when_nothing_matches_and_bad_input_changes_nothing() {
     let Message::Contribution(c) = &got[0].body else {
         panic!()
     };
-    assert!(!c.camera);
+    assert!(!c.folded.camera());
     assert!(c.info_matrix.iter().flatten().all(|&v| v == 0.0));
     let before = node.counters();
     let mut bad = prior(&s, 2.0, 0.0, 6);
@@ -247,7 +261,11 @@ fn empty_answer_when_nothing_matches_and_bad_input_changes_nothing() {
     let wrong = Frame::new(100, 100, now);
     assert!(node.on_frame(now, &wrong).is_empty());
     assert_eq!(node.counters().rejected, before.rejected + 3);
-    node.on_rssi(now, TargetId(1), f64::INFINITY);
+    node.on_tag(TagReading {
+        tag: TagId(1),
+        dbm: f64::INFINITY,
+        time: now,
+    });
     assert_eq!(node.counters().rejected, before.rejected + 4);
 }
 
@@ -270,7 +288,7 @@ fn modes_gate_capture_and_radio_and_time_is_accounted() {
         "no capture when the camera is off"
     );
     assert_eq!(node.counters().frames_skipped, 10);
-    node.on_rssi(ClusterTime::from_secs_f64(3.0), TargetId(1), -60.0);
+    node.on_tag(tag(3.0, -60.0));
     let got = node.on_message(
         ClusterTime::from_secs_f64(3.05),
         env(Message::Prior(prior(&s, 3.0, 0.0, 9))),
@@ -278,10 +296,18 @@ fn modes_gate_capture_and_radio_and_time_is_accounted() {
     let Message::Contribution(c) = &got[0].body else {
         panic!()
     };
-    assert!(!c.camera && c.mode == Mode::CameraOff);
-    assert_eq!(c.rssi.map(|r| r.dbm), Some(-60.0), "CameraOff still reports RSSI");
+    assert!(!c.folded.camera() && c.mode == Mode::CameraOff);
+    assert_eq!(
+        c.observations,
+        vec![proto::observation::Observation::Rssi(RssiReading {
+            tag: TagId::simulated(1),
+            dbm: -60.0,
+            time: ClusterTime::from_secs_f64(3.0)
+        })],
+        "CameraOff still reports RSSI"
+    );
     node.on_message(ClusterTime::from_secs_f64(4.0), cmd(Mode::Inactive));
-    node.on_rssi(ClusterTime::from_secs_f64(4.5), TargetId(1), -61.0);
+    node.on_tag(tag(4.5, -61.0));
     assert!(
         node.on_message(
             ClusterTime::from_secs_f64(4.6),
@@ -309,7 +335,13 @@ fn modes_gate_capture_and_radio_and_time_is_accounted() {
         node.tick(ClusterTime::from_secs_f64(8.5)).is_empty(),
         "once per period"
     );
-    node.set_sync(-1_500_000, 40_000);
+    node.handle(
+        ClusterTime::from_secs_f64(8.9),
+        Input::Sync {
+            offset_ns: -1_500_000,
+            error_ns: 40_000,
+        },
+    );
     let status = node.tick(ClusterTime::from_secs_f64(9.0));
     assert_eq!(status.len(), 2);
     let Message::NodeStatus(st) = &status[1].body else {
@@ -344,11 +376,12 @@ fn centralized_mode_sends_gated_measurements_with_pose() {
     assert_eq!(gated[0].pose, cam.pose.to_wire());
     assert_eq!(gated[0].step, 40);
     let (p, _) = cam.normalized(&Vector3::new(
-        s.targets[0].truth_at(t)[0],
-        s.targets[0].truth_at(t)[1],
-        s.targets[0].truth_at(t)[2],
+        targets(&s)[0].truth_at(t)[0],
+        targets(&s)[0].truth_at(t)[1],
+        targets(&s)[0].truth_at(t)[2],
     ));
-    let err = ((gated[0].point[0] - p.x).powi(2) + (gated[0].point[1] - p.y).powi(2)).sqrt();
+    let point = gated[0].pinhole().unwrap().point;
+    let err = ((point[0] - p.x).powi(2) + (point[1] - p.y).powi(2)).sqrt();
     assert!(err * cam.intrinsics.fx < 12.0, "{err}");
 }
 
@@ -360,7 +393,7 @@ fn measured_input_answers_like_the_frame_it_came_from() {
     let mut t = 0.0;
     while t <= 6.0 {
         let now = ClusterTime::from_secs_f64(t);
-        r.render(&s.targets, t, now, &mut f);
+        r.render(&targets(&s), t, now, &mut f);
         let from_frame = a.on_frame(now, &f);
         let logged = a.latest().to_vec();
         assert_eq!(b.on_measured(now, now, &logged, true), from_frame);
@@ -369,7 +402,7 @@ fn measured_input_answers_like_the_frame_it_came_from() {
     let now = ClusterTime::from_secs_f64(6.01);
     let p = || env(Message::Prior(prior(&s, 6.0, 0.1, 31)));
     let (ca, cb) = (a.on_message(now, p()), b.on_message(now, p()));
-    assert!(matches!(&ca[0].body, Message::Contribution(c) if c.camera));
+    assert!(matches!(&ca[0].body, Message::Contribution(c) if c.folded.camera()));
     assert_eq!(ca, cb, "the same contribution from the same measurements");
     assert_eq!(a.counters().frames, b.counters().frames);
 

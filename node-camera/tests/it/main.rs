@@ -2,4 +2,3 @@
 
 mod multiviewx;
 mod process;
-mod synthetic;

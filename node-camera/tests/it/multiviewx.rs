@@ -14,11 +14,11 @@
 //! initialised with the per-pixel temporal median of the view's five frames
 //! ([`Paper004::init_median`]) and then all frames are segmented in order.
 
-use node_camera::detect::Detection;
-use node_camera::frame::Frame;
 use node_camera::seg004::{Paper004, Paper004Params};
 use node_camera::source::ImageSequence;
 use proto::ClusterTime;
+use proto::sensor::Detection;
+use proto::sensor::Frame;
 use std::path::{Path, PathBuf};
 
 fn dataset() -> PathBuf {

@@ -1,61 +1,57 @@
 //! The camera process over the in-process transport: it runs with its head away (counting
 //! what it cannot deliver), answers a head that appears, and stops cleanly when told.
 
-use node_camera::detect::ReferencePoint;
-use node_camera::process::{ProcessConfig, SourceSpec, run};
+use node_camera::process::{ProcessConfig, run};
 use proto::msg::{Message, Prior};
 use proto::node::Outgoing;
 use proto::scenario::Scenario;
-use proto::transport::{Clock, Event, InProcessHub, TransportConfig, open};
+use proto::sensor::{FrameSource, ReferencePoint};
 use proto::{ClusterTime, NodeId, Role, TargetId, models};
-use std::sync::Arc;
+use runtime::HostClock;
+use runtime::transport::{Event, InProcessHub, TransportConfig, open};
 use std::time::Duration;
 use tokio_util::sync::CancellationToken;
+use world::sources::{SyntheticFrames, SyntheticRadio};
 
-/// Camera 10 of `scenario` on the hub, synthetic frames, seed 1.
+/// Camera 10 of `scenario` on the hub, fed the simulated world (seed 1) from now on.
 fn camera_10(
     scenario: &Scenario,
     hub: &InProcessHub,
-    clock: &Clock,
+    clock: &HostClock,
     record_measurements: bool,
 ) -> ProcessConfig {
+    let epoch = clock.now();
+    let frames = SyntheticFrames::new(scenario, 10, 1, epoch).unwrap();
+    let radio = SyntheticRadio::new(scenario, 10, 1, epoch).unwrap();
+    let transport = TransportConfig::InProcess {
+        hub: hub.clone(),
+        me: NodeId(10),
+        role: Role::Camera,
+        queue_len: 64,
+    };
     ProcessConfig {
         scenario: scenario.clone(),
         id: 10,
-        transport: TransportConfig::InProcess {
-            hub: hub.clone(),
-            me: NodeId(10),
-            role: Role::Camera,
-            queue_len: 64,
-        },
-        source: SourceSpec::Synthetic,
-        seed: 1,
-        epoch: ClusterTime::ZERO,
-        clock: clock.clone(),
-        tick: Duration::from_millis(100),
+        process: runtime::ProcessConfig::new(transport, Some(NodeId(1)), Duration::from_millis(100)),
+        frames: Box::new(move || Ok(Box::new(frames) as Box<dyn FrameSource>)),
+        radio: Some(Box::new(radio)),
         reference: ReferencePoint::Centre,
         record_measurements,
     }
-}
-
-#[allow(clippy::disallowed_methods)] // a runtime's clock: tests are runtimes
-fn wall_clock() -> Clock {
-    let start = std::time::Instant::now();
-    Arc::new(move || ClusterTime(start.elapsed().as_nanos() as i64))
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
     let scenario = Scenario::default_scenario();
     let hub = InProcessHub::new();
-    let clock = wall_clock();
+    let clock = HostClock::follower();
     let cfg = camera_10(&scenario, &hub, &clock, false);
     let stop = CancellationToken::new();
-    // The camera's future is driven on this task: `proto::transport::open`'s future holds a
+    // The camera's future is driven on this task: `runtime::transport::open`'s future holds a
     // `&ShutdownHandle` (not `Sync`) across an await, so `run` cannot be `tokio::spawn`ed.
     // The driver plays the absent, then present,
     // head alongside it.
-    let camera = run(cfg, stop.clone());
+    let camera = run(cfg, clock.clone(), stop.clone());
     let driver = async {
         // Head (node 2) and server (node 1) away for a while: the camera keeps going.
         tokio::time::sleep(Duration::from_millis(1500)).await;
@@ -70,15 +66,18 @@ async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
         let prior = Prior {
             target: TargetId(1),
             step: 77,
-            mean: models::vec6_to_wire(&scenario.targets[0].truth_at(0.0)),
+            mean: models::vec6_to_wire(&world::targets(&scenario).unwrap()[0].truth_at(0.0)),
             cov: models::mat6_to_wire(&(nalgebra::Matrix6::identity() * 0.04)),
             deadline: ClusterTime::ZERO,
         };
         let mut answered = false;
         for _ in 0..30 {
-            head.send(Outgoing::new(NodeId(10), Message::Prior(prior.clone())), clock())
-                .await
-                .unwrap();
+            head.send(
+                Outgoing::new(NodeId(10), Message::Prior(prior.clone())),
+                clock.now(),
+            )
+            .await
+            .unwrap();
             let wait = tokio::time::sleep(Duration::from_millis(300));
             tokio::pin!(wait);
             loop {
@@ -126,7 +125,7 @@ async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
 async fn a_logging_camera_sends_every_frame_to_the_server_whatever_its_mode() {
     let scenario = Scenario::default_scenario();
     let hub = InProcessHub::new();
-    let clock = wall_clock();
+    let clock = HostClock::follower();
     let (server, mut inbox, _stats, server_handle) = open(TransportConfig::InProcess {
         hub: hub.clone(),
         me: NodeId(1),
@@ -137,7 +136,7 @@ async fn a_logging_camera_sends_every_frame_to_the_server_whatever_its_mode() {
     .unwrap();
     let cfg = camera_10(&scenario, &hub, &clock, true);
     let stop = CancellationToken::new();
-    let camera = run(cfg, stop.clone());
+    let camera = run(cfg, clock.clone(), stop.clone());
     let driver = async {
         // The server's stand-in sends the command a head would (the camera takes commands
         // from anyone addressed to it), then counts the frames that keep coming.
@@ -153,7 +152,7 @@ async fn a_logging_camera_sends_every_frame_to_the_server_whatever_its_mode() {
                 commanded = server
                     .send(
                         Outgoing::new(NodeId(10), Message::Command(sleep.clone())),
-                        clock(),
+                        clock.now(),
                     )
                     .await
                     .is_ok();

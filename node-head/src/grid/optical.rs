@@ -22,7 +22,7 @@ use super::layout::Grid;
 use nalgebra::{Matrix2, Vector2, Vector3};
 use proto::Mode;
 use proto::camera::CameraModel;
-use proto::msg::Measurement;
+use proto::observation::PinholePoint;
 use proto::scenario::World;
 
 /// The optical model's parameters.
@@ -77,8 +77,8 @@ pub struct Detection {
     pub cov: [f64; 3],
 }
 
-impl From<&Measurement> for Detection {
-    fn from(m: &Measurement) -> Self {
+impl From<&PinholePoint> for Detection {
+    fn from(m: &PinholePoint) -> Self {
         Detection {
             point: m.point,
             cov: m.cov,

@@ -1,21 +1,18 @@
-//! Closing a step: association, fusion of each track (distributed sums, centralized
-//! linearization or ML), RSSI linearization and training, reports, births, activation.
+//! Closing a step: association, fusion of each track (the method's [`crate::fusion::Fusion`]),
+//! RSSI linearization and training, reports, births, activation.
 
 use super::HeadNode;
 use crate::activation::{Candidate, Expected, Variant};
 use crate::association::{Detection, associate, births};
-use crate::eif::Eif;
-use crate::ml;
+use crate::observe;
 use crate::rssi_training::distance_variance;
 use crate::stats::StepStats;
 use nalgebra::Matrix6;
-use proto::models::{
-    Info, State, back_in_time, camera_contribution_aged, information_contribution, mat6_to_wire,
-    pinhole_previous, position, rssi_aged, rssi_information, vec6_to_wire,
-};
+use proto::models::{Info, State, back_in_time, mat6_to_wire, position, vec6_to_wire};
 use proto::msg::{Command, TrackReport};
 use proto::node::Outgoing;
-use proto::scenario::{Activation, Fusion};
+use proto::observation::{Kinds, ObservationKind};
+use proto::scenario::Activation;
 use proto::{ClusterTime, Message, Mode};
 use tracing::{info, warn};
 
@@ -24,7 +21,6 @@ impl HeadNode {
         let complete = self.window.complete();
         self.window.close();
         let counts = self.window.counts();
-        let fusion = self.cfg.method.fusion;
         // Associate detections; leftovers may start tracks.
         let dets = std::mem::take(&mut self.detections);
         let priors: Vec<(State, Matrix6<f64>, ClusterTime)> = self
@@ -36,7 +32,7 @@ impl HeadNode {
         let mut free = Vec::new();
         for (d, a) in dets.into_iter().zip(assigned) {
             match a {
-                Some(t) if fusion != Fusion::DistributedEif => {
+                Some(t) if !self.fusion.distributed() => {
                     self.tracks[t].last_seen = now;
                     self.tracks[t].detections.push(d);
                 }
@@ -97,56 +93,28 @@ impl HeadNode {
         }
     }
 
-    /// Apply one track's step: sums (or measurements), RSSI, update, training.
+    /// Apply one track's step: the detections the head associated with it (centralized
+    /// methods), RSSI, the fusion's update, then RSSI training.
     fn fuse_track(&mut self, t: usize, now: ClusterTime, stats: &mut StepStats, rssi_nodes: &mut [bool]) {
-        let uses_rssi = self.uses_rssi();
-        let method = &self.cfg.method;
+        let fuse_rssi = self.uses_rssi() && self.fusion.fuses_rssi();
         let track = &mut self.tracks[t];
-        // The time of μ̄: the step's, or a track handed over during the step its own.
         let at = track.time;
         let mean_bar = *track.filter.mean();
-        // Centralized and ML: the head linearizes.
         let dets = std::mem::take(&mut track.detections);
-        let mut ml_points = Vec::new();
         for d in &dets {
-            let node = &self.nodes[d.slot].info;
-            let cam = &node.camera;
-            match method.fusion {
-                Fusion::CentralizedEif => {
-                    // Frames are fused at their capture time, as the cameras do in the
-                    // distributed filter (`camera_contribution_aged`).
-                    let age_s = d.age_s(at);
-                    if let Some((o, x)) = camera_contribution_aged(cam, &d.point, &d.cov, &mean_bar, age_s) {
-                        track.acc.add(&o, &x);
-                        track.aux_acc.add(&o, &x);
-                    }
-                    if method.previous_point
-                        && let Some(prev) = d.prev_point
-                        && let Some((h, jac)) = pinhole_previous(cam, &mean_bar, age_s + 1.0 / node.fps)
-                        && let Some((o, x)) = information_contribution(&prev, &h, &jac, &d.cov, &mean_bar)
-                    {
-                        track.acc.add(&o, &x);
-                        track.aux_acc.add(&o, &x);
-                    }
+            let node = &self.cfg.nodes[d.slot];
+            self.fusion.absorb(track, d, node, &self.cfg);
+            let mut kinds = Kinds::of(ObservationKind::Pinhole);
+            for r in d.rssi.iter().filter(|_| node.rssi) {
+                if track.hear(d.slot, r.dbm, at.secs_since(r.time)) {
+                    kinds.insert(ObservationKind::Rssi);
                 }
-                Fusion::Ml => {
-                    if let Some(p) = ml::lift(cam, &d.point, &d.cov, self.cfg.ml_depth) {
-                        ml_points.push(p);
-                    }
-                }
-                Fusion::DistributedEif => {}
             }
-            let heard = d
-                .rssi
-                .filter(|_| node.rssi)
-                .is_some_and(|r| track.hear(d.slot, r.dbm, at.secs_since(r.time)));
-            track.note(node.id, true, heard);
+            track.note(node.id, kinds);
         }
-        stats.applied += if method.fusion == Fusion::DistributedEif {
-            0
-        } else {
-            dets.len() as u64
-        };
+        if !self.fusion.distributed() {
+            stats.applied += dets.len() as u64;
+        }
         // The camera-only filter takes this step's camera information first: RSSI below is
         // weighed by what the cameras know now.
         if track.aux.update(&track.aux_acc).is_err() {
@@ -155,61 +123,24 @@ impl HeadNode {
         let aux_cov = track.aux.cov().fixed_view::<3, 3>(0, 0).into_owned();
         // RSSI, linearized here with the node's current model: Algorithm 1's choice first
         // re-run with what the cameras know of each node's distance now.
-        if uses_rssi && method.fusion != Fusion::Ml {
+        if fuse_rssi {
             let aux_pos = position(track.aux.mean());
-            for (trainer, node) in track.trainers.iter_mut().zip(&self.nodes) {
-                trainer.recheck(distance_variance(&aux_pos, &aux_cov, &node.info.position));
+            for (trainer, node) in track.trainers.iter_mut().zip(&self.cfg.nodes) {
+                trainer.recheck(distance_variance(&aux_pos, &aux_cov, &node.position));
             }
             let cov_bar = *track.filter.cov();
-            // Every reading of the step is weighed with what this track's readings erred before
-            // it (so the order packets came in does not matter), then counted.
-            let erred = track.rssi_noise;
-            for &(slot, dbm, age_s) in &track.rssi {
-                let node = &self.nodes[slot].info;
-                let claimed = track.trainers[slot].model();
-                let (h, jac) = rssi_aged(&claimed, &node.position, &mean_bar, age_s);
-                let hph = (jac * cov_bar * jac.transpose())[(0, 0)];
-                track.rssi_noise.observe(&claimed, dbm - h, hph);
-                let variance = erred.weighed(&claimed).variance();
-                if let Some((o, x)) = rssi_information(dbm, h, &jac, variance, &mean_bar) {
-                    track.acc.add(&o, &x);
-                    rssi_nodes[slot] = true;
-                    track.last_seen = now;
-                }
+            for slot in observe::rssi(track, &self.cfg.nodes, &mean_bar, &cov_bar) {
+                rssi_nodes[slot] = true;
+                track.last_seen = now;
             }
         }
-        if method.fusion == Fusion::Ml {
-            if let Some((p, c)) = ml::fuse(&ml_points) {
-                let dt_prev = track.ml_prev.map(|(_, t0)| now.secs_since(t0));
-                let mut mean = State::zeros();
-                mean.fixed_rows_mut::<3>(0).copy_from(&p);
-                let mut cov = Matrix6::identity() * crate::init::INIT_VELOCITY_SIGMA.powi(2);
-                cov.fixed_view_mut::<3, 3>(0, 0).copy_from(&c);
-                if let (Some((p0, _)), Some(dt)) = (track.ml_prev, dt_prev)
-                    && dt > 0.0
-                {
-                    mean.fixed_rows_mut::<3>(3).copy_from(&((p - p0) / dt));
-                    cov.fixed_view_mut::<3, 3>(3, 3)
-                        .copy_from(&(c * (2.0 / (dt * dt))));
-                }
-                match Eif::from_gaussian(mean, cov) {
-                    Ok(f) => {
-                        track.filter = f;
-                        track.ml_prev = Some((p, now));
-                    }
-                    Err(_) => self.counters.numeric_failures += 1,
-                }
-            } else {
-                stats.prediction_only += 1;
-            }
-        } else {
-            if track.acc.count == 0 {
-                stats.prediction_only += 1;
-            }
-            if let Err(e) = track.filter.update(&track.acc) {
-                self.counters.numeric_failures += 1;
-                warn!(target = %track.local, error = %e, "update failed; prediction only");
-            }
+        let updated = self.fusion.update(track, now);
+        if !updated.informed {
+            stats.prediction_only += 1;
+        }
+        if let Some(e) = updated.failure {
+            self.counters.numeric_failures += 1;
+            warn!(target = %track.local, error = %e, "update failed; prediction only");
         }
         let trained_from_cameras = track.aux_acc.count > 0;
         track.end_step(trained_from_cameras || !dets.is_empty());

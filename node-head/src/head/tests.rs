@@ -1,6 +1,7 @@
 //! Unit tests of the head core: strangers, handover, assignment.
 use super::*;
-use proto::scenario::Scenario;
+use proto::observation::{Observation, PinholePoint};
+use proto::scenario::{Fusion, Scenario};
 
 fn env(source: u32, body: Message) -> Envelope {
     Envelope {
@@ -24,10 +25,10 @@ fn a_step_without_tracks_sends_nothing_and_strangers_are_rejected() {
         step: 1,
         info_matrix: [[0.0; 6]; 6],
         info_vector: [0.0; 6],
-        camera: false,
+        folded: Kinds::NONE,
         captured: ClusterTime::ZERO,
         mode: Mode::Active,
-        rssi: None,
+        observations: Vec::new(),
     };
     h.on_message(ClusterTime::ZERO, env(13, Message::Contribution(c.clone())));
     assert_eq!(h.counters().rejected, 1);
@@ -298,25 +299,26 @@ fn measurement_of(
     Measurement {
         target: Some(TargetId(1)),
         step: 1,
-        point: [point.x, point.y],
-        prev_point: None,
-        cov: [sd * sd, 0.0, sd * sd],
-        pixel_box: proto::msg::PixelBox {
-            xmin: 0.0,
-            ymin: 0.0,
-            xmax: 1.0,
-            ymax: 1.0,
-        },
-        area: 100,
-        colour: proto::msg::ColourSignature {
-            hue: 0.0,
-            saturation: 1.0,
-            intensity: 0.5,
-        },
         pose: node.camera.pose.to_wire(),
-        captured,
         mode: Mode::Active,
-        rssi: None,
+        observations: vec![Observation::Pinhole(PinholePoint {
+            point: [point.x, point.y],
+            cov: [sd * sd, 0.0, sd * sd],
+            prev_point: None,
+            pixel_box: proto::msg::PixelBox {
+                xmin: 0.0,
+                ymin: 0.0,
+                xmax: 1.0,
+                ymax: 1.0,
+            },
+            area: 100,
+            colour: proto::msg::ColourSignature {
+                hue: 0.0,
+                saturation: 1.0,
+                intensity: 0.5,
+            },
+            captured,
+        })],
     }
 }
 
@@ -421,6 +423,7 @@ fn head_after_one_rssi_packet(time: ClusterTime, camera: bool) -> (usize, HeadNo
     let node = &cfg.nodes[slot];
     let was = nalgebra::Vector3::new(3.1, 4.0, 0.25);
     let rssi = proto::msg::RssiReading {
+        tag: proto::TagId::simulated(1),
         dbm: model.predict((was - node.position).norm()),
         time,
     };
@@ -478,9 +481,13 @@ fn empty_contribution(
         step: prior.step,
         info_matrix: [[0.0; 6]; 6],
         info_vector: [0.0; 6],
-        camera,
+        folded: if camera {
+            Kinds::of(ObservationKind::Pinhole)
+        } else {
+            Kinds::NONE
+        },
         captured,
         mode,
-        rssi,
+        observations: rssi.into_iter().map(Observation::Rssi).collect(),
     }
 }

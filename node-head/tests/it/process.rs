@@ -4,13 +4,14 @@
 use crate::sim::{ONE_TARGET, ring_scenario};
 use nalgebra::{Matrix6, Vector3};
 use node_head::HeadConfig;
-use node_head::process::{Clock, run_on};
+use node_head::process::run;
 use proto::models::{State, camera_contribution, mat6_to_wire, vec6_to_wire};
 use proto::msg::{Contribution, Handover, Message, Mode, TrackReport};
 use proto::node::Outgoing;
-use proto::transport::{Event, InProcessHub, Inbox, TransportConfig, open};
+use proto::observation::{Kinds, ObservationKind};
 use proto::{NodeId, Role, TargetId};
-use std::sync::Arc;
+use runtime::HostClock;
+use runtime::transport::{Event, InProcessHub, Inbox, TransportConfig, open};
 use std::time::Duration;
 use tokio_util::sync::CancellationToken;
 
@@ -30,7 +31,7 @@ fn inproc(hub: &InProcessHub, id: u32, role: Role) -> TransportConfig {
 fn spawn_head(
     cfg: HeadConfig,
     hub: &InProcessHub,
-    clock: &Arc<Clock>,
+    clock: &HostClock,
     token: &CancellationToken,
 ) -> std::thread::JoinHandle<Result<node_head::process::Summary, node_head::process::ProcessError>> {
     let (hub, clock, token) = (hub.clone(), clock.clone(), token.clone());
@@ -39,7 +40,7 @@ fn spawn_head(
             .enable_all()
             .build()
             .unwrap();
-        rt.block_on(run_on(cfg, inproc(&hub, 2, Role::Head), clock, token))
+        rt.block_on(run(cfg, inproc(&hub, 2, Role::Head), clock, token))
     })
 }
 
@@ -66,7 +67,7 @@ async fn head_process_tracks_and_survives_cameras_and_server_vanishing() {
     let cams: Vec<_> = cfg.nodes.iter().map(|n| (n.id, n.camera)).collect();
     let hub = InProcessHub::new();
     let token = CancellationToken::new();
-    let clock = Arc::new(Clock::default());
+    let clock = HostClock::follower();
     let head = spawn_head(cfg, &hub, &clock, &token);
     let (server, mut server_in, _, server_handle) = open(inproc(&hub, 1, Role::Server)).await.unwrap();
     // Wait for the head to be on the hub.
@@ -99,10 +100,10 @@ async fn head_process_tracks_and_survives_cameras_and_server_vanishing() {
                     step: p.step,
                     info_matrix: mat6_to_wire(&o),
                     info_vector: vec6_to_wire(&x),
-                    camera: true,
+                    folded: Kinds::of(ObservationKind::Pinhole),
                     captured: clock.now(),
                     mode: Mode::Active,
-                    rssi: None,
+                    observations: Vec::new(),
                 };
                 if ep
                     .send(Outgoing::new(m.from, Message::Contribution(c)), clock.now())
@@ -185,9 +186,9 @@ async fn head_process_tracks_and_survives_cameras_and_server_vanishing() {
     cam_handle.shutdown().await;
     assert!(summary.counters.steps > 20);
     assert!(summary.counters.applied > 0);
-    assert!(summary.peers_down >= 4, "{summary:?}");
+    assert!(summary.run.peers_down >= 4, "{summary:?}");
     assert!(
-        summary.send_failures > 0,
+        summary.run.send_failures > 0,
         "reports to the vanished server should fail: {summary:?}"
     );
 }
@@ -208,14 +209,14 @@ async fn head_process_syncs_to_the_beacons_and_reports_its_sync_error() {
     let cfg = HeadConfig::from_scenario(&scenario, 2).unwrap();
     let hub = InProcessHub::new();
     let token = CancellationToken::new();
-    let clock = Arc::new(Clock::default());
+    let clock = HostClock::follower();
     let head = spawn_head(cfg, &hub, &clock, &token);
     let (server, mut server_in, _, server_handle) = open(inproc(&hub, 1, Role::Server)).await.unwrap();
     // Statuses come every second. Three beacons 100 ms apart, then none until the first status:
     // its error is over exactly those three, the first of which found the clock 200 ms off.
     // Then beacons every 100 ms until a status that follows at least ten more, enough to push
     // the first out of the 8-beacon window however the scheduler paces the loop.
-    let beacon = async |server: &proto::transport::Endpoint| {
+    let beacon = async |server: &runtime::transport::Endpoint| {
         let beacon = proto::msg::SyncBeacon {
             leader: NodeId(1),
             round: 0,

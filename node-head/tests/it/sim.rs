@@ -1,4 +1,5 @@
-//! A tiny measurement-level simulator for the head's tests: truth from `TargetSpec::truth_at`
+//! A tiny measurement-level simulator for the head's tests: truth from the simulated world's
+//! targets (`world::Target::truth_at`)
 //! projected through the scenario's cameras with seeded pixel noise, undistorted, and turned
 //! into `Contribution`s (or `Measurement`s for detections no prior gates) with `proto::models`
 //! — what camera nodes do, minus the pixels. Synthetic RSSI is log-distance plus a smooth
@@ -10,11 +11,13 @@ use node_head::{HeadConfig, HeadNode};
 use proto::camera::CameraModel;
 use proto::models::{camera_contribution, mat6_to_wire, vec6_to_wire};
 use proto::msg::{ColourSignature, Contribution, Measurement, PixelBox, Prior, RssiReading, TrackReport};
-use proto::scenario::{Scenario, TargetSpec};
+use proto::observation::{Kinds, Observation, ObservationKind, PinholePoint};
+use proto::scenario::Scenario;
 use proto::{ClusterTime, Envelope, Message, Mode, NodeId};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
+use world::Target;
 
 pub const SERVER: u32 = 1;
 pub const HEAD: u32 = 2;
@@ -129,7 +132,7 @@ pub struct SimCam {
 pub struct Sim {
     pub head: HeadNode,
     pub cams: Vec<SimCam>,
-    pub targets: Vec<TargetSpec>,
+    pub targets: Vec<Target>,
     /// Whether each target is still in the scene.
     pub present: Vec<bool>,
     pub rng: ChaCha8Rng,
@@ -148,6 +151,10 @@ pub struct Sim {
 
 impl Sim {
     pub fn new(scenario: &Scenario, seed: u64) -> Sim {
+        // What the method must know of the targets (the plane they move on), as every
+        // simulated run prepares it.
+        let scenario = &world::prepare(scenario, seed).unwrap();
+        let targets = world::targets(scenario).unwrap();
         let cfg = HeadConfig::from_scenario(scenario, HEAD).unwrap();
         let cams = cfg
             .nodes
@@ -162,15 +169,15 @@ impl Sim {
         Sim {
             head: HeadNode::new(cfg).with_history(),
             cams,
-            targets: scenario.targets.clone(),
-            present: vec![true; scenario.targets.len()],
+            present: vec![true; targets.len()],
+            targets,
             rng: ChaCha8Rng::seed_from_u64(seed),
             sigma_px: scenario.method.pixel_sigma,
             radio: None,
             step_ms: scenario.method.step_ms as i64,
             deadline_ms: scenario.method.deadline_ms as i64,
             k: 0,
-            centralized: scenario.method.fusion != proto::scenario::Fusion::DistributedEif,
+            centralized: !scenario.method.fusion.distributed(),
             previous_point: scenario.method.previous_point,
             reports: Vec::new(),
             seq: 0,
@@ -218,7 +225,11 @@ impl Sim {
             .into_owned();
         let n: f64 = StandardNormal.sample(&mut self.rng);
         let dbm = radio.mean(c, &self.cams[c].model.pose.centre(), &p) + n * radio.noise_db;
-        Some(RssiReading { dbm, time: t })
+        Some(RssiReading {
+            tag: proto::TagId::simulated(i as u32 + 1),
+            dbm,
+            time: t,
+        })
     }
 
     /// Run one whole step: tick, answer every prior, detections no prior gates go up as
@@ -274,7 +285,7 @@ impl Sim {
                         point: *pt,
                         cov: *cv,
                         prev_point: None,
-                        rssi: None,
+                        rssi: Vec::new(),
                         hint: None,
                         captured: ClusterTime::ZERO,
                     };
@@ -308,10 +319,14 @@ impl Sim {
                     step: p.step,
                     info_matrix: mat6_to_wire(&info.0),
                     info_vector: vec6_to_wire(&info.1),
-                    camera,
+                    folded: if camera {
+                        Kinds::of(ObservationKind::Pinhole)
+                    } else {
+                        Kinds::NONE
+                    },
                     captured: now,
                     mode,
-                    rssi,
+                    observations: rssi.into_iter().map(Observation::Rssi).collect(),
                 });
                 for _ in 0..copies(c, p) {
                     let env = self.envelope(id, answer_at, body.clone());
@@ -329,9 +344,7 @@ impl Sim {
                     None
                 };
                 let rssi = if centralized { self.rssi(c, i, now) } else { None };
-                let m = Measurement {
-                    target: None,
-                    step: 0,
+                let point = PinholePoint {
                     point: [pt.x, pt.y],
                     prev_point,
                     cov: [cv[(0, 0)], cv[(0, 1)], cv[(1, 1)]],
@@ -347,10 +360,16 @@ impl Sim {
                         saturation: 1.0,
                         intensity: 0.5,
                     },
-                    pose: self.cams[c].model.pose.to_wire(),
                     captured: now,
+                };
+                let m = Measurement {
+                    target: None,
+                    step: 0,
+                    pose: self.cams[c].model.pose.to_wire(),
                     mode,
-                    rssi,
+                    observations: std::iter::once(Observation::Pinhole(point))
+                        .chain(rssi.map(Observation::Rssi))
+                        .collect(),
                 };
                 // Measurements first: they must reach the head before the step closes.
                 let env = self.envelope(id, answer_at, Message::Measurement(m));

@@ -76,10 +76,10 @@ fn duplicates_and_late_contributions_are_counted_and_never_applied() {
         step: ra[0].step,
         info_matrix: [[0.0; 6]; 6],
         info_vector: [0.0; 6],
-        camera: true,
+        folded: proto::observation::Kinds::of(proto::observation::ObservationKind::Pinhole),
         captured: ra[0].time,
         mode: Mode::Active,
-        rssi: None,
+        observations: Vec::new(),
     };
     let env = Envelope {
         source: a.cams[1].id,

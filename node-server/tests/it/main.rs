@@ -7,8 +7,8 @@ use node_server::{Decision, Record};
 use proto::msg::{Handover, Message, TrackReport};
 use proto::node::Outgoing;
 use proto::scenario::Scenario;
-use proto::transport::{Event, InProcessHub, Inbox, TransportConfig, open};
 use proto::{ClusterTime, NodeId, Role, TargetId};
+use runtime::transport::{Event, InProcessHub, Inbox, TransportConfig, open};
 use std::path::PathBuf;
 use std::time::Duration;
 use tokio_util::sync::CancellationToken;
@@ -110,7 +110,7 @@ async fn wait_for_peer(inbox: &mut Inbox, peer: NodeId) {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_server_records_stops_and_resumes_where_it_was() {
-    // `proto::transport::open` is not `Send` (the TCP path holds a `&ShutdownHandle` across an
+    // `runtime::transport::open` is not `Send` (the TCP path holds a `&ShutdownHandle` across an
     // await), so the server runs on a local task set, as `ocelli server` runs it in `block_on`.
     tokio::task::LocalSet::new()
         .run_until(records_stops_and_resumes())
@@ -150,7 +150,7 @@ async fn records_stops_and_resumes() {
     stop.cancel();
     let first = server.await.unwrap().unwrap();
     assert!(first.restored.is_none());
-    assert!(first.received >= 2);
+    assert!(first.run.received >= 2);
 
     let back = read_all(&path).unwrap();
     assert!(back.tail.is_none());

@@ -1,7 +1,7 @@
 //! Semantic checks of a parsed scenario: what serde's types cannot say (unique ids, cameras
 //! naming an existing head, finite geometry, positive rates, deadline inside the step).
 
-use super::{NodeRole, PowerFigures, Scenario, ScenarioError, Trajectory};
+use super::{NodeRole, PowerFigures, Scenario, ScenarioError};
 use std::collections::BTreeSet;
 
 fn all_finite(xs: &[f64]) -> bool {
@@ -109,6 +109,14 @@ impl Scenario {
         positive("method.pixel-sigma".into(), m.pixel_sigma)?;
         positive("method.gate-chi2".into(), m.gate_chi2)?;
         positive("method.rssi-epsilon".into(), m.rssi_epsilon)?;
+        if let Some(z) = m.target_plane_z
+            && !z.is_finite()
+        {
+            return Err(bad(
+                "method.target-plane-z".into(),
+                format!("expected a finite height in metres, got {z}"),
+            ));
+        }
         positive("method.rssi-default.variance".into(), m.rssi_default.variance())?;
         if m.rssi_window < 2 {
             return Err(bad(
@@ -248,43 +256,6 @@ impl Scenario {
             positive(field("camera.fps"), cam.fps)?;
         }
 
-        // Targets.
-        let mut tids = BTreeSet::new();
-        for t in &self.targets {
-            let field = |f: &str| format!("targets[id={}]{f}", t.id);
-            if !tids.insert(t.id) {
-                return Err(bad(field(""), "duplicate target id".into()));
-            }
-            let (w, s) = match &t.trajectory {
-                Trajectory::Loop { waypoints, speed } | Trajectory::Path { waypoints, speed } => {
-                    (waypoints, *speed)
-                }
-            };
-            if w.len() < 2 {
-                return Err(bad(
-                    field(".trajectory.waypoints"),
-                    format!("expected at least two waypoints, got {}", w.len()),
-                ));
-            }
-            if !w.iter().all(|p| all_finite(p)) {
-                return Err(bad(
-                    field(".trajectory.waypoints"),
-                    "expected finite [x, y] points".into(),
-                ));
-            }
-            if !(s.is_finite() && s > 0.0) {
-                return Err(bad(
-                    field(".trajectory.speed"),
-                    format!("expected a positive speed in m/s, got {s}"),
-                ));
-            }
-            if !t.size.iter().all(|x| x.is_finite() && *x > 0.0) {
-                return Err(bad(
-                    field(".size"),
-                    format!("expected positive width, depth, height, got {:?}", t.size),
-                ));
-            }
-        }
         Ok(())
     }
 }

@@ -7,5 +7,4 @@
 mod camera;
 mod models;
 mod scenario;
-mod tcp_seq;
 mod wire;

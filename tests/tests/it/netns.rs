@@ -277,7 +277,8 @@ fn nodes_in_separate_network_namespaces_track_the_robot_over_tcp() {
     // Against the robot's true path (the cameras' synthetic world starts at `epoch`): some
     // global track must follow the robot for most of the run. (Other global tracks may exist:
     // a second, spurious track is sometimes born mid-run; see the report below.)
-    let traj = &s.targets[0].trajectory;
+    let targets = world::targets(&s).expect("the default scenario's targets");
+    let traj = &targets[0].trajectory;
     let mut per_global: std::collections::BTreeMap<u64, Vec<f64>> = Default::default();
     for r in &rows {
         let t = r["t"].as_f64().expect("t") - epoch as f64 * 1e-9;

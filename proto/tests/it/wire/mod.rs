@@ -3,4 +3,3 @@
 mod golden;
 mod reject;
 mod roundtrip;
-pub mod samples;

@@ -1,6 +1,6 @@
 //! Every way a frame can be wrong gets its own error variant, and the message names the problem.
 
-use super::samples::{FLOAT_SLOTS, samples};
+use proto::examples::{FLOAT_SLOTS, messages as samples};
 use proto::ids::{NodeId, TargetId};
 use proto::msg::*;
 use proto::validate::PSD_TOLERANCE;
@@ -66,17 +66,17 @@ fn truncated_frame_names_the_kind() {
 #[test]
 fn wrong_version() {
     let mut frame = encode(&samples()[2]).unwrap();
-    frame[0] = 2;
+    frame[0] = 1;
     let e = decode(&frame).unwrap_err();
     assert_eq!(
         e,
         WireError::Version {
-            got: 2,
+            got: 1,
             expected: PROTOCOL_VERSION
         }
     );
     assert!(
-        e.to_string().contains("protocol version 2 is not supported"),
+        e.to_string().contains("protocol version 1 is not supported"),
         "{e}"
     );
     // A version that does not even fit the header type.
@@ -159,29 +159,57 @@ fn non_finite_numbers_anywhere_are_rejected() {
 }
 
 /// The f64 values a sample holds (by construction: see `samples`).
+fn observation_f64s(o: &Observation) -> Vec<f64> {
+    match o {
+        Observation::Pinhole(p) => {
+            [p.point.to_vec(), p.prev_point.unwrap().to_vec(), p.cov.to_vec()].concat()
+        }
+        Observation::Rssi(r) => vec![r.dbm],
+        Observation::Ground(g) => [g.position.to_vec(), g.cov.to_vec()].concat(),
+        Observation::Acoustic(_) => Vec::new(),
+    }
+}
+
+fn observation_f32s(o: &Observation) -> Vec<f32> {
+    match o {
+        Observation::Pinhole(p) => {
+            let b = p.pixel_box;
+            vec![
+                b.xmin,
+                b.ymin,
+                b.xmax,
+                b.ymax,
+                p.colour.hue,
+                p.colour.saturation,
+                p.colour.intensity,
+            ]
+        }
+        Observation::Rssi(_) => Vec::new(),
+        Observation::Ground(g) => [vec![g.width_m, g.height_m, g.confidence], g.histogram.clone()].concat(),
+        Observation::Acoustic(a) => [vec![a.first_hz, a.step_hz], a.ild_db.clone()].concat(),
+    }
+}
+
 fn sample_f64s(m: &Message) -> Vec<f64> {
     let mat = |m: &Mat6| m.iter().flatten().copied().collect::<Vec<_>>();
     match m {
         Message::Measurement(x) => {
-            let mut v = x.point.to_vec();
-            v.extend(x.prev_point.unwrap());
-            v.extend(x.cov);
-            v.extend(x.pose.rvec);
+            let mut v = x.pose.rvec.to_vec();
             v.extend(x.pose.tvec);
-            v.push(x.rssi.unwrap().dbm);
+            v.extend(x.observations.iter().flat_map(observation_f64s));
             v
         }
         Message::Contribution(c) => [
             mat(&c.info_matrix),
             c.info_vector.to_vec(),
-            vec![c.rssi.unwrap().dbm],
+            c.observations.iter().flat_map(observation_f64s).collect(),
         ]
         .concat(),
         Message::Prior(p) => [mat(&p.cov), p.mean.to_vec()].concat(),
         Message::TrackReport(r) => [mat(&r.cov), r.mean.to_vec(), vec![r.power_mw]].concat(),
         Message::Handover(h) => [mat(&h.cov), h.mean.to_vec()].concat(),
         Message::MeasuredFrame(f) => {
-            let mut v = vec![f.rssi_dbm.unwrap()];
+            let mut v: Vec<f64> = f.rssi.iter().map(|r| r.dbm).collect();
             for d in &f.detections {
                 v.extend(d.point);
                 v.extend(d.cov);
@@ -194,18 +222,7 @@ fn sample_f64s(m: &Message) -> Vec<f64> {
 
 fn sample_f32s(m: &Message) -> Vec<f32> {
     match m {
-        Message::Measurement(x) => {
-            let b = x.pixel_box;
-            vec![
-                b.xmin,
-                b.ymin,
-                b.xmax,
-                b.ymax,
-                x.colour.hue,
-                x.colour.saturation,
-                x.colour.intensity,
-            ]
-        }
+        Message::Measurement(x) => x.observations.iter().flat_map(observation_f32s).collect(),
         Message::MeasuredFrame(f) => f
             .detections
             .iter()
@@ -325,16 +342,16 @@ fn measured_frame_checks_name_the_field() {
     assert_eq!(decode(&encode(&most).unwrap()).unwrap(), most);
     let flipped = with(&|m| m.detections[0].pixel_box.ymax = m.detections[0].pixel_box.ymin - 1.0);
     assert_eq!(invalid(&raw(&flipped)).0, "measured_frame.detections.pixel_box");
-    let loud = with(&|m| m.rssi_dbm = Some(31.0));
+    let loud = with(&|m| m.rssi[0].dbm = 31.0);
     let (field, e) = invalid(&raw(&loud));
-    assert_eq!(field, "measured_frame.rssi_dbm");
+    assert_eq!(field, "measured_frame.rssi");
     assert!(e.contains("outside"), "{e}");
     let singular = with(&|m| m.detections[0].cov = [1.0, 1.0, 1.0]);
     assert_eq!(invalid(&raw(&singular)).0, "measured_frame.detections.cov");
     // No detections and no RSSI: a camera that saw nothing still logs the frame.
     let empty = with(&|m| {
         m.detections.clear();
-        m.rssi_dbm = None;
+        m.rssi.clear();
     });
     assert_eq!(decode(&encode(&empty).unwrap()).unwrap(), empty);
 }
@@ -389,8 +406,7 @@ fn too_many_contributors() {
     r.contributors = (0..=MAX_CONTRIBUTORS as u32)
         .map(|i| Contributor {
             node: NodeId(i),
-            camera: true,
-            rssi: false,
+            kinds: proto::observation::Kinds::of(proto::observation::ObservationKind::Pinhole),
         })
         .collect();
     let frame = raw(&env);
@@ -418,25 +434,53 @@ fn too_many_contributors() {
 
 #[test]
 fn other_range_checks_name_the_field() {
+    use proto::observation::Observation;
     let mut env = samples()[3].clone();
-    let Message::Measurement(m) = &mut env.body else {
-        panic!()
+    let edit = |env: &mut Envelope, f: &dyn Fn(&mut proto::observation::PinholePoint)| {
+        if let Message::Measurement(m) = &mut env.body
+            && let Observation::Pinhole(p) = &mut m.observations[0]
+        {
+            f(p);
+        }
     };
-    m.cov = [1.0, 2.0, 1.0];
-    assert_eq!(invalid(&raw(&env)).0, "measurement.cov");
-    let Message::Measurement(m) = &mut env.body else {
-        panic!()
-    };
-    m.cov = [1.0, 0.0, 1.0];
-    m.pixel_box.xmax = m.pixel_box.xmin - 1.0;
-    assert_eq!(invalid(&raw(&env)).0, "measurement.pixel_box");
-    let mut env = samples()[4].clone();
-    let Message::Contribution(c) = &mut env.body else {
-        panic!()
-    };
-    c.rssi.as_mut().unwrap().dbm = 45.0;
+    edit(&mut env, &|p| p.cov = [1.0, 2.0, 1.0]);
     let (field, e) = invalid(&raw(&env));
-    assert_eq!(field, "contribution.rssi");
+    assert_eq!(field, "measurement.observations");
+    assert!(e.contains("pinhole.cov"), "{e}");
+    edit(&mut env, &|p| {
+        p.cov = [1.0, 0.0, 1.0];
+        p.pixel_box.xmax = p.pixel_box.xmin - 1.0;
+    });
+    let (field, e) = invalid(&raw(&env));
+    assert_eq!(field, "measurement.observations");
+    assert!(e.contains("pinhole.pixel_box"), "{e}");
+    // A ground-plane person with a confidence above 1, an acoustic frame with no band step.
+    let mut env = samples()[3].clone();
+    if let Message::Measurement(m) = &mut env.body {
+        m.observations.retain(|o| matches!(o, Observation::Ground(_)));
+        if let Observation::Ground(g) = &mut m.observations[0] {
+            g.confidence = 1.5;
+        }
+    }
+    let (_, e) = invalid(&raw(&env));
+    assert!(e.contains("ground.confidence"), "{e}");
+    let mut env = samples()[3].clone();
+    if let Message::Measurement(m) = &mut env.body {
+        m.observations.retain(|o| matches!(o, Observation::Acoustic(_)));
+        if let Observation::Acoustic(a) = &mut m.observations[0] {
+            a.step_hz = 0.0;
+        }
+    }
+    let (_, e) = invalid(&raw(&env));
+    assert!(e.contains("acoustic.bands"), "{e}");
+    let mut env = samples()[4].clone();
+    if let Message::Contribution(c) = &mut env.body
+        && let Observation::Rssi(r) = &mut c.observations[0]
+    {
+        r.dbm = 45.0;
+    }
+    let (field, e) = invalid(&raw(&env));
+    assert_eq!(field, "contribution.observations");
     assert!(e.contains("outside"), "{e}");
     let mut env = samples()[1].clone();
     let Message::HelloAck(a) = &mut env.body else {

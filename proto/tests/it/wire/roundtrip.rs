@@ -1,8 +1,9 @@
 //! proptest round trips: random valid envelopes of every kind encode, decode and compare equal.
 
 use proptest::prelude::*;
-use proto::ids::{NodeId, Role, TargetId};
+use proto::ids::{NodeId, Role, TagId, TargetId};
 use proto::msg::*;
+use proto::observation::{GroundPoint, IldVector, Kinds, MAX_BINS, Observation, PinholePoint};
 use proto::{
     ClusterTime, Envelope, MAX_CONTRIBUTORS, MAX_MEASURED_DETECTIONS, Message, Mode, decode, encode,
 };
@@ -50,60 +51,133 @@ fn psd() -> impl Strategy<Value = Mat6> {
 }
 
 fn rssi() -> impl Strategy<Value = RssiReading> {
-    (-200.0..=30.0f64, time()).prop_map(|(dbm, time)| RssiReading { dbm, time })
+    (any::<u64>(), -200.0..=30.0f64, time()).prop_map(|(tag, dbm, time)| RssiReading {
+        tag: TagId(tag),
+        dbm,
+        time,
+    })
 }
 
-fn measurement() -> impl Strategy<Value = Message> {
+fn cov2() -> impl Strategy<Value = [f64; 3]> {
+    (0.001..10.0f64, -0.99..0.99f64, 0.001..10.0f64)
+        .prop_map(|(xx, rho, yy)| [xx, rho * (xx * yy).sqrt(), yy])
+}
+
+fn pinhole() -> impl Strategy<Value = Observation> {
     (
-        (
-            prop::option::of(any::<u32>()),
-            any::<u64>(),
-            prop::array::uniform2(finite()),
-        ),
+        prop::array::uniform2(finite()),
         prop::option::of(prop::array::uniform2(finite())),
-        (0.001..10.0f64, -0.99..0.99f64, 0.001..10.0f64),
+        cov2(),
         (
             prop::array::uniform4(finite32()),
             any::<u32>(),
             prop::array::uniform3(finite32()),
         ),
-        (prop::array::uniform3(finite()), prop::array::uniform3(finite())),
-        (time(), mode(), prop::option::of(rssi())),
+        time(),
+    )
+        .prop_map(|(point, prev_point, cov, (b, area, c), captured)| {
+            Observation::Pinhole(PinholePoint {
+                point,
+                prev_point,
+                cov,
+                pixel_box: PixelBox {
+                    xmin: b[0].min(b[1]),
+                    ymin: b[2].min(b[3]),
+                    xmax: b[0].max(b[1]),
+                    ymax: b[2].max(b[3]),
+                },
+                area,
+                colour: ColourSignature {
+                    hue: c[0],
+                    saturation: c[1],
+                    intensity: c[2],
+                },
+                captured,
+            })
+        })
+}
+
+fn ground() -> impl Strategy<Value = Observation> {
+    (
+        any::<u32>(),
+        prop::array::uniform2(finite()),
+        cov2(),
+        (0.0..5.0f32, 0.0..3.0f32, 0.0..=1.0f32),
+        prop::collection::vec(0.0..1.0f32, 0..=MAX_BINS),
+        time(),
     )
         .prop_map(
-            |(
-                (target, step, point),
-                prev_point,
-                (xx, rho, yy),
-                (b, area, c),
-                (rvec, tvec),
-                (captured, mode, rssi),
-            )| {
-                Message::Measurement(Measurement {
-                    target: target.map(TargetId),
-                    step,
-                    point,
-                    prev_point,
-                    cov: [xx, rho * (xx * yy).sqrt(), yy],
-                    pixel_box: PixelBox {
-                        xmin: b[0].min(b[1]),
-                        ymin: b[2].min(b[3]),
-                        xmax: b[0].max(b[1]),
-                        ymax: b[2].max(b[3]),
-                    },
-                    area,
-                    colour: ColourSignature {
-                        hue: c[0],
-                        saturation: c[1],
-                        intensity: c[2],
-                    },
-                    pose: PoseWire { rvec, tvec },
+            |(local, position, cov, (width_m, height_m, confidence), histogram, captured)| {
+                Observation::Ground(GroundPoint {
+                    local,
+                    position,
+                    cov,
+                    width_m,
+                    height_m,
+                    confidence,
+                    histogram,
                     captured,
-                    mode,
-                    rssi,
                 })
             },
         )
+}
+
+fn acoustic() -> impl Strategy<Value = Observation> {
+    (
+        0.0..20_000.0f32,
+        0.1..1000.0f32,
+        prop::collection::vec(finite32(), 0..=MAX_BINS),
+        time(),
+    )
+        .prop_map(|(first_hz, step_hz, ild_db, captured)| {
+            Observation::Acoustic(IldVector {
+                first_hz,
+                step_hz,
+                ild_db,
+                captured,
+            })
+        })
+}
+
+fn observation() -> impl Strategy<Value = Observation> {
+    prop_oneof![
+        pinhole(),
+        rssi().prop_map(Observation::Rssi),
+        ground(),
+        acoustic()
+    ]
+}
+
+/// Observations that fit one frame with the rest of a message: at most eight, each small.
+fn observations() -> impl Strategy<Value = Vec<Observation>> {
+    prop::collection::vec(observation(), 0..=8).prop_filter("fits a frame", |v| {
+        v.iter()
+            .map(|o| match o {
+                Observation::Ground(g) => g.histogram.len(),
+                Observation::Acoustic(a) => a.ild_db.len(),
+                _ => 0,
+            })
+            .sum::<usize>()
+            <= 2 * MAX_BINS
+    })
+}
+
+fn measurement() -> impl Strategy<Value = Message> {
+    (
+        (prop::option::of(any::<u32>()), any::<u64>()),
+        (prop::array::uniform3(finite()), prop::array::uniform3(finite())),
+        mode(),
+        observations(),
+    )
+        .prop_map(|((target, step), (rvec, tvec), mode, observations)| {
+            Message::Measurement(Measurement {
+                target: target.map(TargetId),
+                step,
+                pose: PoseWire { rvec, tvec },
+                mode,
+                observations,
+            })
+        })
 }
 
 fn measured_detection() -> impl Strategy<Value = MeasuredDetection> {
@@ -140,13 +214,13 @@ fn measured_detection() -> impl Strategy<Value = MeasuredDetection> {
 fn measured_frame() -> impl Strategy<Value = Message> {
     (
         time(),
-        prop::option::of(-200.0..=30.0f64),
+        prop::collection::vec(rssi(), 0..=8),
         prop::collection::vec(measured_detection(), 0..=MAX_MEASURED_DETECTIONS),
     )
-        .prop_map(|(captured, rssi_dbm, detections)| {
+        .prop_map(|(captured, rssi, detections)| {
             Message::MeasuredFrame(MeasuredFrame {
                 captured,
-                rssi_dbm,
+                rssi,
                 detections,
             })
         })
@@ -154,10 +228,9 @@ fn measured_frame() -> impl Strategy<Value = Message> {
 
 fn contributors() -> impl Strategy<Value = Vec<Contributor>> {
     prop::collection::vec(
-        (any::<u32>(), any::<bool>(), any::<bool>()).prop_map(|(n, camera, rssi)| Contributor {
+        (any::<u32>(), 0..16u8).prop_map(|(n, kinds)| Contributor {
             node: NodeId(n),
-            camera,
-            rssi,
+            kinds: Kinds(kinds),
         }),
         0..=MAX_CONTRIBUTORS / 4,
     )
@@ -183,22 +256,22 @@ fn message() -> impl Strategy<Value = Message> {
             any::<u64>(),
             psd(),
             vec6(),
-            any::<bool>(),
+            0..16u8,
             time(),
             mode(),
-            prop::option::of(rssi())
+            observations()
         )
             .prop_map(
-                |(t, step, info_matrix, info_vector, camera, captured, mode, rssi)| {
+                |(t, step, info_matrix, info_vector, folded, captured, mode, observations)| {
                     Message::Contribution(Contribution {
                         target: TargetId(t),
                         step,
                         info_matrix,
                         info_vector,
-                        camera,
+                        folded: Kinds(folded),
                         captured,
                         mode,
-                        rssi,
+                        observations,
                     })
                 }
             ),

@@ -1,0 +1,316 @@
+//! Reading the real BLE RSSI dataset (`shared/datasets/ble-rssi/`, Daniş et al. 2022): the
+//! sensors' positions from `cnf/tetam.dev` and one time-ordered packet list per trajectory from
+//! `trk/*_all_sensors.mbd`. A malformed line is an error naming the file, the line and what is
+//! wrong; nothing is skipped silently.
+
+use nalgebra::Vector3;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Fields of one `.mbd` line: timestamp, sensor MAC, beacon MAC, RSSI, x, y, z, 3×3 orientation.
+pub const MBD_FIELDS: usize = 16;
+/// Suffix of the merged (all sensors) trajectory files.
+pub const TRACK_SUFFIX: &str = "_all_sensors.mbd";
+/// Environment variable that overrides the dataset directory.
+pub const DIR_ENV: &str = "OCELLI_BLE_RSSI_DIR";
+
+/// A fixed BLE sensor.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sensor {
+    pub mac: String,
+    pub alias: String,
+    /// Position, m (the dataset's frame).
+    pub pos: Vector3<f64>,
+}
+
+/// One received packet: which sensor heard the beacon, at what RSSI, and where the beacon truly
+/// was (AR ground truth).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Packet {
+    /// Seconds since the trajectory's first packet.
+    pub t: f64,
+    /// Index into [`Dataset::sensors`].
+    pub sensor: usize,
+    pub rssi: f64,
+    pub truth: Vector3<f64>,
+}
+
+/// One trajectory's packets in time order.
+#[derive(Clone, Debug)]
+pub struct Trajectory {
+    pub name: String,
+    pub packets: Vec<Packet>,
+}
+
+impl Trajectory {
+    /// Seconds from first to last packet.
+    pub fn duration_s(&self) -> f64 {
+        self.packets.last().map_or(0.0, |p| p.t)
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Dataset {
+    pub dir: PathBuf,
+    pub sensors: Vec<Sensor>,
+    /// Sorted by name.
+    pub trajectories: Vec<Trajectory>,
+}
+
+/// Why the dataset could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    #[error(
+        "BLE RSSI dataset not found at {0} (expected cnf/tetam.dev and trk/*{TRACK_SUFFIX}; \
+         see shared/datasets/README.md, or set {DIR_ENV})"
+    )]
+    Missing(PathBuf),
+    #[error("reading {path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}: {msg}")]
+    Devices { path: PathBuf, msg: String },
+    #[error("{path}:{line}: {msg}")]
+    Line { path: PathBuf, line: usize, msg: String },
+    #[error("{0}: no trajectory files (*{TRACK_SUFFIX})")]
+    NoTracks(PathBuf),
+}
+
+/// The dataset's directory: `$OCELLI_BLE_RSSI_DIR`, else `shared/datasets/ble-rssi` beside the
+/// repository (as the tests find it).
+pub fn default_dir() -> PathBuf {
+    std::env::var_os(DIR_ENV).map_or_else(
+        || Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets/ble-rssi"),
+        PathBuf::from,
+    )
+}
+
+/// Parse `tetam.dev`'s `Dongles:{MAC: [[x, y, z], colour, alias], …}` line into sensors,
+/// sorted by alias. Other lines (`Beacons:`) are ignored.
+///
+/// # Errors
+/// No `Dongles:` line, JSON that does not parse, or a position that is not three finite numbers.
+pub fn parse_devices(text: &str) -> Result<Vec<Sensor>, String> {
+    let body = text
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("Dongles:"))
+        .ok_or("no `Dongles:` line")?;
+    let map: BTreeMap<String, (Vec<f64>, serde_json::Value, String)> =
+        serde_json::from_str(body).map_err(|e| format!("Dongles: {e}"))?;
+    let mut sensors = Vec::with_capacity(map.len());
+    for (mac, (pos, _, alias)) in map {
+        let [x, y, z] = pos[..] else {
+            return Err(format!("sensor {mac}: position has {} numbers, not 3", pos.len()));
+        };
+        let pos = Vector3::new(x, y, z);
+        if !pos.iter().all(|v| v.is_finite()) {
+            return Err(format!("sensor {mac}: position not finite"));
+        }
+        sensors.push(Sensor { mac, alias, pos });
+    }
+    if sensors.is_empty() {
+        return Err("no sensors in `Dongles:`".into());
+    }
+    sensors.sort_by(|a, b| a.alias.cmp(&b.alias));
+    Ok(sensors)
+}
+
+fn number(field: &str, what: &str) -> Result<f64, String> {
+    let v: f64 = field
+        .trim()
+        .parse()
+        .map_err(|_| format!("{what} {field:?} is not a number"))?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("{what} {field:?} is not finite"))
+    }
+}
+
+/// Parse one `.mbd` file's text into packets sorted by time (the merged files are ordered up to
+/// a few sub-millisecond swaps), t relative to the first packet. Blank lines are allowed.
+///
+/// # Errors
+/// `(line number, what is wrong)`: a wrong field count, a non-numeric or non-finite number, an
+/// RSSI outside −127..=20 dBm, or a sensor MAC not in `sensors`.
+pub fn parse_track(text: &str, sensors: &[Sensor]) -> Result<Vec<Packet>, (usize, String)> {
+    let mut raw = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let n = i + 1;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != MBD_FIELDS {
+            return Err((n, format!("{} fields, expected {MBD_FIELDS}", f.len())));
+        }
+        let t = number(f[0], "timestamp").map_err(|m| (n, m))?;
+        let mac = f[1].trim();
+        let sensor = sensors
+            .iter()
+            .position(|s| s.mac == mac)
+            .ok_or_else(|| (n, format!("unknown sensor MAC {mac:?}")))?;
+        let rssi = number(f[3], "RSSI").map_err(|m| (n, m))?;
+        if !(-127.0..=20.0).contains(&rssi) {
+            return Err((n, format!("RSSI {rssi} dBm out of range")));
+        }
+        let mut p = [0.0; 3];
+        for (a, v) in p.iter_mut().enumerate() {
+            *v = number(f[4 + a], "position").map_err(|m| (n, m))?;
+        }
+        for field in &f[7..] {
+            number(field, "orientation").map_err(|m| (n, m))?;
+        }
+        raw.push(Packet {
+            t,
+            sensor,
+            rssi,
+            truth: Vector3::from(p),
+        });
+    }
+    raw.sort_by(|a, b| a.t.total_cmp(&b.t));
+    if let Some(t0) = raw.first().map(|p| p.t) {
+        for p in &mut raw {
+            p.t -= t0;
+        }
+    }
+    Ok(raw)
+}
+
+fn read(path: &Path) -> Result<String, DataError> {
+    std::fs::read_to_string(path).map_err(|source| DataError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Load the sensors and every `trk/*_all_sensors.mbd` trajectory under `dir`.
+///
+/// # Errors
+/// [`DataError::Missing`] when `dir/cnf/tetam.dev` does not exist; otherwise the first file or
+/// line that cannot be read or parsed.
+pub fn load(dir: &Path) -> Result<Dataset, DataError> {
+    let dev = dir.join("cnf/tetam.dev");
+    if !dev.is_file() {
+        return Err(DataError::Missing(dir.to_path_buf()));
+    }
+    let sensors = parse_devices(&read(&dev)?).map_err(|msg| DataError::Devices {
+        path: dev.clone(),
+        msg,
+    })?;
+    let trk = dir.join("trk");
+    let entries = std::fs::read_dir(&trk).map_err(|source| DataError::Io {
+        path: trk.clone(),
+        source,
+    })?;
+    let mut paths: Vec<PathBuf> = entries
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.ends_with(TRACK_SUFFIX))
+        })
+        .collect();
+    paths.sort();
+    let mut trajectories = Vec::with_capacity(paths.len());
+    for path in paths {
+        let packets = parse_track(&read(&path)?, &sensors).map_err(|(line, msg)| DataError::Line {
+            path: path.clone(),
+            line,
+            msg,
+        })?;
+        let name = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .and_then(|n| n.strip_suffix(TRACK_SUFFIX))
+            .unwrap_or("?")
+            .to_string();
+        trajectories.push(Trajectory { name, packets });
+    }
+    if trajectories.is_empty() {
+        return Err(DataError::NoTracks(trk));
+    }
+    Ok(Dataset {
+        dir: dir.canonicalize().unwrap_or_else(|_| dir.to_path_buf()),
+        sensors,
+        trajectories,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DEV: &str = r#"Dongles:{"aa": [[1.0, 2.0, 1.5], 1, "s1"], "bb": [[3.0, 4.0, 2.3], 2, "s0"]}
+Beacons:{"cc": [[], 3, "beacon1"] }"#;
+    const ORIENT: &str = "1,0,0,0,1,0,0,0,1";
+
+    fn sensors() -> Vec<Sensor> {
+        parse_devices(DEV).expect("valid devices")
+    }
+
+    #[test]
+    fn devices_parse_sorted_by_alias() {
+        let s = sensors();
+        assert_eq!(s.len(), 2);
+        assert_eq!(s[0].alias, "s0");
+        assert_eq!(s[0].mac, "bb");
+        assert_eq!(s[1].pos, Vector3::new(1.0, 2.0, 1.5));
+    }
+
+    #[test]
+    fn devices_reject_a_two_number_position_and_a_missing_line() {
+        let e = parse_devices(r#"Dongles:{"aa": [[1.0, 2.0], 1, "s1"]}"#).unwrap_err();
+        assert!(e.contains("aa") && e.contains("not 3"), "{e}");
+        assert!(parse_devices("Beacons:{}").unwrap_err().contains("Dongles"));
+    }
+
+    #[test]
+    fn track_parses_sorts_and_rebases_time() {
+        let text = format!("10.5,aa,cc,-70,1,2,1.8,{ORIENT}\n\n10.0,bb,cc,-80,1.5,2,1.8,{ORIENT}\n");
+        let p = parse_track(&text, &sensors()).expect("valid track");
+        assert_eq!(p.len(), 2);
+        assert_eq!(p[0].t, 0.0);
+        assert_eq!(p[0].sensor, 0);
+        assert_eq!(p[0].rssi, -80.0);
+        assert!((p[1].t - 0.5).abs() < 1e-12);
+        assert_eq!(p[1].truth, Vector3::new(1.0, 2.0, 1.8));
+    }
+
+    #[test]
+    fn track_rejects_malformed_lines_naming_line_and_problem() {
+        let s = sensors();
+        let ok = format!("1.0,aa,cc,-70,1,2,1.8,{ORIENT}");
+        let cases = [
+            (format!("{ok}\n1.0,aa,cc,-70,1,2,1.8"), 2, "fields"),
+            (
+                format!("{ok}\n1.0,zz,cc,-70,1,2,1.8,{ORIENT}"),
+                2,
+                "unknown sensor",
+            ),
+            (format!("1.0,aa,cc,strong,1,2,1.8,{ORIENT}"), 1, "RSSI"),
+            (format!("1.0,aa,cc,-70,1,NaN,1.8,{ORIENT}"), 1, "not finite"),
+            (format!("1.0,aa,cc,-300,1,2,1.8,{ORIENT}"), 1, "out of range"),
+            (
+                "1.0,aa,cc,-70,1,2,1.8,1,0,0,0,x,0,0,0,1".to_string(),
+                1,
+                "orientation",
+            ),
+        ];
+        for (text, line, what) in cases {
+            let (n, msg) = parse_track(&text, &s).unwrap_err();
+            assert_eq!(n, line, "{msg}");
+            assert!(msg.contains(what), "{msg} should mention {what}");
+        }
+    }
+
+    #[test]
+    fn a_missing_dataset_is_an_error_naming_the_path() {
+        let dir = Path::new("/nonexistent/ble-rssi-for-test");
+        let e = load(dir).unwrap_err();
+        assert!(matches!(e, DataError::Missing(_)));
+        let msg = e.to_string();
+        assert!(msg.contains("/nonexistent/ble-rssi-for-test"), "{msg}");
+        assert!(msg.contains("not found"), "{msg}");
+    }
+}

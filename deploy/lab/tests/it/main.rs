@@ -1,0 +1,5 @@
+//! Integration tests of the lab (one binary).
+
+mod experiment;
+mod replay;
+mod rerun;

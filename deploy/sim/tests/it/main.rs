@@ -1,0 +1,3 @@
+//! Integration tests of the simulation runtime (one binary).
+
+mod default_scenario;

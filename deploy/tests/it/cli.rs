@@ -1,0 +1,217 @@
+//! The `ocelli` binary as a user runs it: experiments, replays of recordings and of external
+//! detections, each through the real command line.
+
+use std::io::Write;
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+#[test]
+fn the_cli_prints_the_issue_json_labelled_with_its_level_and_writes_figures() {
+    let dir = std::env::temp_dir().join(format!("ocelli-experiment-plots-{}", std::process::id()));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ocelli"))
+        .args(["experiment", "paper000-table1", "--runs", "1", "--duration", "20"])
+        .args(["--level", "measurement", "--json", "--plot"])
+        .arg(&dir)
+        .env("RUST_LOG", "error")
+        .output()
+        .expect("ocelli runs");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(v["experiment"], "paper000-table1");
+    assert_eq!(v["level"], "measurement");
+    let rows = v["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 5);
+    for r in rows {
+        for k in [
+            "method",
+            "mean_error_m",
+            "std_m",
+            "measurements",
+            "active_cameras",
+            "rssi_measurements",
+            "power_mw",
+        ] {
+            assert!(r.get(k).is_some(), "{k} missing in {r}");
+        }
+        assert!(r["rssi_measurements"].is_null(), "camera-only methods: {r}");
+    }
+    let pngs = std::fs::read_dir(&dir).map(|d| d.count()).unwrap_or(0);
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(pngs, 5, "one figure per method");
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_ocelli"))
+        .args(["experiment", "no-such-thing"])
+        .output()
+        .expect("ocelli runs");
+    assert!(!bad.status.success());
+    assert!(
+        String::from_utf8_lossy(&bad.stderr).contains("paper000-table1"),
+        "the error lists the known names"
+    );
+}
+
+/// The default scenario's cameras see a point on the floor: detections made by projecting it
+/// come back as one estimate at that point, one per `t`; a bad line is named.
+#[test]
+fn binary_writes_json_lines_and_names_a_bad_line() {
+    let scenario_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../proto/scenarios/default.toml");
+    let scenario = proto::scenario::Scenario::load(&scenario_path).expect("default scenario");
+    let w = &scenario.world;
+    let target = nalgebra::Vector3::new(0.5 * (w.min[0] + w.max[0]), 0.5 * (w.min[1] + w.max[1]), 0.0);
+    let mut lines = String::new();
+    let mut seen = 0;
+    for node in scenario.cameras() {
+        let cam = scenario.camera_model(node.id).expect("camera model");
+        let Some(px) = cam.project(&target) else { continue };
+        let k = &cam.intrinsics;
+        if px.x < 0.0 || px.y < 0.0 || px.x >= f64::from(k.width) || px.y >= f64::from(k.height) {
+            continue;
+        }
+        seen += 1;
+        for t in [0.0, 0.5] {
+            lines += &format!(
+                "{{\"t\": {t}, \"camera\": \"{}\", \"u\": {}, \"v\": {}}}\n",
+                node.id, px.x, px.y
+            );
+        }
+    }
+    assert!(seen >= 2, "the scenario centre is seen by {seen} cameras");
+    let run_with = |input: &str, method: &str| {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_ocelli"))
+            .args([
+                "replay",
+                "--detections",
+                "-",
+                "--method",
+                method,
+                "--plane-z",
+                "0",
+            ])
+            .arg("--scenario")
+            .arg(&scenario_path)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("ocelli runs");
+        child
+            .stdin
+            .take()
+            .expect("stdin")
+            .write_all(input.as_bytes())
+            .expect("write detections");
+        child.wait_with_output().expect("ocelli finishes")
+    };
+    let run = |input: &str| run_with(input, "ml");
+    let out = run(&lines);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).expect("utf-8");
+    let rows: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("each line is JSON"))
+        .collect();
+    assert_eq!(rows.len(), 2, "one estimate per t: {text}");
+    for (row, t) in rows.iter().zip([0.0, 0.5]) {
+        assert_eq!(row["t"], t);
+        assert_eq!(row["cameras"], seen);
+        let p = nalgebra::Vector3::new(
+            row["x"].as_f64().unwrap(),
+            row["y"].as_f64().unwrap(),
+            row["z"].as_f64().unwrap(),
+        );
+        assert!((p - target).norm() < 1e-6, "{p} vs {target}");
+        assert!(row["cov"][0][0].as_f64().unwrap() > 0.0);
+    }
+    assert!(rows.iter().all(|r| r.get("track").is_none()));
+    let out = run_with(&lines, "eif");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let tracks: Vec<u64> = String::from_utf8(out.stdout)
+        .expect("utf-8")
+        .lines()
+        .map(|l| {
+            serde_json::from_str::<serde_json::Value>(l).expect("JSON")["track"]
+                .as_u64()
+                .expect("track id")
+        })
+        .collect();
+    assert_eq!(tracks, [1, 1], "one target, one track");
+    let bad = format!("{lines}{{\"t\": 1, \"camera\": \"1\", \"u\": 3}}\n");
+    let out = run(&bad);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    let want = format!("line {}", lines.lines().count() + 1);
+    assert!(err.contains(&want), "error should name {want}: {err}");
+}
+
+/// The commands as a user runs them: `ocelli sim --record-measurements --record F`, then
+/// `ocelli replay F` with the run's seed prints the run's own estimates (those `ocelli export`
+/// reads from F) and, with `--json`, the report; `--activation all-on` keeps more cameras on.
+#[test]
+fn binary_replays_a_sim_recording_to_its_own_estimates() {
+    let dir = std::env::temp_dir().join(format!("ocelli-rerun-bin-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let rec = dir.join("run.ocrec");
+    let ocelli = |args: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_ocelli"))
+            .args(args)
+            .output()
+            .expect("ocelli runs");
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).expect("utf-8")
+    };
+    let rec_s = rec.to_str().unwrap();
+    ocelli(&[
+        "sim",
+        "--seed",
+        "9",
+        "--duration",
+        "6",
+        "--level",
+        "measurement",
+        "--json",
+        "--record",
+        rec_s,
+        "--record-measurements",
+    ]);
+    let json_lines = |text: &str| -> Vec<serde_json::Value> {
+        text.lines()
+            .map(|l| serde_json::from_str(l).expect("each line is JSON"))
+            .collect()
+    };
+    let exported: Vec<_> = json_lines(&ocelli(&["export", rec_s, "--format", "jsonl"]))
+        .into_iter()
+        .filter(|r| r["owner"] == true)
+        .collect();
+    // The run's seed and level; `extra` changes the method or policy.
+    let replay = |extra: &[&str]| {
+        let args = [
+            "replay",
+            rec_s,
+            "--seed",
+            "9",
+            "--recorded-level",
+            "measurement",
+            "--json",
+        ];
+        json_lines(&ocelli(&[&args[..], extra].concat()))
+    };
+    let mut replayed = replay(&[]);
+    let report = replayed.pop().expect("a report line");
+    assert!(exported.len() > 10, "only {} exported rows", exported.len());
+    assert_eq!(replayed, exported, "the replay's estimates are the run's");
+    let report = &report["report"];
+    assert!(
+        report["mean_error_m"].as_f64().expect("truth known") < 0.5,
+        "{report}"
+    );
+    let three = report["active_cameras_mean"].as_f64().unwrap();
+    let mut all_on = replay(&["--activation", "all-on"]);
+    let all_on = all_on.pop().unwrap()["report"]["active_cameras_mean"]
+        .as_f64()
+        .unwrap();
+    assert!(three < all_on, "three-mode {three} vs all-on {all_on} cameras");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,24 @@
+//! The distributed EIF (paper 002 §III): every node linearizes its own measurement at the
+//! broadcast μ̄ and sends Ω_i, ξ_i; the head only sums them (as they arrive, in
+//! `HeadNode::on_contribution`) and updates.
+
+use super::{Fusion, Updated, eif_update};
+use crate::association::Detection;
+use crate::config::{HeadConfig, NodeInfo};
+use crate::track::Track;
+use proto::ClusterTime;
+
+#[derive(Debug)]
+pub(super) struct DistributedEif;
+
+impl Fusion for DistributedEif {
+    fn distributed(&self) -> bool {
+        true
+    }
+
+    fn absorb(&self, _: &mut Track, _: &Detection, _: &NodeInfo, _: &HeadConfig) {}
+
+    fn update(&self, track: &mut Track, _: ClusterTime) -> Updated {
+        eif_update(track)
+    }
+}

@@ -1,0 +1,62 @@
+//! The head's one place that turns an observation into information about a track, per kind:
+//! a pin-hole point through the camera's model at the frame's capture time (and the previous
+//! frame's point, paper 000 eq. 13), a tag's reading through the node's trained RSSI model
+//! (paper 002 Algorithm 1) weighed by the errors this track's readings have made. Ground-plane
+//! people and acoustic ILD vectors are not fused by the EIFs.
+
+use crate::association::Detection;
+use crate::config::NodeInfo;
+use crate::track::Track;
+use nalgebra::Matrix6;
+use proto::models::{
+    State, camera_contribution_aged, information_contribution, pinhole_previous, rssi_aged, rssi_information,
+};
+use proto::observation::ObservationKind;
+
+/// Fold a camera's pin-hole detection into `track`'s step sums (both the filter's and the
+/// camera-only auxiliary filter's), linearized at the track's predicted mean.
+pub fn pinhole(track: &mut Track, det: &Detection, node: &NodeInfo, previous_point: bool) {
+    let cam = &node.camera;
+    // The time of μ̄: the step's, or a track handed over during the step its own.
+    let mean_bar = *track.filter.mean();
+    let age_s = det.age_s(track.time);
+    if let Some((o, x)) = camera_contribution_aged(cam, &det.point, &det.cov, &mean_bar, age_s) {
+        track.acc.add(&o, &x);
+        track.aux_acc.add(&o, &x);
+    }
+    if previous_point
+        && let Some(prev) = det.prev_point
+        && let Some((h, jac)) = pinhole_previous(cam, &mean_bar, age_s + 1.0 / node.fps)
+        && let Some((o, x)) = information_contribution(&prev, &h, &jac, &det.cov, &mean_bar)
+    {
+        track.acc.add(&o, &x);
+        track.aux_acc.add(&o, &x);
+    }
+}
+
+/// Fold the step's queued tag readings into `track`'s sums, each linearized at the predicted
+/// mean `mean_bar` (covariance `cov_bar`) with the reading node's current model, weighed with
+/// what this track's readings erred before the step (so the order packets came in does not
+/// matter), then counted. Returns the node slots whose readings were fused.
+pub fn rssi(track: &mut Track, nodes: &[NodeInfo], mean_bar: &State, cov_bar: &Matrix6<f64>) -> Vec<usize> {
+    let erred = track.rssi_noise;
+    let mut fused = Vec::new();
+    for &(slot, dbm, age_s) in &track.rssi {
+        let node = &nodes[slot];
+        let claimed = track.trainers[slot].model();
+        let (h, jac) = rssi_aged(&claimed, &node.position, mean_bar, age_s);
+        let hph = (jac * cov_bar * jac.transpose())[(0, 0)];
+        track.rssi_noise.observe(&claimed, dbm - h, hph);
+        let variance = erred.weighed(&claimed).variance();
+        if let Some((o, x)) = rssi_information(dbm, h, &jac, variance, mean_bar) {
+            track.acc.add(&o, &x);
+            fused.push(slot);
+        }
+    }
+    fused
+}
+
+/// Whether the EIFs can fuse an observation of `kind` (the others are counted and ignored).
+pub fn fused_by_eif(kind: ObservationKind) -> bool {
+    matches!(kind, ObservationKind::Pinhole | ObservationKind::Rssi)
+}

@@ -1,0 +1,222 @@
+//! Driving one node core as an OS process: what every role's process shares, written once.
+//!
+//! [`run`] opens the node's transport and loops over one `select!`: shutdown, a tick every
+//! [`ProcessConfig::tick`], the transport's events and the node's sensor stream. Each event
+//! becomes one [`Input`] for the core at the process's cluster time ([`HostClock`]: the host
+//! clock corrected by the leader's beacons, which the loop consumes and hands the core as
+//! [`Input::Sync`]); what the core returns is sent with a bounded wait
+//! ([`ProcessConfig::send_timeout`]), so a vanished peer never stalls the node, and what could
+//! not be delivered is counted and told to the core ([`Input::Undelivered`]). A role adds its
+//! own work after each step through [`Hooks`] (the server records; a camera switches capture).
+
+use crate::clock::HostClock;
+use crate::transport::{Delivery, Event, StatsSnapshot, TransportConfig, TransportError, open};
+use futures_util::{Stream, StreamExt};
+use proto::msg::Message;
+use proto::node::{Input, Node, Outgoing};
+use proto::{ClusterTime, NodeId};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::time::Duration;
+use thiserror::Error;
+use tokio_util::sync::CancellationToken;
+use tracing::{debug, info, warn};
+
+/// Longest a send may wait for room before it is counted as undelivered, by default.
+pub const SEND_TIMEOUT: Duration = Duration::from_millis(20);
+
+/// How to run one node process.
+#[derive(Clone, Debug)]
+pub struct ProcessConfig {
+    pub transport: TransportConfig,
+    /// The time leader whose beacons correct the clock (`None` for the leader itself).
+    pub leader: Option<NodeId>,
+    /// Period of [`Input::Tick`].
+    pub tick: Duration,
+    /// Longest a send may wait for room in a full queue.
+    pub send_timeout: Duration,
+}
+
+impl ProcessConfig {
+    /// `transport`, synchronized to `leader`, ticking every `tick`, sends waiting at most
+    /// [`SEND_TIMEOUT`].
+    pub fn new(transport: TransportConfig, leader: Option<NodeId>, tick: Duration) -> ProcessConfig {
+        ProcessConfig {
+            transport,
+            leader,
+            tick,
+            send_timeout: SEND_TIMEOUT,
+        }
+    }
+}
+
+/// What a process's links did, returned when it stops.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct RunSummary {
+    /// Messages from peers handed to the core.
+    pub received: u64,
+    /// Messages handed to the transport.
+    pub sent: u64,
+    /// Droppable messages that met a full queue.
+    pub dropped: u64,
+    /// Messages the transport refused (no link to the peer, shut down) or that waited past
+    /// the send timeout.
+    pub send_failures: u64,
+    /// Links that went down.
+    pub peers_down: u64,
+    /// Messages not delivered (dropped or failed), by kind.
+    pub undelivered: BTreeMap<&'static str, u64>,
+    pub transport: StatsSnapshot,
+}
+
+/// Why a process stopped with an error.
+#[derive(Debug, Error)]
+pub enum RunError<E> {
+    #[error("transport: {0}")]
+    Transport(#[from] TransportError),
+    /// The role's own work failed (the server's recording).
+    #[error(transparent)]
+    Node(E),
+}
+
+/// A role's own work around the shared loop.
+pub trait Hooks<N> {
+    type Error;
+    /// Whether [`Hooks::after`] wants the messages that went out (the server records them);
+    /// when false they are not kept.
+    const KEEP_SENT: bool = false;
+
+    /// After the core handled one input at `now` and its messages were sent (`sent`: those
+    /// the transport took, when [`Hooks::KEEP_SENT`]). An error stops the process.
+    ///
+    /// # Errors
+    /// Whatever the role's work cannot survive.
+    fn after(&mut self, node: &mut N, now: ClusterTime, sent: &[Outgoing]) -> Result<(), Self::Error> {
+        let _ = (node, now, sent);
+        Ok(())
+    }
+}
+
+/// No extra work.
+#[derive(Debug, Default)]
+pub struct NoHooks;
+
+impl<N> Hooks<N> for NoHooks {
+    type Error = std::convert::Infallible;
+}
+
+/// Run `node` until `shutdown` is cancelled, the transport closes, or a hook fails.
+///
+/// # Errors
+/// The transport cannot open; a hook's error (the transport is shut down first).
+pub async fn run<N, S, H>(
+    node: &mut N,
+    cfg: ProcessConfig,
+    clock: HostClock,
+    mut sensors: S,
+    hooks: &mut H,
+    shutdown: CancellationToken,
+) -> Result<RunSummary, RunError<H::Error>>
+where
+    N: Node,
+    S: Stream<Item = N::Sensor> + Unpin,
+    H: Hooks<N>,
+{
+    let me = node.id();
+    let (endpoint, mut inbox, stats, handle) = open(cfg.transport.clone()).await?;
+    info!(node = %me, "running");
+    let mut summary = RunSummary::default();
+    let mut tick = tokio::time::interval(cfg.tick);
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let mut sensors_open = true;
+    let mut sent = Vec::new();
+    let result = loop {
+        let input = tokio::select! {
+            () = shutdown.cancelled() => break Ok(()),
+            _ = tick.tick() => Input::Tick,
+            ev = inbox.recv() => match ev {
+                None => {
+                    warn!(node = %me, "transport closed");
+                    break Ok(());
+                }
+                Some(Event::Message(m)) => {
+                    summary.received += 1;
+                    match &m.env.body {
+                        Message::SyncBeacon(b) if Some(m.from) == cfg.leader => {
+                            match clock.observe(b.leader_time) {
+                                Some((offset_ns, error_ns)) => Input::Sync { offset_ns, error_ns },
+                                None => continue,
+                            }
+                        }
+                        _ => Input::Message(m.env),
+                    }
+                }
+                Some(Event::PeerUp(peer)) => {
+                    debug!(node = %me, %peer, "peer up");
+                    Input::Link { peer, up: true }
+                }
+                Some(Event::PeerDown(peer)) => {
+                    summary.peers_down += 1;
+                    warn!(node = %me, %peer, "peer down; counting what is lost");
+                    Input::Link { peer, up: false }
+                }
+            },
+            s = sensors.next(), if sensors_open => match s {
+                Some(s) => Input::Sensor(s),
+                None => {
+                    info!(node = %me, "sensors ended");
+                    sensors_open = false;
+                    continue;
+                }
+            },
+        };
+        let now = clock.now();
+        let out = node.handle(now, input);
+        sent.clear();
+        let mut undelivered = 0;
+        for o in out {
+            let to = o.to;
+            let kind = o.body.kind();
+            let keep = H::KEEP_SENT.then(|| o.clone());
+            match tokio::time::timeout(cfg.send_timeout, endpoint.send(o, now)).await {
+                Ok(Ok(Delivery::Queued)) => {
+                    summary.sent += 1;
+                    sent.extend(keep);
+                }
+                Ok(Ok(Delivery::Dropped)) => {
+                    summary.dropped += 1;
+                    undelivered += 1;
+                    *summary.undelivered.entry(kind).or_default() += 1;
+                }
+                Ok(Err(e)) => {
+                    summary.send_failures += 1;
+                    undelivered += 1;
+                    *summary.undelivered.entry(kind).or_default() += 1;
+                    debug!(node = %me, %to, error = %e, "not delivered");
+                }
+                Err(_) => {
+                    summary.send_failures += 1;
+                    undelivered += 1;
+                    *summary.undelivered.entry(kind).or_default() += 1;
+                    debug!(node = %me, %to, "send timed out");
+                }
+            }
+        }
+        if undelivered > 0 {
+            // The core only counts these; it has nothing to say back.
+            let _ = node.handle(now, Input::Undelivered(undelivered));
+        }
+        if let Err(e) = hooks.after(node, now, &sent) {
+            break Err(RunError::Node(e));
+        }
+    };
+    summary.transport = stats.snapshot();
+    handle.shutdown().await;
+    info!(node = %me, sent = summary.sent, send_failures = summary.send_failures, "stopped");
+    result.map(|()| summary)
+}
+
+/// A node without sensors (heads, the server).
+pub fn no_sensors<T>() -> futures_util::stream::Pending<T> {
+    futures_util::stream::pending()
+}

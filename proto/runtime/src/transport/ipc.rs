@@ -1,0 +1,589 @@
+//! iceoryx2 transport between processes on one host.
+//!
+//! Every node owns one inbox: a publish-subscribe service of byte slices named
+//! `"{domain}/inbox/{node}"` plus an event service of the same name that wakes the owner.
+//! Senders open a publisher and a notifier on a recipient's inbox the first time they send
+//! to it. All iceoryx2 files carry the prefix `iox2_{domain}_`, so parallel clusters and tests
+//! never see each other's services and a test can check that nothing of its domain is left in
+//! `/dev/shm`.
+//!
+//! Receiving runs on a dedicated thread that blocks on the inbox listener, drains the
+//! subscriber, decodes and forwards to the tokio inbox (blocking only for messages that must
+//! not be dropped). Sending uses iceoryx2's thread-safe service flavour, so `Endpoint::send`
+//! publishes straight from the caller's task: a thread hop costs tens of microseconds on an
+//! idle machine. iceoryx2's own signal handling is disabled (tokio owns SIGINT/SIGTERM). Each
+//! iceoryx2 node is created with dead-node cleanup, so resources left by a crashed node of the
+//! domain are removed at start; dropping the nodes on shutdown removes this node's files.
+
+use super::common::{accept, push_blocking};
+use super::stats::{TransportStats, bump};
+use super::{Delivery, Event, Incoming, OutFrame, SendError, ShutdownHandle, TransportError};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use proto::MAX_FRAME_BYTES;
+use proto::ids::{NodeId, Role};
+use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+use tokio::sync::mpsc;
+
+/// iceoryx2's thread-safe flavour of its IPC service: its ports may be used from tokio tasks,
+/// so frames are published straight from `Endpoint::send` without a thread hop.
+type Svc = ipc_threadsafe::Service;
+
+/// Room in a shared-memory slot beyond [`MAX_FRAME_BYTES`], so that an oversized frame
+/// reaches the receiver and is rejected there (counted, logged) like on every other transport.
+const SLOT_SLACK: usize = 64;
+/// How long a publisher keeps retrying a frame that must not be dropped while the recipient's
+/// buffer is full, before giving up on it (counted in `dropped_undelivered`): a crashed
+/// receiver's buffer never drains, and the sender thread serves every other link too.
+const MUST_DELIVER_PATIENCE: Duration = Duration::from_secs(2);
+/// How often the receiver thread looks at the stop flag when nothing arrives.
+const STOP_POLL: Duration = Duration::from_millis(50);
+
+/// Per-service iceoryx2 limits. The library's defaults (2 publishers, 8 subscribers, a
+/// buffer of 2 that silently overwrites) are far too small for a cluster.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct IpcLimits {
+    /// Processes that may open one inbox (every possible sender, plus the owner).
+    pub max_nodes: usize,
+    /// Senders per inbox.
+    pub max_publishers: usize,
+    /// Receivers per inbox: the owner, and its restarted successor while the dead one is
+    /// cleaned up.
+    pub max_subscribers: usize,
+    /// Frames an inbox buffers; a full buffer makes publishers discard (never overwrite).
+    pub buffer: usize,
+}
+
+impl IpcLimits {
+    /// Limits for a scenario of `nodes` nodes with per-link queues of `queue_len` frames.
+    pub fn for_nodes(nodes: usize, queue_len: usize) -> Self {
+        let n = nodes.max(2) + 2;
+        IpcLimits {
+            max_nodes: 2 * n + 2,
+            max_publishers: n,
+            max_subscribers: 2,
+            buffer: queue_len.max(16),
+        }
+    }
+}
+
+/// Settings of an iceoryx2 endpoint.
+#[derive(Clone)]
+pub struct IpcConfig {
+    /// Service-name and file prefix: `[A-Za-z0-9_-]`, at most 64 characters.
+    pub domain: String,
+    pub me: NodeId,
+    pub role: Role,
+    pub limits: IpcLimits,
+    /// Events queued in the inbox.
+    pub queue_len: usize,
+    /// Send a `Heartbeat` to every node this endpoint has sent to, this often, stamped with
+    /// the clock. Shared memory has no connection whose loss tells a peer we are gone, so
+    /// liveness on the same host rests on these (as it rests on TCP's own heartbeats).
+    pub heartbeat: Option<(std::time::Duration, super::Clock)>,
+}
+
+impl std::fmt::Debug for IpcConfig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("IpcConfig")
+            .field("domain", &self.domain)
+            .field("me", &self.me)
+            .field("role", &self.role)
+            .field("limits", &self.limits)
+            .field("queue_len", &self.queue_len)
+            .field("heartbeat", &self.heartbeat.as_ref().map(|(p, _)| *p))
+            .finish()
+    }
+}
+
+impl IpcConfig {
+    pub fn new(domain: impl Into<String>, me: NodeId, role: Role, nodes: usize) -> Self {
+        let queue_len = 256;
+        IpcConfig {
+            domain: domain.into(),
+            me,
+            role,
+            limits: IpcLimits::for_nodes(nodes, queue_len),
+            queue_len,
+            heartbeat: None,
+        }
+    }
+}
+
+/// The file prefix iceoryx2 uses for `domain`: every shared-memory file of the domain starts
+/// with it.
+pub fn file_prefix(domain: &str) -> String {
+    format!("iox2_{domain}_")
+}
+
+fn check_domain(domain: &str) -> Result<(), TransportError> {
+    let ok = !domain.is_empty()
+        && domain.len() <= 64
+        && domain
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-');
+    if ok {
+        Ok(())
+    } else {
+        Err(TransportError::Config(format!(
+            "domain {domain:?} must be 1 to 64 characters of [A-Za-z0-9_-]"
+        )))
+    }
+}
+
+fn ipc_err(what: &str, e: impl std::fmt::Debug) -> TransportError {
+    TransportError::Ipc(format!("{what}: {e:?}"))
+}
+
+fn iox_config(domain: &str) -> Result<Config, TransportError> {
+    let mut config = Config::default();
+    config.global.prefix =
+        FileName::new(file_prefix(domain).as_bytes()).map_err(|e| ipc_err("file prefix", e))?;
+    Ok(config)
+}
+
+fn iox_node(config: &Config) -> Result<Node<Svc>, TransportError> {
+    let node = NodeBuilder::new()
+        .config(config)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<Svc>()
+        .map_err(|e| ipc_err("node", e))?;
+    let cleaned = node.blocking_cleanup_dead_nodes(Duration::from_millis(500));
+    if cleaned.cleanups > 0 || cleaned.failed_cleanups > 0 {
+        tracing::info!(
+            cleanups = cleaned.cleanups,
+            failed = cleaned.failed_cleanups,
+            "removed stale iceoryx2 resources of dead nodes"
+        );
+    }
+    Ok(node)
+}
+
+/// iceoryx2 keeps one small management segment per prefix (a node counter) and never removes
+/// it. When the last node of the domain is gone, remove it so a clean stop leaves nothing of
+/// the domain in `/dev/shm`.
+fn release_domain(domain: &str) {
+    let Ok(config) = iox_config(domain) else {
+        return;
+    };
+    let mut nodes = 0usize;
+    let listed = Node::<Svc>::list(&config, |_| {
+        nodes += 1;
+        CallbackProgression::Continue
+    });
+    if listed.is_err() || nodes > 0 {
+        return;
+    }
+    let prefix = file_prefix(domain);
+    let Ok(dir) = std::fs::read_dir(SHM_DIR) else {
+        return;
+    };
+    for entry in dir.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if name.starts_with(&prefix) && name.ends_with(".global_mgmt") {
+            match std::fs::remove_file(entry.path()) {
+                Ok(()) => tracing::debug!(file = %name, "removed the domain's management segment"),
+                Err(e) => {
+                    tracing::warn!(file = %name, error = %e, "could not remove the domain's management segment")
+                }
+            }
+        }
+    }
+}
+
+/// Where POSIX shared memory lives on Linux.
+const SHM_DIR: &str = "/dev/shm";
+
+fn inbox_name(domain: &str, node: NodeId) -> Result<ServiceName, TransportError> {
+    ServiceName::new(&format!("{domain}/inbox/{}", node.0)).map_err(|e| ipc_err("service name", e))
+}
+
+type Inbox = (
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], ()>,
+    iceoryx2::service::port_factory::event::PortFactory<Svc>,
+);
+
+fn open_inbox(node: &Node<Svc>, name: &ServiceName, l: &IpcLimits) -> Result<Inbox, TransportError> {
+    let data = node
+        .service_builder(name)
+        .publish_subscribe::<[u8]>()
+        .enable_safe_overflow(false)
+        .subscriber_max_buffer_size(l.buffer)
+        .subscriber_max_borrowed_samples(4)
+        .history_size(0)
+        .max_publishers(l.max_publishers)
+        .max_subscribers(l.max_subscribers)
+        .max_nodes(l.max_nodes)
+        .open_or_create()
+        .map_err(|e| ipc_err("inbox service", e))?;
+    let wake = node
+        .service_builder(name)
+        .event()
+        .max_notifiers(l.max_publishers + 1)
+        .max_listeners(l.max_subscribers)
+        .max_nodes(l.max_nodes)
+        .open_or_create()
+        .map_err(|e| ipc_err("inbox event service", e))?;
+    Ok((data, wake))
+}
+
+/// The sending half handed to the endpoint: publishes from the caller's task.
+pub(crate) struct Sender {
+    inner: Arc<SenderInner>,
+}
+
+struct SenderInner {
+    cfg: IpcConfig,
+    /// `None` once stopped.
+    node: Mutex<Option<Node<Svc>>>,
+    outlets: Mutex<HashMap<NodeId, Outlet>>,
+}
+
+/// What one publish attempt did.
+enum Published {
+    Delivered,
+    /// Reached no receiver although one is subscribed: its buffer is full.
+    Full,
+    /// Nobody reads this inbox.
+    NoReceiver,
+}
+
+impl Sender {
+    /// Publish `frame` on the recipient's inbox. A frame that must not be dropped and meets
+    /// a full inbox is tried again (yielding to the runtime) for up to
+    /// [`MUST_DELIVER_PATIENCE`]; a droppable one is dropped at once. Undelivered frames are
+    /// counted in `dropped_undelivered`.
+    pub(crate) async fn send(&self, frame: OutFrame, stats: &TransportStats) -> Result<Delivery, SendError> {
+        let started = tokio::time::Instant::now();
+        loop {
+            match self.publish_once(&frame, stats)? {
+                Some(Published::Delivered) => return Ok(Delivery::Queued),
+                Some(Published::Full) if !frame.droppable && started.elapsed() < MUST_DELIVER_PATIENCE => {
+                    tokio::time::sleep(Duration::from_micros(200)).await;
+                }
+                Some(Published::Full) | Some(Published::NoReceiver) => {
+                    bump(&stats.dropped_undelivered);
+                    tracing::debug!(to = %frame.to, "frame reached no receiver");
+                    return Ok(Delivery::Dropped);
+                }
+                // Could not be published at all; counted and logged where it failed.
+                None => return Ok(Delivery::Dropped),
+            }
+        }
+    }
+
+    fn publish_once(&self, frame: &OutFrame, stats: &TransportStats) -> Result<Option<Published>, SendError> {
+        let mut outlets = self.inner.outlets.lock().unwrap_or_else(|p| p.into_inner());
+        let outlet = match outlets.entry(frame.to) {
+            std::collections::hash_map::Entry::Occupied(o) => o.into_mut(),
+            std::collections::hash_map::Entry::Vacant(v) => {
+                let node = self.inner.node.lock().unwrap_or_else(|p| p.into_inner());
+                let Some(node) = node.as_ref() else {
+                    return Err(SendError::Closed);
+                };
+                match open_outlet(node, &self.inner.cfg, frame.to) {
+                    Ok(o) => v.insert(o),
+                    Err(e) => {
+                        bump(&stats.unroutable);
+                        tracing::warn!(to = %frame.to, error = %e, "cannot open the recipient's inbox");
+                        return Ok(None);
+                    }
+                }
+            }
+        };
+        Ok(publish(outlet, frame, stats))
+    }
+
+    fn stop(&self) {
+        self.inner
+            .outlets
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .clear();
+        self.inner.node.lock().unwrap_or_else(|p| p.into_inner()).take();
+    }
+}
+
+pub(crate) fn start(
+    cfg: IpcConfig,
+    events: mpsc::Sender<Event>,
+    stats: Arc<TransportStats>,
+    handle: &mut ShutdownHandle,
+) -> Result<Sender, TransportError> {
+    check_domain(&cfg.domain)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<(), TransportError>>();
+
+    let rcfg = cfg.clone();
+    let (rstats, rstop) = (stats.clone(), stop.clone());
+    let receiver = std::thread::Builder::new()
+        .name(format!("iox2-rx-{}", cfg.me.0))
+        .spawn(move || receiver_thread(rcfg, events, rstats, rstop, ready_tx))
+        .map_err(TransportError::Io)?;
+    handle.threads.push(receiver);
+
+    let domain = cfg.domain.clone();
+    handle.after_join.push(Box::new(move || release_domain(&domain)));
+    match ready_rx.recv_timeout(Duration::from_secs(10)) {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => return Err(e),
+        Err(_) => {
+            return Err(TransportError::Ipc(
+                "iceoryx2 receiver thread did not start".into(),
+            ));
+        }
+    }
+
+    let node = iox_node(&iox_config(&cfg.domain)?)?;
+    let sender = Sender {
+        inner: Arc::new(SenderInner {
+            cfg,
+            node: Mutex::new(Some(node)),
+            outlets: Mutex::new(HashMap::new()),
+        }),
+    };
+    let on_stop = Sender {
+        inner: sender.inner.clone(),
+    };
+    handle.on_stop.push(Box::new(move || {
+        stop.store(true, Ordering::Release);
+        on_stop.stop();
+    }));
+    Ok(sender)
+}
+
+fn receiver_thread(
+    cfg: IpcConfig,
+    events: mpsc::Sender<Event>,
+    stats: Arc<TransportStats>,
+    stop: Arc<AtomicBool>,
+    ready: std::sync::mpsc::Sender<Result<(), TransportError>>,
+) {
+    type Ports = (Node<Svc>, Subscriber<Svc, [u8], ()>, Listener<Svc>);
+    let setup = || -> Result<Ports, TransportError> {
+        let config = iox_config(&cfg.domain)?;
+        let node = iox_node(&config)?;
+        let (data, wake) = open_inbox(&node, &inbox_name(&cfg.domain, cfg.me)?, &cfg.limits)?;
+        let sub = data
+            .subscriber_builder()
+            .buffer_size(cfg.limits.buffer)
+            .create()
+            .map_err(|e| ipc_err("subscriber", e))?;
+        let listener = wake
+            .listener_builder()
+            .create()
+            .map_err(|e| ipc_err("listener", e))?;
+        Ok((node, sub, listener))
+    };
+    let (node, sub, listener) = match setup() {
+        Ok(v) => {
+            let _ = ready.send(Ok(()));
+            v
+        }
+        Err(e) => {
+            let _ = ready.send(Err(e));
+            return;
+        }
+    };
+    let mut known: HashSet<NodeId> = HashSet::new();
+    while !stop.load(Ordering::Acquire) {
+        if let Err(e) = listener.timed_wait(|_| {}, STOP_POLL) {
+            tracing::warn!(error = ?e, "iceoryx2 listener wait failed");
+            std::thread::sleep(STOP_POLL);
+        }
+        loop {
+            let sample = match sub.receive() {
+                Ok(Some(s)) => s,
+                Ok(None) => break,
+                Err(e) => {
+                    tracing::warn!(error = ?e, "iceoryx2 receive failed");
+                    break;
+                }
+            };
+            let Some(env) = accept(sample.payload(), &stats, None, "ipc") else {
+                continue;
+            };
+            drop(sample);
+            let from = env.source;
+            if known.insert(from) {
+                bump(&stats.peers_up);
+                if events.blocking_send(Event::PeerUp(from)).is_err() {
+                    return;
+                }
+            }
+            bump(&stats.received);
+            let droppable = env.body.droppable();
+            let ev = Event::Message(Incoming { from, env });
+            if push_blocking(&events, ev, droppable, &stats.dropped_inbox_full).is_err() {
+                return;
+            }
+        }
+    }
+    drop((sub, listener));
+    drop(node);
+}
+
+struct Outlet {
+    data: iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], ()>,
+    publisher: Publisher<Svc, [u8], ()>,
+    notifier: Notifier<Svc>,
+}
+
+/// Open a publisher and notifier on `to`'s inbox. A full inbox makes the publisher discard
+/// (never overwrite); [`Sender::send`] decides whether to try again.
+fn open_outlet(node: &Node<Svc>, cfg: &IpcConfig, to: NodeId) -> Result<Outlet, TransportError> {
+    let (data, wake) = open_inbox(node, &inbox_name(&cfg.domain, to)?, &cfg.limits)?;
+    let publisher = data
+        .publisher_builder()
+        .initial_max_slice_len(MAX_FRAME_BYTES + SLOT_SLACK)
+        .allocation_strategy(AllocationStrategy::Static)
+        .backpressure_strategy(BackpressureStrategy::DiscardData)
+        .max_loaned_samples(2)
+        .create()
+        .map_err(|e| ipc_err("publisher", e))?;
+    let notifier = wake
+        .notifier_builder()
+        .create()
+        .map_err(|e| ipc_err("notifier", e))?;
+    Ok(Outlet {
+        data,
+        publisher,
+        notifier,
+    })
+}
+
+/// Publish one frame and wake the recipient; `None` if it could not even be loaned (counted).
+fn publish(outlet: &Outlet, frame: &OutFrame, stats: &TransportStats) -> Option<Published> {
+    use iceoryx2::service::port_factory::PortFactory;
+    let to = frame.to;
+    let sample = match outlet.publisher.loan_slice_uninit(frame.bytes.len()) {
+        Ok(s) => s,
+        Err(e) => {
+            bump(&stats.rejected_oversized);
+            tracing::warn!(%to, len = frame.bytes.len(), error = ?e, "frame does not fit a shared-memory slot");
+            return None;
+        }
+    };
+    let sample = sample.write_from_slice(&frame.bytes);
+    match sample.send() {
+        Ok(0) => {
+            if outlet.data.dynamic_config().number_of_subscribers() > 0 {
+                // Wake the reader so it drains.
+                let _ = outlet.notifier.notify();
+                Some(Published::Full)
+            } else {
+                Some(Published::NoReceiver)
+            }
+        }
+        Ok(_) => {
+            if let Err(e) = outlet.notifier.notify() {
+                tracing::warn!(%to, error = ?e, "iceoryx2 notify failed");
+            }
+            Some(Published::Delivered)
+        }
+        Err(e) => {
+            tracing::warn!(%to, error = ?e, "iceoryx2 send failed");
+            Some(Published::NoReceiver)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn domains_are_checked() {
+        assert!(check_domain("ocelli-test_1").is_ok());
+        for bad in ["", "a/b", "a b", &"x".repeat(65)] {
+            assert!(check_domain(bad).is_err(), "{bad:?} accepted");
+        }
+    }
+
+    #[test]
+    fn limits_grow_with_the_scenario() {
+        let small = IpcLimits::for_nodes(3, 8);
+        let big = IpcLimits::for_nodes(30, 512);
+        assert!(big.max_publishers >= 30 && big.max_nodes > big.max_publishers);
+        assert!(small.buffer >= 16 && big.buffer == 512);
+        assert!(
+            small.max_publishers > 2,
+            "iceoryx2's default of 2 publishers is too small"
+        );
+    }
+
+    fn shm_files(domain: &str) -> Vec<String> {
+        let prefix = file_prefix(domain);
+        std::fs::read_dir("/dev/shm")
+            .map(|d| {
+                d.filter_map(|e| e.ok())
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .filter(|n| n.starts_with(&prefix))
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn delivers_in_order_rejects_garbage_and_cleans_up() {
+        use super::super::{Event, TransportConfig, open};
+        use proto::msg::{Message, SyncBeacon};
+        use proto::node::Outgoing;
+        use proto::time::ClusterTime;
+        let domain = format!("unit-{}", std::process::id());
+        let cfg = |me| TransportConfig::Ipc(IpcConfig::new(domain.clone(), NodeId(me), Role::Tool, 2));
+        let (_a, mut ia, sa, ha) = open(cfg(1)).await.unwrap();
+        let (b, _ib, sb, hb) = open(cfg(2)).await.unwrap();
+        assert!(
+            !shm_files(&domain).is_empty(),
+            "iceoryx2 files do not carry the domain prefix"
+        );
+        let beacon = |round| {
+            Message::SyncBeacon(SyncBeacon {
+                leader: NodeId(2),
+                round,
+                leader_time: ClusterTime(0),
+            })
+        };
+        b.send_raw_frame(NodeId(1), vec![1, 0xff, 0xff]).await.unwrap();
+        b.send_raw_frame(NodeId(1), vec![0; MAX_FRAME_BYTES + 1])
+            .await
+            .unwrap();
+        for k in 0..100 {
+            b.send(Outgoing::new(NodeId(1), beacon(k)), ClusterTime(k as i64))
+                .await
+                .unwrap();
+        }
+        let mut next = 0;
+        while next < 100 {
+            let ev = tokio::time::timeout(Duration::from_secs(10), ia.recv())
+                .await
+                .unwrap()
+                .unwrap();
+            match ev {
+                Event::Message(m) => {
+                    assert_eq!((m.from, m.env.body), (NodeId(2), beacon(next)));
+                    next += 1;
+                }
+                Event::PeerUp(n) => assert_eq!(n, NodeId(2)),
+                Event::PeerDown(n) => panic!("PeerDown({n})"),
+            }
+        }
+        let s = sa.snapshot();
+        assert_eq!(
+            (s.received, s.rejected_malformed, s.rejected_oversized),
+            (100, 1, 1),
+            "{s:?}"
+        );
+        assert_eq!(sb.snapshot().sent, 102);
+        hb.shutdown().await;
+        ha.shutdown().await;
+        assert_eq!(shm_files(&domain), Vec::<String>::new(), "files left in /dev/shm");
+    }
+}

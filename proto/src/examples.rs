@@ -1,0 +1,234 @@
+//! Fixtures: one fixed envelope per message kind, in wire-tag order, and one observation per
+//! observation kind — for the golden byte vectors, benchmarks and fuzz corpora. Every
+//! floating-point slot holds a distinct, exactly representable value (symmetric matrix entries
+//! share theirs), so tests can find each slot in the encoded bytes.
+
+use crate::ids::{NodeId, Role, TagId, TargetId};
+use crate::msg::*;
+use crate::observation::{GroundPoint, IldVector, PinholePoint};
+use crate::{ClusterTime, Envelope, Message, Mode};
+
+/// A symmetric, diagonally dominant (so positive-definite) matrix whose upper-triangle entries
+/// are distinct and differ from those of other seeds.
+pub fn spd(seed: u32) -> Mat6 {
+    let s = f64::from(seed);
+    let mut m = [[0.0; 6]; 6];
+    for i in 0..6 {
+        for j in i..6 {
+            let v = if i == j {
+                20.0 + s + i as f64
+            } else {
+                0.0625 * s + (i * 6 + j) as f64 / 256.0
+            };
+            m[i][j] = v;
+            m[j][i] = v;
+        }
+    }
+    m
+}
+
+/// A state-sized fixture vector with distinct entries.
+pub fn vec6(seed: u32) -> Vec6 {
+    let s = f64::from(seed);
+    std::array::from_fn(|i| -s - (i as f64 + 1.0) / 8.0)
+}
+
+fn env(body: Message) -> Envelope {
+    Envelope {
+        source: NodeId(7),
+        seq: 42,
+        time: ClusterTime(1_500_000_123),
+        body,
+    }
+}
+
+/// The number of f64 and f32 slots of each sample, by tag (what the poison test must find).
+pub const FLOAT_SLOTS: [(usize, usize); 14] = [
+    (0, 0),   // hello
+    (0, 0),   // hello_ack
+    (0, 0),   // heartbeat
+    (19, 19), // measurement: rvec 3, tvec 3, pin-hole 7, rssi 1, ground 5; box 4, colour 3, ground 3 + 3, ild 2 + 4
+    (43, 0),  // contribution: 36 + 6 + rssi 1
+    (0, 0),   // node_status
+    (42, 0),  // prior: mean 6 + cov 36
+    (0, 0),   // command
+    (43, 0),  // track_report: mean 6 + cov 36 + power 1
+    (0, 0),   // assignment
+    (42, 0),  // handover
+    (0, 0),   // sync_beacon
+    (0, 0),   // liveness
+    (6, 11),  // measured_frame: rssi 1, point 2, cov 3; centre 2, foot 2, box 4, colour 3
+];
+
+/// One observation of each kind, in wire-tag order.
+pub fn observations() -> Vec<Observation> {
+    vec![
+        Observation::Pinhole(PinholePoint {
+            point: [0.125, -0.375],
+            cov: [0.015625, 0.0009765625, 0.0234375],
+            prev_point: Some([0.1875, -0.3125]),
+            pixel_box: PixelBox {
+                xmin: 11.1,
+                ymin: 22.2,
+                xmax: 33.3,
+                ymax: 44.4,
+            },
+            area: 1234,
+            colour: ColourSignature {
+                hue: 0.51,
+                saturation: 0.62,
+                intensity: 0.73,
+            },
+            captured: ClusterTime(1_499_990_000),
+        }),
+        Observation::Rssi(RssiReading {
+            tag: TagId(0x0200_0000_0001),
+            dbm: -61.5,
+            time: ClusterTime(1_499_995_000),
+        }),
+        Observation::Ground(GroundPoint {
+            local: 4,
+            position: [3.25, -1.75],
+            cov: [0.0625, 0.0078125, 0.03125],
+            width_m: 0.55,
+            height_m: 1.65,
+            confidence: 0.85,
+            histogram: vec![0.55, 0.3, 0.15],
+            captured: ClusterTime(1_499_991_000),
+        }),
+        Observation::Acoustic(IldVector {
+            first_hz: 187.3,
+            step_hz: 93.7,
+            ild_db: vec![1.1, -2.3, 3.7, 0.45],
+            captured: ClusterTime(1_499_992_000),
+        }),
+    ]
+}
+
+/// One envelope per message kind, in wire-tag order.
+pub fn messages() -> Vec<Envelope> {
+    vec![
+        env(Message::Hello(Hello {
+            version: crate::PROTOCOL_VERSION,
+            role: Role::Head,
+            node: NodeId(3),
+        })),
+        env(Message::HelloAck(HelloAck {
+            accepted: false,
+            reason: "id taken".into(),
+        })),
+        env(Message::Heartbeat),
+        env(Message::Measurement(Measurement {
+            target: Some(TargetId(5)),
+            step: 300,
+            pose: PoseWire {
+                rvec: [1.5, -2.5, 0.09375],
+                tvec: [3.5, 4.5, -5.5],
+            },
+            mode: Mode::Active,
+            observations: observations(),
+        })),
+        env(Message::Contribution(Contribution {
+            target: TargetId(5),
+            step: 300,
+            info_matrix: spd(1),
+            info_vector: vec6(1),
+            folded: Kinds::of(ObservationKind::Pinhole),
+            captured: ClusterTime(1_499_990_000),
+            mode: Mode::CameraOff,
+            observations: vec![Observation::Rssi(RssiReading {
+                tag: TagId(0x0a0b_0c0d_0e0f),
+                dbm: -70.25,
+                time: ClusterTime(-17),
+            })],
+        })),
+        env(Message::NodeStatus(NodeStatus {
+            mode: Mode::Inactive,
+            time_in_mode_ns: [1, 300, 70_000],
+            frames: 900,
+            detections: 850,
+            dropped: 2,
+            rejected: 1,
+            sync_offset_ns: -1500,
+            sync_error_ns: 250,
+        })),
+        env(Message::Prior(Prior {
+            target: TargetId(5),
+            step: 301,
+            mean: vec6(2),
+            cov: spd(2),
+            deadline: ClusterTime(1_500_080_000),
+        })),
+        env(Message::Command(Command {
+            node: NodeId(12),
+            mode: Mode::CameraOff,
+        })),
+        env(Message::TrackReport(TrackReport {
+            target: TargetId(5),
+            global: Some(TargetId(1005)),
+            step: 301,
+            time: ClusterTime(1_500_100_000),
+            mean: vec6(3),
+            cov: spd(3),
+            contributors: vec![
+                Contributor {
+                    node: NodeId(10),
+                    kinds: Kinds::of(ObservationKind::Pinhole).union(Kinds::of(ObservationKind::Rssi)),
+                },
+                Contributor {
+                    node: NodeId(300),
+                    kinds: Kinds::of(ObservationKind::Rssi),
+                },
+            ],
+            power_mw: 1437.5,
+            late: 3,
+        })),
+        env(Message::Assignment(Assignment {
+            node: NodeId(10),
+            head: NodeId(2),
+        })),
+        env(Message::Handover(Handover {
+            global: TargetId(1005),
+            to_head: NodeId(3),
+            from_head: Some(NodeId(2)),
+            time: ClusterTime(1_500_200_000),
+            mean: vec6(4),
+            cov: spd(4),
+        })),
+        env(Message::SyncBeacon(SyncBeacon {
+            leader: NodeId(1),
+            round: 77,
+            leader_time: ClusterTime(1_500_300_000),
+        })),
+        env(Message::Liveness(Liveness {
+            node: NodeId(11),
+            up: false,
+        })),
+        env(Message::MeasuredFrame(MeasuredFrame {
+            captured: ClusterTime(1_499_990_000),
+            rssi: vec![RssiReading {
+                tag: TagId(0x0200_0000_0002),
+                dbm: -58.75,
+                time: ClusterTime(1_499_989_000),
+            }],
+            detections: vec![MeasuredDetection {
+                centre: [101.5, 202.25],
+                foot: [103.75, 250.5],
+                pixel_box: PixelBox {
+                    xmin: 90.5,
+                    ymin: 180.25,
+                    xmax: 112.75,
+                    ymax: 251.5,
+                },
+                area: 777,
+                colour: ColourSignature {
+                    hue: 0.21,
+                    saturation: 0.32,
+                    intensity: 0.43,
+                },
+                point: [0.40625, -0.59375],
+                cov: [0.046875, 0.001953125, 0.0390625],
+            }],
+        })),
+    ]
+}
