@@ -274,7 +274,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
     if removed > 0 {
         tracing::info!(files = removed, "removed iceoryx2 files left by crashed nodes");
     }
-    let loaded = node_server::replay::load(&opts.record, Some(scenario.clone()))
+    let loaded = node_server::analysis::load(&opts.record, Some(scenario.clone()))
         .with_context(|| format!("reading the recording {}", opts.record.display()))?;
     let truth = sim::WorldTruth::of(&loaded.scenario, epoch)?;
     Ok(report::compute(
@@ -287,8 +287,8 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
 mod tests {
     use super::*;
     use node_server::Recorder;
+    use node_server::analysis::Loaded;
     use node_server::export::track_rows;
-    use node_server::replay::Loaded;
     use sim::{Level, Sim, SimOptions};
 
     /// Progress read in pieces while the recording grows ends where a reading of the whole

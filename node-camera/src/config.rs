@@ -64,7 +64,7 @@ impl CameraConfig {
         let m = &scenario.method;
         let fps = node.camera.as_ref().map_or(5.0, |c| c.fps);
         let mut segment = SegmentParams::for_scenario(scenario, camera.intrinsics.width);
-        segment.paper004 = segment.paper004.scaled_to_fps(fps);
+        segment.adaptive_background = segment.adaptive_background.scaled_to_fps(fps);
         Ok(CameraConfig {
             id: NodeId(id),
             head: head.map(NodeId),

@@ -388,7 +388,7 @@ impl CameraNode {
     /// filter, if the previous frame can tell what moved (it exists and the model did not
     /// restart since: a gap longer than its memory, as after a sleep).
     fn offer(&self, captured: ClusterTime) -> Offer {
-        let Segmenter::Paper004(seg) = &self.segmenter else {
+        let Segmenter::AdaptiveBackground(seg) = &self.segmenter else {
             return Offer::All;
         };
         if !self.cfg.fusion.distributed() {

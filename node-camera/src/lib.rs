@@ -2,13 +2,15 @@
 //! results — detections, undistorted measurements, information contributions — and sends
 //! nothing else (papers 000 §2.2 and §6.1, 002 §II, 004 §2.6 and §3.2).
 //!
-//! A sans-IO core plus its process: [`source`] reads frames from files (and devices), [`seg000`]
-//! and [`seg004`] segment them ([`segment`] selects), [`measure`] undistorts, gates and
+//! A sans-IO core plus its process: [`source`] reads frames from files (and devices), [`colour_difference`]
+//! and [`adaptive_background`] segment them ([`segment`] selects), [`measure`] undistorts, gates and
 //! linearizes, [`core`] is the node's state machine, [`record_all`] makes its logging runs
 //! (every frame measured and sent to the server's recording), [`process`] runs a camera as an
 //! OS process on the sources it is given. The camera never sees the simulated world: `ocelli
 //! launch` injects it as sources.
 
+pub mod adaptive_background;
+pub mod colour_difference;
 pub mod config;
 pub mod core;
 pub mod detect;
@@ -17,8 +19,6 @@ pub mod previous;
 pub mod process;
 pub mod record_all;
 pub mod region;
-pub mod seg000;
-pub mod seg004;
 pub mod segment;
 pub mod source;
 #[cfg(feature = "v4l2")]

@@ -1,8 +1,8 @@
 //! One interface over both segmentation pipelines, selected by the scenario's
 //! `method.segmentation`, with the settings each pipeline is recommended to run at.
 
-use crate::seg000::{HsiClass, Paper000, Paper000Params};
-use crate::seg004::{Paper004, Paper004Params};
+use crate::adaptive_background::{AdaptiveBackground, AdaptiveBackgroundParams};
+use crate::colour_difference::{ColourDifference, ColourDifferenceParams, HsiClass};
 use proto::scenario::{Scenario, Segmentation};
 use proto::sensor::Detection;
 use proto::sensor::{Frame, FrameError};
@@ -11,8 +11,8 @@ use proto::sensor::{Frame, FrameError};
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct SegmentParams {
     pub kind: Segmentation,
-    pub paper000: Paper000Params,
-    pub paper004: Paper004Params,
+    pub colour_difference: ColourDifferenceParams,
+    pub adaptive_background: AdaptiveBackgroundParams,
 }
 
 /// Recommended processing step for a frame width: about 320 grid pixels across, at most 3.
@@ -28,7 +28,7 @@ impl SegmentParams {
         let step = recommended_step(width);
         SegmentParams {
             kind: scenario.method.segmentation,
-            paper000: Paper000Params {
+            colour_difference: ColourDifferenceParams {
                 classes: scenario
                     .method
                     .target_colours
@@ -37,12 +37,12 @@ impl SegmentParams {
                     .collect(),
                 step,
                 min_pixels: (48 / (step * step)).max(4),
-                ..Paper000Params::default()
+                ..ColourDifferenceParams::default()
             },
-            paper004: Paper004Params {
+            adaptive_background: AdaptiveBackgroundParams {
                 step,
                 min_pixels: (48 / (step * step)).max(4),
-                ..Paper004Params::default()
+                ..AdaptiveBackgroundParams::default()
             },
         }
     }
@@ -51,22 +51,26 @@ impl SegmentParams {
 /// The selected pipeline.
 #[derive(Debug)]
 pub enum Segmenter {
-    Paper000(Paper000),
-    Paper004(Paper004),
+    ColourDifference(ColourDifference),
+    AdaptiveBackground(AdaptiveBackground),
 }
 
 impl Segmenter {
     pub fn new(params: &SegmentParams) -> Segmenter {
         match params.kind {
-            Segmentation::Paper000 => Segmenter::Paper000(Paper000::new(params.paper000.clone())),
-            Segmentation::Paper004 => Segmenter::Paper004(Paper004::new(params.paper004.clone())),
+            Segmentation::ColourDifference => {
+                Segmenter::ColourDifference(ColourDifference::new(params.colour_difference.clone()))
+            }
+            Segmentation::AdaptiveBackground => {
+                Segmenter::AdaptiveBackground(AdaptiveBackground::new(params.adaptive_background.clone()))
+            }
         }
     }
 
     pub fn kind(&self) -> Segmentation {
         match self {
-            Segmenter::Paper000(_) => Segmentation::Paper000,
-            Segmenter::Paper004(_) => Segmentation::Paper004,
+            Segmenter::ColourDifference(_) => Segmentation::ColourDifference,
+            Segmenter::AdaptiveBackground(_) => Segmentation::AdaptiveBackground,
         }
     }
 
@@ -76,8 +80,8 @@ impl Segmenter {
     /// A malformed frame or one of another size than the first; no state changes then.
     pub fn process(&mut self, frame: &Frame, out: &mut Vec<Detection>) -> Result<(), FrameError> {
         match self {
-            Segmenter::Paper000(s) => s.process(frame, out),
-            Segmenter::Paper004(s) => s.process(frame, out),
+            Segmenter::ColourDifference(s) => s.process(frame, out),
+            Segmenter::AdaptiveBackground(s) => s.process(frame, out),
         }
     }
 }
@@ -93,8 +97,8 @@ mod tests {
         assert_eq!(recommended_step(1920), 3);
         let s = Scenario::default_scenario();
         let p = SegmentParams::for_scenario(&s, 352);
-        assert_eq!(p.kind, Segmentation::Paper004);
-        assert_eq!(p.paper000.classes.len(), s.method.target_colours.len());
-        assert_eq!(Segmenter::new(&p).kind(), Segmentation::Paper004);
+        assert_eq!(p.kind, Segmentation::AdaptiveBackground);
+        assert_eq!(p.colour_difference.classes.len(), s.method.target_colours.len());
+        assert_eq!(Segmenter::new(&p).kind(), Segmentation::AdaptiveBackground);
     }
 }

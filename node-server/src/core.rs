@@ -89,8 +89,8 @@ pub struct ServerNode {
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct RestoreStats {
     /// Records fed back in (received envelopes and ticks).
-    pub replayed: u64,
-    /// Recorded decisions the replay reproduced, and those it did not.
+    pub fed: u64,
+    /// Recorded decisions the restore reproduced, and those it did not.
     pub decisions_matched: u64,
     pub decisions_mismatched: u64,
 }
@@ -518,7 +518,7 @@ impl ServerNode {
     }
 
     /// Rebuild a server from the records of a previous run by feeding its inputs back in, and
-    /// check that the replay reproduces the recorded decisions.
+    /// check that the restore reproduces the recorded decisions.
     pub fn restore(cfg: ServerConfig, records: &[Stamped]) -> (ServerNode, RestoreStats) {
         let mut cfg = cfg;
         cfg.journal = true;
@@ -530,10 +530,10 @@ impl ServerNode {
                 recorded.push(d.clone());
             }
             if node.feed(s) && !matches!(s.record, Record::Decision(_)) {
-                stats.replayed += 1;
+                stats.fed += 1;
             }
         }
-        let replayed: Vec<Decision> = node
+        let rebuilt: Vec<Decision> = node
             .take_records()
             .into_iter()
             .filter_map(|s| match s.record {
@@ -542,13 +542,13 @@ impl ServerNode {
             })
             .collect();
         for (i, d) in recorded.iter().enumerate() {
-            if replayed.get(i) == Some(d) {
+            if rebuilt.get(i) == Some(d) {
                 stats.decisions_matched += 1;
             } else {
                 stats.decisions_mismatched += 1;
             }
         }
-        stats.decisions_mismatched += replayed.len().saturating_sub(recorded.len()) as u64;
+        stats.decisions_mismatched += rebuilt.len().saturating_sub(recorded.len()) as u64;
         (node, stats)
     }
 }

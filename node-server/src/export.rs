@@ -6,9 +6,9 @@
 //! track's posterior, i.e. came from its owner; one owner row per global and step), `cameras` and `rssi_nodes`
 //! (contributors with a camera measurement / an RSSI reading).
 
+use crate::analysis::{Loaded, rebuild};
 use crate::core::ServerNode;
 use crate::record::{Record, Stamped};
-use crate::replay::{Loaded, replay};
 use proto::msg::Message;
 use serde::Serialize;
 use std::io::Write;
@@ -44,7 +44,7 @@ pub enum Format {
 /// Track rows of a recording, in recording order.
 pub fn track_rows(loaded: &Loaded) -> Vec<TrackRow> {
     let mut rows = Vec::new();
-    replay(loaded, |node, s| rows.extend(track_row(node, s)));
+    rebuild(loaded, |node, s| rows.extend(track_row(node, s)));
     rows
 }
 

@@ -6,6 +6,7 @@
 //! [`recording`], from which [`export`] and [`report`] are computed and from which a restarted
 //! server resumes.
 
+pub mod analysis;
 pub mod core;
 #[cfg(test)]
 mod core_tests;
@@ -17,7 +18,6 @@ pub mod membership;
 pub mod process;
 pub mod record;
 pub mod recording;
-pub mod replay;
 pub mod report;
 #[cfg(test)]
 mod report_tests;

@@ -24,11 +24,11 @@
 //!   its clock's error at the recent sync beacons (`proto::sync`); negative (not synchronized
 //!   yet) is left out.
 
+use crate::analysis::Loaded;
 use crate::core::{ServerConfig, ServerNode};
 use crate::decision::Decision;
 use crate::export::track_rows;
 use crate::record::Record;
-use crate::replay::Loaded;
 use proto::msg::{Message, NodeStatus};
 use proto::scenario::NodeRole;
 use proto::{Mode, NodeId};

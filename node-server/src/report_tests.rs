@@ -1,10 +1,10 @@
 //! Tests of the run report and the track export on a recorded run of the test scenario.
 
+use crate::analysis::load;
 use crate::export::{Format, write_rows};
 use crate::record::Record;
 use crate::record::Stamped;
 use crate::recording::Recorder;
-use crate::replay::load;
 use crate::report::*;
 use crate::{ServerConfig, ServerNode};
 use proto::msg::{Contributor, Hello, TrackReport};

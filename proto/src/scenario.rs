@@ -211,11 +211,15 @@ pub enum Activation {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Segmentation {
-    /// Reference-image difference + HSI colour (paper 000 §6.1.1).
-    Paper000,
-    /// Adaptive per-pixel background with confidence (paper 004 §3.2.1).
+    /// Reference-image difference + HSI colour (paper 000 §6.1.1). Older files call it
+    /// `paper000`.
+    #[serde(alias = "paper000")]
+    ColourDifference,
+    /// Adaptive per-pixel background with confidence (paper 004 §3.2.1). Older files call it
+    /// `paper004`.
     #[default]
-    Paper004,
+    #[serde(alias = "paper004")]
+    AdaptiveBackground,
 }
 
 /// Method parameters.
@@ -290,7 +294,7 @@ impl Default for Method {
         Method {
             fusion: Fusion::DistributedEif,
             activation: Activation::ThreeMode,
-            segmentation: Segmentation::Paper004,
+            segmentation: Segmentation::AdaptiveBackground,
             step_ms: 200,
             deadline_ms: 80,
             pixel_sigma: 18.0,

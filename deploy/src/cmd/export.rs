@@ -1,8 +1,8 @@
 //! `ocelli export`: write the tracks of a recording as CSV or JSON Lines.
 
 use anyhow::{Context, Result};
+use node_server::analysis::load;
 use node_server::export::{Format, track_rows, write_rows};
-use node_server::replay::load;
 use proto::scenario::Scenario;
 use std::io::Write;
 use std::path::PathBuf;

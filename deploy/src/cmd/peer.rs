@@ -157,7 +157,7 @@ async fn run_async(args: Args) -> Result<ExitCode> {
             let to = NodeId(to);
             if garbage {
                 let frames = [
-                    vec![1u8, 0xff, 0xff, 0xff],
+                    vec![proto::PROTOCOL_VERSION as u8, 0xff, 0xff, 0xff],
                     vec![0u8; MAX_FRAME_BYTES + 1],
                     vec![9u8, 0],
                 ];

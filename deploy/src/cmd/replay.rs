@@ -189,7 +189,7 @@ impl Args {
     }
 
     /// The re-run options these flags ask for, for a loaded recording.
-    fn rerun_options(&self, loaded: &node_server::replay::Loaded) -> RerunOptions {
+    fn rerun_options(&self, loaded: &node_server::analysis::Loaded) -> RerunOptions {
         let rec = &self.rec;
         let network = if rec.ideal_network {
             NetworkModel::default()

@@ -2,7 +2,7 @@
 //! scenario has targets, sensors per step, energy, messages, sync), as a table or JSON.
 
 use anyhow::{Context, Result};
-use node_server::replay::load;
+use node_server::analysis::load;
 use node_server::report::compute;
 use proto::ClusterTime;
 use proto::scenario::Scenario;

@@ -3,7 +3,7 @@
 
 use super::common::{NetArgs, load_scenario};
 use anyhow::Result;
-use node_server::replay::Loaded;
+use node_server::analysis::Loaded;
 use node_server::report;
 use proto::ClusterTime;
 use sim::{Level, Sim, SimOptions, WorldTruth};

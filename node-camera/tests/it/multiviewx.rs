@@ -12,9 +12,9 @@
 //!
 //! Five frames are far too short for the adaptive model to learn a background, so it is
 //! initialised with the per-pixel temporal median of the view's five frames
-//! ([`Paper004::init_median`]) and then all frames are segmented in order.
+//! ([`AdaptiveBackground::init_median`]) and then all frames are segmented in order.
 
-use node_camera::seg004::{Paper004, Paper004Params};
+use node_camera::adaptive_background::{AdaptiveBackground, AdaptiveBackgroundParams};
 use node_camera::source::ImageSequence;
 use proto::ClusterTime;
 use proto::sensor::Detection;
@@ -76,13 +76,13 @@ fn contains(d: &Detection, p: &[f32; 2]) -> bool {
 }
 
 /// 1920×1080 processed on a 640×360 grid (step 3): people are 8–60 grid pixels wide.
-fn params() -> Paper004Params {
-    Paper004Params {
+fn params() -> AdaptiveBackgroundParams {
+    AdaptiveBackgroundParams {
         step: 3,
         min_pixels: 40,
         merge: 1,
         erosion_min: 3,
-        ..Paper004Params::default()
+        ..AdaptiveBackgroundParams::default()
     }
 }
 
@@ -96,7 +96,7 @@ fn detect_view(dir: &Path, cam: usize) -> (Vec<Frame>, Vec<Vec<Detection>>) {
         .enumerate()
         .map(|(i, p)| ImageSequence::load(p, ClusterTime::from_millis(i as i64 * 500)).unwrap())
         .collect();
-    let mut seg = Paper004::new(params());
+    let mut seg = AdaptiveBackground::new(params());
     seg.init_median(&frames.iter().collect::<Vec<_>>()).unwrap();
     let mut all = Vec::new();
     let mut dets = Vec::new();
@@ -150,7 +150,7 @@ fn paper004_finds_the_moving_people_of_multiviewx() {
             &frames[2],
             d2,
             truth,
-            &out.join(format!("multiviewx_c{cam}_paper004.png")),
+            &out.join(format!("multiviewx_c{cam}_adaptive_background.png")),
         );
         let found = truth.iter().filter(|p| d2.iter().any(|d| contains(d, p))).count();
         let frame_area = (frames[2].width * frames[2].height) as f32;

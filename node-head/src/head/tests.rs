@@ -17,7 +17,12 @@ fn a_step_without_tracks_sends_nothing_and_strangers_are_rejected() {
     let s = Scenario::default_scenario();
     let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
     let out = h.tick(ClusterTime::ZERO);
-    assert!(out.is_empty(), "{out:?}");
+    // Nothing but its status to the server.
+    assert!(
+        out.iter()
+            .all(|o| o.to == NodeId(1) && matches!(o.body, Message::NodeStatus(_))),
+        "{out:?}"
+    );
     assert!(h.step_open());
     // Node 13 belongs to head 3.
     let c = Contribution {

@@ -39,7 +39,7 @@ max = [8.0, 8.0, 3.0]
 [method]
 fusion = "{fusion}"
 activation = "{activation}"
-segmentation = "paper004"
+segmentation = "adaptive-background"
 step-ms = 200
 deadline-ms = 80
 pixel-sigma = 4.0

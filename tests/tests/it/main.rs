@@ -2,5 +2,6 @@
 
 mod cluster;
 mod harness;
+mod layering;
 mod netns;
 mod transport;

@@ -110,11 +110,11 @@ fn run_one(s: &Scenario, kind: Segmentation, step: u32, frames: usize) -> Result
     let width = cfg.camera.intrinsics.width;
     cfg.segment = SegmentParams::for_scenario(s, width);
     cfg.segment.kind = kind;
-    cfg.segment.paper000.step = step;
-    cfg.segment.paper004.step = step;
+    cfg.segment.colour_difference.step = step;
+    cfg.segment.adaptive_background.step = step;
     let min = (48 * width * width / (352 * 352) / (step * step)).max(4);
-    cfg.segment.paper000.min_pixels = min;
-    cfg.segment.paper004.min_pixels = min;
+    cfg.segment.colour_difference.min_pixels = min;
+    cfg.segment.adaptive_background.min_pixels = min;
     let renderer = Renderer::for_node(s, 10, 11)?;
     let targets = world::targets(s)?;
     // The same pipeline alone, to split segmentation from the rest.
@@ -198,8 +198,8 @@ pub fn run(args: &Options) -> Result<serde_json::Value> {
         let s = bench_scenario(w, h)?;
         let rec = recommended_step(w);
         for (kind, name) in [
-            (Segmentation::Paper004, "paper004"),
-            (Segmentation::Paper000, "paper000"),
+            (Segmentation::AdaptiveBackground, "adaptive-background"),
+            (Segmentation::ColourDifference, "colour-difference"),
         ] {
             let mut steps = vec![1];
             if rec != 1 {

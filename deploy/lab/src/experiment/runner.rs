@@ -3,8 +3,8 @@
 //! sensors per step, camera measurements per run, power of the camera nodes.
 
 use super::{Options, Row};
+use node_server::analysis::Loaded;
 use node_server::export::track_rows;
-use node_server::replay::Loaded;
 use node_server::report::{self, Report};
 use proto::ClusterTime;
 use proto::scenario::Scenario;

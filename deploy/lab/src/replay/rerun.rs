@@ -30,8 +30,8 @@
 //! the methods and policies are compared on the same measurements, which is what matters.
 
 use anyhow::{Context, Result};
+use node_server::analysis::{Loaded, measured_frames};
 use node_server::export::{TrackRow, track_rows};
-use node_server::replay::{Loaded, measured_frames};
 use node_server::report::Report;
 use node_server::{Record, Stamped};
 use proto::ClusterTime;
@@ -180,7 +180,7 @@ pub fn replay_recording(
     opts: impl FnOnce(&Loaded) -> RerunOptions,
 ) -> Result<(Vec<TrackRow>, Report)> {
     let loaded =
-        node_server::replay::load(path, scenario).with_context(|| format!("reading {}", path.display()))?;
+        node_server::analysis::load(path, scenario).with_context(|| format!("reading {}", path.display()))?;
     if let Some(tail) = &loaded.tail {
         tracing::warn!(
             skipped_bytes = tail.skipped_bytes,

@@ -4,7 +4,7 @@
 //! sensor use on the very same measurements (paper 002's offline comparison).
 
 use lab::replay::rerun::{Rerun, RerunOptions, rerun, without_measurements};
-use node_server::replay::Loaded;
+use node_server::analysis::Loaded;
 use node_server::report::{self, Report};
 use node_server::{Record, Stamped};
 use proto::ClusterTime;
@@ -34,7 +34,7 @@ fn logging_run_of(scenario: Scenario, o: &SimOptions, name: &str) -> (Vec<Stampe
     let outcome = Sim::new(scenario, o.clone()).expect("simulates").run();
     let path = std::env::temp_dir().join(format!("ocelli-rerun-{name}-{}.ocrec", std::process::id()));
     outcome.write_recording(&path).expect("recording");
-    let loaded = node_server::replay::load(&path, None).expect("reads back with its scenario");
+    let loaded = node_server::analysis::load(&path, None).expect("reads back with its scenario");
     let _ = std::fs::remove_file(&path);
     (outcome.records, loaded)
 }

@@ -4,7 +4,7 @@
 //! with one handover, is tracked to a decimetre or so with all cameras on, and the proposed
 //! three-mode activation keeps far fewer cameras on at a bounded loss of accuracy.
 
-use node_server::replay::Loaded;
+use node_server::analysis::Loaded;
 use node_server::report::{self, Report};
 use proto::ClusterTime;
 use proto::scenario::{Activation, Scenario};
@@ -91,7 +91,7 @@ fn replaying_a_sim_recording_gives_the_same_estimates() {
     let outcome = Sim::new(scenario.clone(), opts).expect("simulates").run();
     let path = std::env::temp_dir().join(format!("ocelli-sim-replay-{}.ocrec", std::process::id()));
     outcome.write_recording(&path).expect("recording");
-    let loaded = node_server::replay::load(&path, None).expect("reads back with its scenario");
+    let loaded = node_server::analysis::load(&path, None).expect("reads back with its scenario");
     let _ = std::fs::remove_file(&path);
     assert_eq!(
         &loaded.records[1..],

@@ -15,7 +15,7 @@ use world::render::Renderer;
 fn both_pipelines_find_the_rendered_target() {
     let s = Scenario::default_scenario();
     let targets = world::targets(&s).unwrap();
-    for kind in [Segmentation::Paper000, Segmentation::Paper004] {
+    for kind in [Segmentation::ColourDifference, Segmentation::AdaptiveBackground] {
         let (mut seen, mut found) = (0, 0);
         for cam_id in [10u32, 13, 17, 22, 27] {
             let cam = s.camera_model(cam_id).unwrap();

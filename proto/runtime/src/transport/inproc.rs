@@ -103,7 +103,7 @@ pub(crate) mod tests {
     use proto::msg::{Command, Message, Mode};
     use proto::node::Outgoing;
     use proto::time::ClusterTime;
-    use proto::{MAX_FRAME_BYTES, Role};
+    use proto::{MAX_FRAME_BYTES, PROTOCOL_VERSION, Role};
 
     fn cfg(hub: &InProcessHub, me: u32, queue_len: usize) -> TransportConfig {
         TransportConfig::InProcess {
@@ -199,7 +199,7 @@ pub(crate) mod tests {
         let hub = InProcessHub::new();
         let (a, _ia, sa, _ha) = open(cfg(&hub, 1, 64)).await.unwrap();
         let (_b, mut ib, sb, _hb) = open(cfg(&hub, 2, 64)).await.unwrap();
-        a.send_raw_frame(NodeId(2), vec![1, 0xff, 0xff, 0xff])
+        a.send_raw_frame(NodeId(2), vec![PROTOCOL_VERSION as u8, 0xff, 0xff, 0xff])
             .await
             .unwrap();
         a.send_raw_frame(NodeId(2), vec![0; MAX_FRAME_BYTES + 1])

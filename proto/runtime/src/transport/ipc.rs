@@ -551,7 +551,9 @@ mod tests {
                 leader_time: ClusterTime(0),
             })
         };
-        b.send_raw_frame(NodeId(1), vec![1, 0xff, 0xff]).await.unwrap();
+        b.send_raw_frame(NodeId(1), vec![proto::PROTOCOL_VERSION as u8, 0xff, 0xff])
+            .await
+            .unwrap();
         b.send_raw_frame(NodeId(1), vec![0; MAX_FRAME_BYTES + 1])
             .await
             .unwrap();

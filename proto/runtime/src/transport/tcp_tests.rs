@@ -179,7 +179,7 @@ async fn garbage_and_oversized_frames_are_counted_and_the_link_stays_up() {
     let (a, mut ia, sa, _ha) = open(TransportConfig::Tcp(listener_cfg(1))).await.unwrap();
     let mut conn = raw_client(a.local_addr().unwrap(), 5).await;
     wait_for(&mut ia, Event::PeerUp(NodeId(5))).await;
-    conn.send(Bytes::from_static(&[1, 0xff, 0xff, 0xff]))
+    conn.send(Bytes::from(vec![PROTOCOL_VERSION as u8, 0xff, 0xff, 0xff]))
         .await
         .unwrap();
     conn.send(Bytes::from(vec![0u8; MAX_FRAME_BYTES + 1]))
@@ -231,13 +231,19 @@ async fn wrong_version_hello_is_refused_with_a_reason() {
     let (a, _ia, sa, _ha) = open(TransportConfig::Tcp(listener_cfg(1))).await.unwrap();
     let stream = TcpStream::connect(a.local_addr().unwrap()).await.unwrap();
     let mut conn = Framed::new(stream, FrameCodec::new(MAX_FRAME_BYTES));
-    // Version 2 header, then anything.
-    conn.send(Bytes::from_static(&[2, 0, 0])).await.unwrap();
+    // The next version's header, then anything.
+    conn.send(Bytes::from(vec![PROTOCOL_VERSION as u8 + 1, 0, 0]))
+        .await
+        .unwrap();
     match timeout(WAIT, conn.next()).await.unwrap().unwrap().unwrap() {
         Frame::Data(b) => match decode(&b).unwrap().body {
             Message::HelloAck(ack) => {
                 assert!(!ack.accepted);
-                assert!(ack.reason.contains("version 2"), "{}", ack.reason);
+                assert!(
+                    ack.reason.contains(&format!("version {}", PROTOCOL_VERSION + 1)),
+                    "{}",
+                    ack.reason
+                );
             }
             other => panic!("expected hello_ack, got {other:?}"),
         },

@@ -15,7 +15,7 @@ use proto::sensor::{Frame, FrameError};
 
 /// Parameters of the paper 004 pipeline.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Paper004Params {
+pub struct AdaptiveBackgroundParams {
     /// Ring buffer length n (paper: 20).
     pub history: usize,
     /// c1: weight of the noise estimate in both thresholds.
@@ -41,13 +41,13 @@ pub struct Paper004Params {
     pub min_pixels: u32,
     pub max_regions: usize,
     /// A gap between frames longer than this (ms) restarts the model from the next frame,
-    /// as at power-on (0: never). See [`Paper004Params::scaled_to_fps`].
+    /// as at power-on (0: never). See [`AdaptiveBackgroundParams::scaled_to_fps`].
     pub restart_gap_ms: u64,
 }
 
-impl Default for Paper004Params {
+impl Default for AdaptiveBackgroundParams {
     fn default() -> Self {
-        Paper004Params {
+        AdaptiveBackgroundParams {
             history: 20,
             c1: 2.0,
             c2: 24,
@@ -70,7 +70,7 @@ impl Default for Paper004Params {
 /// Frame rate the paper's frame counts were chosen at (its §3.2.1 runs at 20 fps).
 pub const PAPER_FPS: f64 = 20.0;
 
-impl Paper004Params {
+impl AdaptiveBackgroundParams {
     /// The paper's `history` and `τ` are frame counts that stand for times ("τ represents a
     /// number of frames and thus directly relates to time", §3.2.1): 20 frames (1 s) of history
     /// and 30 frames (1.5 s) before a still region joins the background, at [`PAPER_FPS`].
@@ -84,7 +84,7 @@ impl Paper004Params {
     /// up as a ghost. So a gap longer than the model's memory (history + τ frames) restarts
     /// the model from the next frame, as at power-on: its ghost is where the target is then,
     /// next to it, and fades in the same 2.5 s.
-    pub fn scaled_to_fps(self, fps: f64) -> Paper004Params {
+    pub fn scaled_to_fps(self, fps: f64) -> AdaptiveBackgroundParams {
         if !(fps.is_finite() && fps > 0.0) {
             return self;
         }
@@ -93,7 +93,7 @@ impl Paper004Params {
             scale(self.history as f64),
             scale(self.tau as f64).min(u8::MAX as f64),
         );
-        Paper004Params {
+        AdaptiveBackgroundParams {
             history: history as usize,
             tau: tau as u8,
             restart_gap_ms: ((history + tau) / fps * 1e3).round() as u64,
@@ -104,8 +104,8 @@ impl Paper004Params {
 
 /// The paper 004 segmenter's state.
 #[derive(Debug)]
-pub struct Paper004 {
-    params: Paper004Params,
+pub struct AdaptiveBackground {
+    params: AdaptiveBackgroundParams,
     c1_q8: u32,
     grid: Option<Grid>,
     background: Vec<u8>,
@@ -128,10 +128,10 @@ pub struct Paper004 {
     restarts: u64,
 }
 
-impl Paper004 {
-    pub fn new(params: Paper004Params) -> Paper004 {
+impl AdaptiveBackground {
+    pub fn new(params: AdaptiveBackgroundParams) -> AdaptiveBackground {
         let c1_q8 = (params.c1.max(0.0) * 256.0).round() as u32;
-        Paper004 {
+        AdaptiveBackground {
             params,
             c1_q8,
             grid: None,
@@ -153,7 +153,7 @@ impl Paper004 {
         }
     }
 
-    pub fn params(&self) -> &Paper004Params {
+    pub fn params(&self) -> &AdaptiveBackgroundParams {
         &self.params
     }
 
@@ -419,7 +419,10 @@ mod tests {
     /// The model update as one per-pixel loop: what the row passes of `update` must equal.
     /// Returns (background, ring, noise, confidence, mask).
     #[allow(clippy::type_complexity)]
-    fn reference_update(seg: &Paper004, frame: &Frame) -> (Vec<u8>, Vec<u8>, Vec<u8>, Vec<u8>, Vec<u8>) {
+    fn reference_update(
+        seg: &AdaptiveBackground,
+        frame: &Frame,
+    ) -> (Vec<u8>, Vec<u8>, Vec<u8>, Vec<u8>, Vec<u8>) {
         let p = &seg.params;
         let g = seg.grid.unwrap();
         let (mut bg, mut ring, mut noise, mut conf, mut mask) = (
@@ -466,13 +469,13 @@ mod tests {
     #[test]
     fn row_passes_equal_the_per_pixel_update() {
         for step in [1, 2] {
-            let params = Paper004Params {
+            let params = AdaptiveBackgroundParams {
                 tau: 4,
                 history: 3,
                 step,
-                ..Paper004Params::default()
+                ..AdaptiveBackgroundParams::default()
             };
-            let mut seg = Paper004::new(params);
+            let mut seg = AdaptiveBackground::new(params);
             let mut out = Vec::new();
             let mut updates = 0;
             for t in 0..30 {
@@ -503,7 +506,7 @@ mod tests {
 
     #[test]
     fn finds_a_moving_square_and_not_the_noise() {
-        let mut seg = Paper004::new(Paper004Params::default());
+        let mut seg = AdaptiveBackground::new(AdaptiveBackgroundParams::default());
         let mut out = Vec::new();
         for t in 0..10 {
             seg.process(&scene(t, None), &mut out).unwrap();
@@ -523,12 +526,12 @@ mod tests {
 
     #[test]
     fn a_parked_object_joins_the_background_after_tau() {
-        let params = Paper004Params {
+        let params = AdaptiveBackgroundParams {
             tau: 8,
             history: 4,
-            ..Paper004Params::default()
+            ..AdaptiveBackgroundParams::default()
         };
-        let mut seg = Paper004::new(params);
+        let mut seg = AdaptiveBackground::new(params);
         let mut out = Vec::new();
         seg.process(&scene(0, None), &mut out).unwrap();
         let mut seen = Vec::new();
@@ -542,7 +545,7 @@ mod tests {
 
     #[test]
     fn frame_counts_keep_the_papers_times_at_other_rates() {
-        let p = Paper004Params::default();
+        let p = AdaptiveBackgroundParams::default();
         let at20 = p.clone().scaled_to_fps(PAPER_FPS);
         assert_eq!((at20.history, at20.tau), (p.history, p.tau));
         assert_eq!(at20.restart_gap_ms, 2500);
@@ -555,8 +558,8 @@ mod tests {
 
     /// Frames (of `total`) on which something is still detected where an object stood in the
     /// first frame and left on the second.
-    fn ghost_frames(params: Paper004Params, total: usize) -> usize {
-        let mut seg = Paper004::new(params);
+    fn ghost_frames(params: AdaptiveBackgroundParams, total: usize) -> usize {
+        let mut seg = AdaptiveBackground::new(params);
         let mut out = Vec::new();
         seg.process(&scene(0, Some(20)), &mut out).unwrap();
         (1..total)
@@ -572,15 +575,15 @@ mod tests {
         // At 5 fps, 3 s is 15 frames: the scaled model (1 s history + 1.5 s) absorbs the ghost
         // within them; the paper's frame counts taken literally would keep it for 10 s.
         let fps = 5.0;
-        let scaled = ghost_frames(Paper004Params::default().scaled_to_fps(fps), 25);
+        let scaled = ghost_frames(AdaptiveBackgroundParams::default().scaled_to_fps(fps), 25);
         assert!(scaled > 0 && scaled <= 15, "scaled: {scaled} frames");
-        let literal = ghost_frames(Paper004Params::default(), 25);
+        let literal = ghost_frames(AdaptiveBackgroundParams::default(), 25);
         assert_eq!(literal, 24, "literal counts keep the ghost for the whole 5 s");
     }
 
     #[test]
     fn an_object_moving_at_5_fps_stays_detected_with_scaled_counts() {
-        let mut seg = Paper004::new(Paper004Params::default().scaled_to_fps(5.0));
+        let mut seg = AdaptiveBackground::new(AdaptiveBackgroundParams::default().scaled_to_fps(5.0));
         let mut out = Vec::new();
         for t in 0..5 {
             seg.process(&scene(t, None), &mut out).unwrap();
@@ -600,10 +603,10 @@ mod tests {
 
     #[test]
     fn a_model_woken_after_a_long_gap_restarts_instead_of_showing_old_ghosts() {
-        let params = Paper004Params::default().scaled_to_fps(5.0);
+        let params = AdaptiveBackgroundParams::default().scaled_to_fps(5.0);
         assert_eq!(params.restart_gap_ms, 2600);
-        let woken = |params: Paper004Params| {
-            let mut seg = Paper004::new(params);
+        let woken = |params: AdaptiveBackgroundParams| {
+            let mut seg = AdaptiveBackground::new(params);
             let mut out = Vec::new();
             // The object stands at x = 20 when the camera starts, and it stops capturing.
             seg.process(&scene(0, Some(20)), &mut out).unwrap();
@@ -613,7 +616,7 @@ mod tests {
             (out.len(), seg.restarts())
         };
         assert_eq!(woken(params.clone()), (0, 1));
-        let never = Paper004Params {
+        let never = AdaptiveBackgroundParams {
             restart_gap_ms: 0,
             ..params
         };
@@ -626,7 +629,7 @@ mod tests {
 
     #[test]
     fn wrong_size_frame_is_rejected_without_change() {
-        let mut seg = Paper004::new(Paper004Params::default());
+        let mut seg = AdaptiveBackground::new(AdaptiveBackgroundParams::default());
         let mut out = Vec::new();
         seg.process(&scene(0, None), &mut out).unwrap();
         let bg = seg.background().to_vec();
@@ -641,10 +644,10 @@ mod tests {
 
     #[test]
     fn subsampled_processing_reports_full_resolution_coordinates() {
-        let mut seg = Paper004::new(Paper004Params {
+        let mut seg = AdaptiveBackground::new(AdaptiveBackgroundParams {
             step: 2,
             min_pixels: 4,
-            ..Paper004Params::default()
+            ..AdaptiveBackgroundParams::default()
         });
         let mut out = Vec::new();
         seg.process(&scene(0, None), &mut out).unwrap();

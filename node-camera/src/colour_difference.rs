@@ -47,7 +47,7 @@ impl HsiClass {
 
 /// Parameters of the paper 000 pipeline.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Paper000Params {
+pub struct ColourDifferenceParams {
     /// Colour threshold T, L1 over RGB.
     pub threshold: u16,
     /// Window side, grid pixels.
@@ -62,9 +62,9 @@ pub struct Paper000Params {
     pub max_regions: usize,
 }
 
-impl Default for Paper000Params {
+impl Default for ColourDifferenceParams {
     fn default() -> Self {
-        Paper000Params {
+        ColourDifferenceParams {
             threshold: 40,
             window: 8,
             np: 6,
@@ -79,8 +79,8 @@ impl Default for Paper000Params {
 
 /// The paper 000 segmenter's state.
 #[derive(Debug)]
-pub struct Paper000 {
-    params: Paper000Params,
+pub struct ColourDifference {
+    params: ColourDifferenceParams,
     grid: Option<Grid>,
     reference: Vec<u8>,
     changed: Vec<u8>,
@@ -114,9 +114,9 @@ fn build_lut(classes: &[HsiClass]) -> Vec<u8> {
     lut
 }
 
-impl Paper000 {
-    pub fn new(params: Paper000Params) -> Paper000 {
-        Paper000 {
+impl ColourDifference {
+    pub fn new(params: ColourDifferenceParams) -> ColourDifference {
+        ColourDifference {
             lut: build_lut(&params.classes),
             params,
             grid: None,
@@ -128,7 +128,7 @@ impl Paper000 {
         }
     }
 
-    pub fn params(&self) -> &Paper000Params {
+    pub fn params(&self) -> &ColourDifferenceParams {
         &self.params
     }
 
@@ -267,9 +267,9 @@ mod tests {
 
     #[test]
     fn colour_classes_pick_the_red_target_only() {
-        let mut seg = Paper000::new(Paper000Params {
+        let mut seg = ColourDifference::new(ColourDifferenceParams {
             classes: vec![HsiClass::around_rgb([220, 40, 30])],
-            ..Paper000Params::default()
+            ..ColourDifferenceParams::default()
         });
         let mut out = Vec::new();
         seg.process(&scene(0, None, None, 1.0), &mut out).unwrap();
@@ -282,7 +282,7 @@ mod tests {
 
     #[test]
     fn without_classes_every_moving_blob_is_a_region() {
-        let mut seg = Paper000::new(Paper000Params::default());
+        let mut seg = ColourDifference::new(ColourDifferenceParams::default());
         let mut out = Vec::new();
         seg.process(&scene(0, None, None, 1.0), &mut out).unwrap();
         seg.process(&scene(1, Some(10), Some(70), 1.0), &mut out).unwrap();
@@ -291,16 +291,16 @@ mod tests {
 
     #[test]
     fn slow_illumination_drift_is_absorbed() {
-        let mut seg = Paper000::new(Paper000Params::default());
+        let mut seg = ColourDifference::new(ColourDifferenceParams::default());
         let mut out = Vec::new();
         for t in 0..60 {
             let gain = 1.0 + 0.01 * t as f32; // +60 % over 60 frames
             seg.process(&scene(t, None, None, gain), &mut out).unwrap();
             assert!(out.is_empty(), "frame {t}: {out:?}");
         }
-        let mut off = Paper000::new(Paper000Params {
+        let mut off = ColourDifference::new(ColourDifferenceParams {
             adapt: false,
-            ..Paper000Params::default()
+            ..ColourDifferenceParams::default()
         });
         off.process(&scene(0, None, None, 1.0), &mut out).unwrap();
         off.process(&scene(59, None, None, 1.6), &mut out).unwrap();

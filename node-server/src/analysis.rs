@@ -12,7 +12,7 @@ use thiserror::Error;
 
 /// A recording that cannot be analysed.
 #[derive(Debug, Error)]
-pub enum ReplayError {
+pub enum LoadError {
     #[error(transparent)]
     Recording(#[from] RecordingError),
     #[error("recorded scenario: {0}")]
@@ -49,7 +49,7 @@ impl Loaded {
 ///
 /// # Errors
 /// An unreadable recording, a recorded scenario that does not parse, or no scenario at all.
-pub fn load(path: &Path, scenario: Option<Scenario>) -> Result<Loaded, ReplayError> {
+pub fn load(path: &Path, scenario: Option<Scenario>) -> Result<Loaded, LoadError> {
     let back = read_all(path)?;
     let scenario = match scenario {
         Some(s) => s,
@@ -61,7 +61,7 @@ pub fn load(path: &Path, scenario: Option<Scenario>) -> Result<Loaded, ReplayErr
                     Record::Scenario(t) => Some(t.clone()),
                     _ => None,
                 })
-                .ok_or_else(|| ReplayError::NoScenario(path.display().to_string()))?;
+                .ok_or_else(|| LoadError::NoScenario(path.display().to_string()))?;
             Scenario::from_toml(&toml, &format!("{} (recorded)", path.display()))?
         }
     };
@@ -74,7 +74,7 @@ pub fn load(path: &Path, scenario: Option<Scenario>) -> Result<Loaded, ReplayErr
 
 /// Feed the recording's received envelopes, ticks and restarts through a fresh server and call
 /// `visit` after each record with the server's state at that point.
-pub fn replay(loaded: &Loaded, mut visit: impl FnMut(&ServerNode, &Stamped)) {
+pub fn rebuild(loaded: &Loaded, mut visit: impl FnMut(&ServerNode, &Stamped)) {
     let mut cfg = ServerConfig::from_scenario(loaded.scenario.clone(), loaded.server_id());
     cfg.journal = false;
     let mut node = ServerNode::new(cfg);
