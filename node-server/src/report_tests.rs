@@ -111,6 +111,7 @@ fn record_run(name: &str) -> PathBuf {
             contributors: vec![c(10, true), c(11, true), c(12, false)],
             power_mw: 1500.0,
             late: k as u64 / 10,
+            grid: None,
         };
         let out = send(&mut server, &mut rec, t, owner, Message::TrackReport(r), 0);
         for o in out {

@@ -43,7 +43,7 @@ fn env(body: Message) -> Envelope {
 }
 
 /// The number of f64 and f32 slots of each sample, by tag (what the poison test must find).
-pub const FLOAT_SLOTS: [(usize, usize); 14] = [
+pub const FLOAT_SLOTS: [(usize, usize); 15] = [
     (0, 0),   // hello
     (0, 0),   // hello_ack
     (0, 0),   // heartbeat
@@ -52,12 +52,13 @@ pub const FLOAT_SLOTS: [(usize, usize); 14] = [
     (0, 0),   // node_status
     (42, 0),  // prior: mean 6 + cov 36
     (0, 0),   // command
-    (43, 0),  // track_report: mean 6 + cov 36 + power 1
+    (43, 4),  // track_report: mean 6 + cov 36 + power 1; grid origin 2, cell 1, peak 1
     (0, 0),   // assignment
     (42, 0),  // handover
     (0, 0),   // sync_beacon
     (0, 0),   // liveness
     (6, 11),  // measured_frame: rssi 1, point 2, cov 3; centre 2, foot 2, box 4, colour 3
+    (0, 0),   // frame_report
 ];
 
 /// One observation of each kind, in wire-tag order.
@@ -182,6 +183,14 @@ pub fn messages() -> Vec<Envelope> {
             ],
             power_mw: 1437.5,
             late: 3,
+            grid: Some(GridPosterior {
+                origin: [0.5, -1.25],
+                cell_m: 0.375,
+                nx: 3,
+                ny: 2,
+                peak_mass: 0.0625,
+                cells: vec![0, 17, 255, 3, 128, 9],
+            }),
         })),
         env(Message::Assignment(Assignment {
             node: NodeId(10),
@@ -229,6 +238,11 @@ pub fn messages() -> Vec<Envelope> {
                 point: [0.40625, -0.59375],
                 cov: [0.046875, 0.001953125, 0.0390625],
             }],
+        })),
+        env(Message::FrameReport(FrameReport {
+            captured: ClusterTime(1_499_993_000),
+            mode: Mode::Active,
+            detections: 2,
         })),
     ]
 }

@@ -15,6 +15,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 
+mod acoustic_spec;
 mod check;
 
 /// The embedded default scenario, modelled on paper 002's 21-camera testbed.
@@ -182,6 +183,10 @@ pub enum Fusion {
     CentralizedEif,
     /// Maximum likelihood per step (paper 000 §3).
     Ml,
+    /// Paper 001's grid-based recursive Bayesian estimator: cameras' detections *and*
+    /// non-detections, acoustic nodes' ILD fingerprints and tag RSSI as likelihoods over a grid
+    /// of the floor (`[method.grid]`).
+    Grid,
 }
 
 impl Fusion {
@@ -272,7 +277,12 @@ pub struct Method {
     /// target's colour is known). Empty: in the simulation, its targets' colours.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub target_colours: Vec<[u8; 3]>,
+    /// The grid estimator's parameters (`fusion = "grid"`).
+    #[serde(default)]
+    pub grid: GridMethod,
 }
+
+pub use acoustic_spec::{AcousticSpec, GridMethod};
 
 impl Method {
     /// How far from a node's time a capture may be stamped and still be fused, ms: two filter
@@ -310,6 +320,7 @@ impl Default for Method {
             drop_lost_cameras: false,
             target_plane_z: None,
             target_colours: Vec::new(),
+            grid: GridMethod::default(),
         }
     }
 }
@@ -351,6 +362,8 @@ pub enum NodeRole {
     Camera,
     Head,
     Server,
+    /// A two-microphone acoustic node (paper 001): ILD vectors to its head.
+    Acoustic,
 }
 
 /// One node of the deployment.
@@ -383,6 +396,9 @@ pub struct NodeSpec {
     /// Whether this node measures RSSI of the target's tag.
     #[serde(default = "yes")]
     pub rssi: bool,
+    /// Microphones, analysis and fingerprints (acoustic nodes only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub acoustic: Option<AcousticSpec>,
 }
 
 fn default_host() -> String {
@@ -497,6 +513,11 @@ impl Scenario {
         })?;
         let base = path.parent().unwrap_or(Path::new("."));
         for node in &mut scenario.nodes {
+            if let Some(path) = node.acoustic.as_mut().and_then(|a| a.fingerprints.as_mut())
+                && path.is_relative()
+            {
+                *path = base.join(&*path);
+            }
             if let Some(cam) = &mut node.camera {
                 for p in [&mut cam.opencv_intrinsic, &mut cam.opencv_extrinsic]
                     .into_iter()
@@ -526,6 +547,18 @@ impl Scenario {
 
     pub fn heads(&self) -> impl Iterator<Item = &NodeSpec> {
         self.nodes.iter().filter(|n| n.role == NodeRole::Head)
+    }
+
+    /// The acoustic nodes.
+    pub fn acoustic_nodes(&self) -> impl Iterator<Item = &NodeSpec> {
+        self.nodes.iter().filter(|n| n.role == NodeRole::Acoustic)
+    }
+
+    /// The head a camera or acoustic node reports to: its own, else the first head.
+    pub fn head_of(&self, id: u32) -> Option<u32> {
+        self.node(id)
+            .and_then(|n| n.head)
+            .or_else(|| self.heads().next().map(|h| h.id))
     }
 
     pub fn server(&self) -> Option<&NodeSpec> {

@@ -100,6 +100,25 @@ impl TwoMicNode {
     }
 }
 
+impl TwoMicNode {
+    /// The scenario's acoustic node: its two microphones where the spec puts them, each
+    /// turned 60° outward from the pair's facing (left to the left), with its directivity.
+    pub fn from_spec(spec: &proto::scenario::AcousticSpec) -> TwoMicNode {
+        let mic = |position: [f64; 3], turn: f64| {
+            let a = spec.facing_rad + turn;
+            Microphone {
+                position,
+                facing: [a.cos(), a.sin()],
+                directivity: spec.directivity,
+            }
+        };
+        TwoMicNode {
+            left: mic(spec.left, std::f64::consts::FRAC_PI_3),
+            right: mic(spec.right, -std::f64::consts::FRAC_PI_3),
+        }
+    }
+}
+
 /// One propagation path to a microphone.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SoundPath {

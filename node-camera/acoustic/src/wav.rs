@@ -164,6 +164,29 @@ pub fn read_stereo(path: &Path, expected_rate: u32) -> Result<StereoClip, WavErr
     })
 }
 
+/// Write a 2-channel 32-bit float WAV (for recordings the simulated room renders, and tests).
+///
+/// # Errors
+/// The file cannot be created or written ([`WavError::Open`] naming it).
+pub fn write_stereo(path: &Path, sample_rate: u32, left: &[f32], right: &[f32]) -> Result<(), WavError> {
+    let open = |source| WavError::Open {
+        path: path.into(),
+        source,
+    };
+    let spec = hound::WavSpec {
+        channels: 2,
+        sample_rate,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut w = hound::WavWriter::create(path, spec).map_err(open)?;
+    for (l, r) in left.iter().zip(right) {
+        w.write_sample(*l).map_err(open)?;
+        w.write_sample(*r).map_err(open)?;
+    }
+    w.finalize().map_err(open)
+}
+
 /// The quality of one frame of samples.
 pub fn frame_quality(left: &[f32], right: &[f32]) -> FrameQuality {
     let n = (left.len() + right.len()).max(1) as f64;

@@ -9,6 +9,8 @@
 //! - [`optical`]: each camera's probability of detection over the grid and its likelihood
 //!   with and without a detection (eq. 2, 6);
 //! - [`acoustic`]: the fingerprint likelihood of an ILD vector over the grid (eq. 16–18);
+//! - [`rssi`]: a tag reading's likelihood through a node's RSSI model;
+//! - [`report`]: the belief down-sampled for a `TrackReport`;
 //! - [`locate`]: the estimator on the acoustic likelihood alone, frame by frame;
 //! - [`bench`]: timing of the hot path.
 //!
@@ -21,6 +23,8 @@ mod convolve;
 pub mod layout;
 pub mod locate;
 pub mod optical;
+pub mod report;
+pub mod rssi;
 
 pub use belief::{Belief, Correction, Estimate, HeatMap, RandomWalk};
 pub use layout::Grid;

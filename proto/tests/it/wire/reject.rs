@@ -243,6 +243,11 @@ fn sample_f32s(m: &Message) -> Vec<f32> {
                 ]
             })
             .collect(),
+        Message::TrackReport(r) => r
+            .grid
+            .iter()
+            .flat_map(|g| [g.origin[0], g.origin[1], g.cell_m, g.peak_mass])
+            .collect(),
         _ => Vec::new(),
     }
 }
@@ -360,9 +365,9 @@ fn measured_frame_checks_name_the_field() {
 fn unknown_enum_tags() {
     // Top-level message tag: `MESSAGE_KINDS.len()` is one past the last kind.
     let mut frame = encode(&samples()[2]).unwrap();
-    *frame.last_mut().unwrap() = 14;
+    *frame.last_mut().unwrap() = 15;
     let e = malformed(&frame);
-    assert!(e.contains("unknown message kind tag 14"), "{e}");
+    assert!(e.contains("unknown message kind tag 15"), "{e}");
     // A nested enum: the mode of a command (last byte), tag 3 of 3 modes.
     let mut frame = encode(&samples()[7]).unwrap();
     *frame.last_mut().unwrap() = 3;

@@ -310,10 +310,10 @@ fn message() -> impl Strategy<Value = Message> {
         (
             (any::<u32>(), prop::option::of(any::<u32>()), any::<u64>(), time()),
             (vec6(), psd(), contributors()),
-            (0.0..1e6f64, any::<u64>())
+            (0.0..1e6f64, any::<u64>(), prop::option::of(grid_posterior()))
         )
             .prop_map(
-                |((t, g, step, time), (mean, cov, contributors), (power_mw, late))| {
+                |((t, g, step, time), (mean, cov, contributors), (power_mw, late, grid))| {
                     Message::TrackReport(TrackReport {
                         target: TargetId(t),
                         global: g.map(TargetId),
@@ -324,6 +324,7 @@ fn message() -> impl Strategy<Value = Message> {
                         contributors,
                         power_mw,
                         late,
+                        grid,
                     })
                 }
             ),
@@ -356,7 +357,37 @@ fn message() -> impl Strategy<Value = Message> {
         )),
         (any::<u32>(), any::<bool>()).prop_map(|(n, up)| Message::Liveness(Liveness { node: NodeId(n), up })),
         measured_frame(),
+        (time(), mode(), any::<u32>()).prop_map(|(captured, mode, detections)| Message::FrameReport(
+            FrameReport {
+                captured,
+                mode,
+                detections
+            }
+        )),
     ]
+}
+
+fn grid_posterior() -> impl Strategy<Value = GridPosterior> {
+    (
+        1u16..=8,
+        1u16..=8,
+        -50.0f32..50.0,
+        -50.0f32..50.0,
+        0.01f32..2.0,
+        0.0f32..=1.0,
+    )
+        .prop_flat_map(|(nx, ny, x, y, cell_m, peak_mass)| {
+            prop::collection::vec(any::<u8>(), usize::from(nx) * usize::from(ny)).prop_map(move |cells| {
+                GridPosterior {
+                    origin: [x, y],
+                    cell_m,
+                    nx,
+                    ny,
+                    peak_mass,
+                    cells,
+                }
+            })
+        })
 }
 
 fn envelope() -> impl Strategy<Value = Envelope> {
