@@ -282,7 +282,7 @@ pub struct Method {
     pub grid: GridMethod,
 }
 
-pub use acoustic_spec::{AcousticSpec, GridMethod};
+pub use acoustic_spec::{AcousticSpec, GridMethod, low_band};
 
 impl Method {
     /// How far from a node's time a capture may be stamped and still be fused, ms: two filter
