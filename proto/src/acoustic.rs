@@ -38,8 +38,10 @@ pub enum AcousticError {
     FrequencyCount { found: usize, expected: usize },
     #[error("ILD frequency {index} is {found} Hz, the fingerprints sampled {expected} Hz")]
     FrequencyMismatch { index: usize, found: f64, expected: f64 },
-    #[error("cannot read fingerprint file {path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    /// Reading or writing the file failed (the I/O error is in the message, not a source, so
+    /// that error chains name it once).
+    #[error("fingerprint file {}: {error}", path.display())]
+    Io { path: PathBuf, error: std::io::Error },
     #[error("fingerprint file {origin}: {message}")]
     Parse { origin: String, message: String },
     #[error("{origin} is not an Ocelli fingerprint file (format {found:?}, expected {expected:?})")]

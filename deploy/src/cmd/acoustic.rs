@@ -192,6 +192,7 @@ fn node(args: NodeArgs) -> Result<ExitCode> {
 /// band), at the recordings' sample rate.
 fn survey_settings(
     scenario: Option<&Scenario>,
+    positions: &Path,
     rows: &[node_acoustic::survey::SurveyRow],
     rate: Option<u32>,
 ) -> Result<IldSettings> {
@@ -202,6 +203,13 @@ fn survey_settings(
         Some(r) => r,
         None => {
             let first = rows.first().context("no positions")?;
+            if !first.wav.is_file() {
+                bail!(
+                    "{}: row 1: recording {} does not exist",
+                    positions.display(),
+                    first.wav.display()
+                );
+            }
             hound::WavReader::open(&first.wav)
                 .with_context(|| format!("{}: cannot read as WAV", first.wav.display()))?
                 .spec()
@@ -218,7 +226,7 @@ fn survey(a: &SurveyArgs) -> Result<ExitCode> {
         Some(s) => s.world.clone(),
         None => node_acoustic::survey::bounding_world(&rows, 0.5),
     };
-    let settings = survey_settings(scenario.as_ref(), &rows, a.sample_rate)?;
+    let settings = survey_settings(scenario.as_ref(), &a.positions, &rows, a.sample_rate)?;
     let db = node_acoustic::survey::survey(&a.positions, &world, &settings)?;
     db.save(&a.out)?;
     eprintln!(

@@ -272,9 +272,9 @@ impl FingerprintDb {
     /// # Errors
     /// The file cannot be read, or any problem [`FingerprintDb::from_json`] reports.
     pub fn load(path: &Path) -> Result<Self, AcousticError> {
-        let text = std::fs::read_to_string(path).map_err(|source| AcousticError::Io {
+        let text = std::fs::read_to_string(path).map_err(|error| AcousticError::Io {
             path: path.into(),
-            source,
+            error,
         })?;
         Self::from_json(&text, &path.display().to_string())
     }
@@ -284,9 +284,9 @@ impl FingerprintDb {
     /// # Errors
     /// The file cannot be written.
     pub fn save(&self, path: &Path) -> Result<(), AcousticError> {
-        std::fs::write(path, self.to_json()).map_err(|source| AcousticError::Io {
+        std::fs::write(path, self.to_json()).map_err(|error| AcousticError::Io {
             path: path.into(),
-            source,
+            error,
         })
     }
 
