@@ -24,5 +24,6 @@ pub mod seg004;
 pub mod segment;
 pub mod source;
 pub mod synthetic;
+pub mod tracker;
 #[cfg(feature = "v4l2")]
 pub mod v4l2;
