@@ -209,9 +209,9 @@ impl ParticleFilter {
         self.states.get(self.ml).copied().unwrap_or(self.mean)
     }
 
-    /// Its confidence: the best sample's weight before normalization, relative to a perfect
-    /// match (eq. 8 times `√(2π) σ`), in [0, 1]. The paper's "absolute value of the pdf's
-    /// peak" (§2.4).
+    /// Its confidence: the best sample's weight before normalization relative to a perfect
+    /// match (eq. 8 times `√(2π) σ`, times the region term when a region was given), in
+    /// [0, 1]. The paper's "absolute value of the pdf's peak" (§2.4).
     pub fn ml_likelihood(&self) -> f32 {
         self.ml_likelihood
     }

@@ -126,7 +126,8 @@ pub struct PersonEstimate {
     pub id: LocalId,
     /// The mean state.
     pub mean: State,
-    /// The maximum-likelihood state and its confidence (eq. 8 relative to a perfect match).
+    /// The maximum-likelihood state and its confidence: its weight before normalization (eq. 8
+    /// times the region term) relative to a perfect match, in [0, 1].
     pub ml: State,
     pub ml_confidence: f32,
     /// The maximum-likelihood sample's colour similarity to the target.
@@ -258,6 +259,15 @@ impl MultiTracker {
 
     pub fn filter(&self, id: LocalId) -> Option<&ParticleFilter> {
         self.people.iter().find(|p| p.id == id).map(|p| &p.filter)
+    }
+
+    /// Drop every filter and candidate and forget the frame size (a source that changed
+    /// resolution, a stream that came back). Ids keep counting, so none is reused.
+    pub fn reset(&mut self) {
+        self.people.clear();
+        self.candidates.clear();
+        self.shared.clear();
+        self.frame_size = None;
     }
 
     fn check_frame(&self, frame: &Frame) -> Result<(), TrackerError> {

@@ -240,3 +240,30 @@ fn adaptation_blends_bins_and_keeps_them_normalized() {
     // √0.25 of the HS mass matches; V identical.
     assert!((target.similarity(&counts, 0.7) - (0.7 * 0.5 + 0.3)).abs() < 1e-5);
 }
+
+proptest::proptest! {
+    #[test]
+    fn similarity_is_symmetric_and_within_0_and_1(
+        a in proptest::collection::vec(0.0f32..1.0, BINS),
+        b in proptest::collection::vec(0.0f32..1.0, BINS),
+        w in 0.0f32..=1.0,
+    ) {
+        let hist = |v: &[f32]| {
+            let mut c = KernelCounts::default();
+            let (hs, val): (f32, f32) = (v[..HS_BINS].iter().sum(), v[HS_BINS..].iter().sum());
+            for (k, x) in v.iter().enumerate() {
+                // Make both halves sum to the same total, as kernel counts do.
+                c.bins[k] = if k < HS_BINS { x / hs.max(1e-6) } else { x / val.max(1e-6) };
+            }
+            c.total = 1.0;
+            ColourHistogram::from_counts(&c).unwrap()
+        };
+        let (p, q) = (hist(&a), hist(&b));
+        let (pq, qp) = (p.similarity(&q, w), q.similarity(&p, w));
+        proptest::prop_assert!((pq - qp).abs() < 1e-5);
+        proptest::prop_assert!((-1e-6..=1.0 + 1e-4).contains(&pq), "{}", pq);
+        proptest::prop_assert!((p.similarity(&p, w) - 1.0).abs() < 1e-4);
+        let (hs, v) = hsv_bins([(a[0] * 255.0) as u8, (b[0] * 255.0) as u8, (a[1] * 255.0) as u8]);
+        proptest::prop_assert!(hs < HS_BINS && v < VALUE_BINS);
+    }
+}

@@ -373,3 +373,34 @@ fn max_people_refuses_and_counts_the_rest() {
     };
     assert_eq!(MultiTracker::new(bad, 0).unwrap_err().field, "particles");
 }
+
+#[test]
+fn reset_accepts_a_new_resolution_and_never_reuses_an_id() {
+    let mut tracker = MultiTracker::new(ParticleParams::default(), 8).unwrap();
+    let s = scene(vec![red()]);
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    for t in 0..3u32 {
+        s.render(t, &mut frame);
+        tracker
+            .step(&input(&frame, &[detection(&s.box_at(0, t))]))
+            .unwrap();
+    }
+    assert_eq!(tracker.ids(), vec![0]);
+    let smaller = Scene {
+        width: 160,
+        height: 120,
+        ..s.clone()
+    };
+    smaller.render(3, &mut frame);
+    let regions = [detection(&smaller.box_at(0, 3))];
+    assert!(tracker.step(&input(&frame, &regions)).is_err());
+    tracker.reset();
+    assert!(tracker.ids().is_empty());
+    for t in 3..6u32 {
+        smaller.render(t, &mut frame);
+        tracker
+            .step(&input(&frame, &[detection(&smaller.box_at(0, t))]))
+            .unwrap();
+    }
+    assert_eq!(tracker.ids(), vec![1]);
+}
