@@ -182,7 +182,15 @@ struct Shared {
     older: LocalId,
     younger: LocalId,
     frames: u32,
+    /// Sum over those frames of the older's colour similarity minus the younger's.
+    older_lead: f32,
 }
+
+/// How much worse (mean colour similarity over the shared frames) the older of two duplicates
+/// must match for it, not the younger, to be eliminated: a filter that drifted onto someone
+/// else's region gives way to the one that matches them, while two filters on the same person
+/// keep the older id.
+const DRIFTED_MARGIN: f32 = 0.05;
 
 /// The multi-person tracker of one camera.
 #[derive(Debug)]
@@ -385,35 +393,40 @@ impl MultiTracker {
         Ok(self.estimates(input.with_samples))
     }
 
-    /// Count how long each pair of overlapping filters has shared a region; eliminate the
-    /// younger of a pair that has for `duplicate-frames` frames. A pair that splits starts
-    /// over.
+    /// Count how long each pair of overlapping filters has shared a region; of a pair that has
+    /// for `duplicate-frames` frames, eliminate the younger — or the older, if its colours
+    /// matched clearly worse over those frames (it drifted onto the other's person). A pair
+    /// that splits starts over.
     fn eliminate_duplicates(&mut self) {
         let p = &self.params;
         let mut shared = Vec::new();
+        // `people` is in id order: `a` is the older of each pair.
         for (i, a) in self.people.iter().enumerate() {
             for b in &self.people[i + 1..] {
                 let same = a.region.is_some() && a.region == b.region;
                 if same && iou(&a.filter.mean().bbox(), &b.filter.mean().bbox()) >= p.duplicate_iou {
-                    let (older, younger) = (a.id.min(b.id), a.id.max(b.id));
-                    let before = self
+                    let (frames, lead) = self
                         .shared
                         .iter()
-                        .find(|s| (s.older, s.younger) == (older, younger))
-                        .map_or(0, |s| s.frames);
+                        .find(|s| (s.older, s.younger) == (a.id, b.id))
+                        .map_or((0, 0.0), |s| (s.frames, s.older_lead));
                     shared.push(Shared {
-                        older,
-                        younger,
-                        frames: before + 1,
+                        older: a.id,
+                        younger: b.id,
+                        frames: frames + 1,
+                        older_lead: lead + a.filter.ml_similarity() - b.filter.ml_similarity(),
                     });
                 }
             }
         }
-        let doomed: Vec<LocalId> = shared
-            .iter()
-            .filter(|s| s.frames >= p.duplicate_frames)
-            .map(|s| s.younger)
-            .collect();
+        let mut doomed: Vec<LocalId> = Vec::new();
+        for s in shared.iter().filter(|s| s.frames >= p.duplicate_frames) {
+            if doomed.contains(&s.older) || doomed.contains(&s.younger) {
+                continue;
+            }
+            let drifted = s.older_lead / (s.frames as f32) < -DRIFTED_MARGIN;
+            doomed.push(if drifted { s.older } else { s.younger });
+        }
         shared.retain(|s| !doomed.contains(&s.younger) && !doomed.contains(&s.older));
         self.shared = shared;
         let before = self.people.len();

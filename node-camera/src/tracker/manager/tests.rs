@@ -404,3 +404,37 @@ fn reset_accepts_a_new_resolution_and_never_reuses_an_id() {
     }
     assert_eq!(tracker.ids(), vec![1]);
 }
+
+#[test]
+fn of_two_duplicates_the_one_that_drifted_onto_someone_else_gives_way() {
+    // Filter 0 learned a green person; it sits on the red person's region, where filter 1
+    // (red's own) also is. Filter 0 matches clearly worse there, so it goes, though older.
+    let params = ParticleParams {
+        duplicate_frames: 8,
+        ..ParticleParams::default()
+    };
+    let mut tracker = MultiTracker::new(params, 9).unwrap();
+    let still = Drawn {
+        velocity: [0.0, 0.0],
+        ..red()
+    };
+    let s = scene(vec![still.clone()]);
+    let in_green = scene(vec![Drawn {
+        shirt: [40, 200, 60],
+        trousers: [150, 120, 20],
+        ..still
+    }]);
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    let b = s.box_at(0, 0);
+    in_green.render(0, &mut frame);
+    assert_eq!(tracker.start(&frame, &b).unwrap(), 0);
+    s.render(1, &mut frame);
+    tracker.step(&input(&frame, &[detection(&b)])).unwrap();
+    assert_eq!(tracker.start(&frame, &b).unwrap(), 1);
+    for t in 2..20u32 {
+        s.render(t, &mut frame);
+        tracker.step(&input(&frame, &[detection(&b)])).unwrap();
+    }
+    assert_eq!(tracker.ids(), vec![1]);
+    assert_eq!(tracker.counters().duplicates_eliminated, 1);
+}
