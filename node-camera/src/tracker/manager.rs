@@ -2,7 +2,8 @@
 //! A foreground region (from the background model, `seg004`) that no filter explains for
 //! `init-frames` frames starts a filter with its current appearance as target; a filter with no
 //! supporting region for `destroy-frames` frames is destroyed; of two filters that share a
-//! region (and overlap) for `duplicate-frames` frames the younger is eliminated. Each filter
+//! region (and overlap) for `duplicate-frames` frames one is eliminated (the younger, unless
+//! the older's colours matched clearly worse: it drifted there). Each filter
 //! keeps its local id for life. The region assigned to a filter shapes its weights; the
 //! foreground share under its best box gates its adaptation.
 //!

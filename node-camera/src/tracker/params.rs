@@ -73,8 +73,9 @@ pub struct ParticleParams {
     pub min_init_area: u32,
     /// Frames without a supporting region after which a filter is destroyed (§3.2.1). Ours: 10.
     pub destroy_frames: u32,
-    /// Frames two filters must share a region before the younger is eliminated (§3.2.1: "if
-    /// the object does not split up again after a certain amount of time"). Ours: 10.
+    /// Frames two filters must share a region before one is eliminated — the younger, unless
+    /// the older matched clearly worse meanwhile (§3.2.1: "if the object does not split up
+    /// again after a certain amount of time"). Ours: 10.
     pub duplicate_frames: u32,
     /// Two filters sharing a region count as duplicates only when their boxes overlap at
     /// least this much (IoU): two people inside one merged region keep their filters. 0 is
