@@ -21,5 +21,6 @@ pub mod record_all;
 pub mod region;
 pub mod segment;
 pub mod source;
+pub mod tracker;
 #[cfg(feature = "v4l2")]
 pub mod v4l2;
