@@ -12,6 +12,8 @@ pub mod config;
 pub mod core;
 pub mod detect;
 pub mod frame;
+#[cfg(feature = "gstreamer")]
+pub mod gst;
 pub mod logging;
 pub mod measure;
 pub mod previous;
@@ -23,6 +25,7 @@ pub mod seg000;
 pub mod seg004;
 pub mod segment;
 pub mod source;
+pub mod source_spec;
 pub mod synthetic;
 #[cfg(feature = "v4l2")]
 pub mod v4l2;
