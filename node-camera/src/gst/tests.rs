@@ -1,6 +1,8 @@
 //! GStreamer sources on real encoded video and a real HTTP MJPEG stream (see `kit`).
 
 mod kit;
+#[cfg(feature = "rtsp-tests")]
+mod rtsp;
 
 use super::*;
 use crate::frame::Frame;
