@@ -379,3 +379,56 @@ fn a_missing_element_names_its_package() {
         "{e}"
     );
 }
+
+#[test]
+fn open_source_plays_a_file_spec_and_its_stats_come_along() {
+    let path = tmp("spec.avi");
+    let tops = [GREEN, BLUE, RED];
+    encode(&path, &pictures(64, 48, &tops), 10, "jpegenc quality=95 ! avimux");
+    let spec = crate::source_spec::SourceSpec::parse(&format!("file:{}", path.display())).unwrap();
+    let mut opened = crate::source_spec::open_source(&spec, CAMERA.0, CAMERA.1, 15.0).unwrap();
+    assert_eq!(opened.source.size(), CAMERA);
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    let mut got = Vec::new();
+    for i in 0..20 {
+        match opened
+            .source
+            .capture(ClusterTime::from_millis(i * 66), &mut frame)
+        {
+            Ok(true) => got.push(colours(&frame).0),
+            Ok(false) => break,
+            Err(e) => panic!("{e}"),
+        }
+    }
+    assert!(same_colours(&got, &tops), "{got:?}");
+    let s = opened.stats.snapshot();
+    assert_eq!((s.frames, s.ends, s.errors), (3, 1, 0), "{s:?}");
+    let _ = std::fs::remove_file(path);
+}
+
+#[test]
+fn a_file_played_newest_first_keeps_its_order_and_ends() {
+    let path = tmp("newest.avi");
+    let tops = [RED, GREEN, BLUE, YELLOW, CYAN, MAGENTA];
+    encode(&path, &pictures(64, 48, &tops), 20, "jpegenc quality=95 ! avimux");
+    let input = GstInput::File {
+        path: path.clone(),
+        looping: false,
+    };
+    let mut options = GstOptions::for_camera(&input, 15.0);
+    options.pacing = Pacing::Newest;
+    let stats = SharedStats::default();
+    let mut source = GstSource::open(input, CAMERA.0, CAMERA.1, options, stats.clone()).unwrap();
+    // The file plays at its own 20 fps whatever the camera takes: frames may be skipped, never
+    // repeated or reordered.
+    let (got, _, ended) = play(&mut source, &Clock::start(), 100);
+    assert!(ended);
+    assert!(!got.is_empty() && got.len() <= tops.len(), "{got:?}");
+    let mut next = 0;
+    for top in &got {
+        let at = tops[next..].iter().position(|&t| near(*top, t)).map(|p| p + next);
+        next = at.expect("a frame out of order or repeated") + 1;
+    }
+    assert_eq!(stats.snapshot().ends, 1);
+    let _ = std::fs::remove_file(path);
+}
