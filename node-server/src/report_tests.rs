@@ -111,6 +111,7 @@ fn record_run(name: &str) -> PathBuf {
             contributors: vec![c(10, true), c(11, true), c(12, false)],
             power_mw: 1500.0,
             late: k as u64 / 10,
+            appearance: Vec::new(),
         };
         let out = send(&mut server, &mut rec, t, owner, Message::TrackReport(r), 0);
         for o in out {
@@ -139,6 +140,7 @@ fn record_run(name: &str) -> PathBuf {
         rejected: 0,
         sync_offset_ns: 5_000,
         sync_error_ns: 2_000_000,
+        bytes_sent: 0,
     };
     // Two camera frames were lost on the way: a sequence gap of 2.
     send(
@@ -159,6 +161,7 @@ fn record_run(name: &str) -> PathBuf {
         rejected: 0,
         sync_offset_ns: -3_000,
         sync_error_ns: 500_000,
+        bytes_sent: 0,
     };
     send(
         &mut server,
