@@ -59,20 +59,17 @@ pub enum Reference {
     Foot,
 }
 
-/// The camera's sources: a real camera is given its device, files or stream (opened through
-/// [`open_source`], whose counters are returned); `synthetic` injects the simulated world's
-/// frames and radio (what `ocelli launch` runs).
-fn sources(
-    spec: SourceSpec,
-    scenario: &Scenario,
-    id: u32,
-    seed: u64,
-    epoch: ClusterTime,
-) -> Result<(
+/// A camera's frames, its radio (synthetic only) and its source's counters (real sources).
+type Sources = (
     OpenFrames,
     Option<Box<dyn RadioSource + Send>>,
     Option<SharedStats>,
-)> {
+);
+
+/// The camera's sources: a real camera is given its device, files or stream (opened through
+/// [`open_source`], whose counters are returned); `synthetic` injects the simulated world's
+/// frames and radio (what `ocelli launch` runs).
+fn sources(spec: SourceSpec, scenario: &Scenario, id: u32, seed: u64, epoch: ClusterTime) -> Result<Sources> {
     if spec == SourceSpec::Synthetic {
         let frames = world::sources::SyntheticFrames::new(scenario, id, seed, epoch)?;
         let radio = world::sources::SyntheticRadio::new(scenario, id, seed, epoch)?;
