@@ -162,6 +162,10 @@ pub struct NodeStatus {
     /// Estimated offset to the leader's clock, ns, and the residual of the fit, ns.
     pub sync_offset_ns: i64,
     pub sync_error_ns: i64,
+    /// Bytes this node put on the wire so far: the encoded frames its transport took. Only
+    /// the runtime knows it, so the runtime fills it in as the status goes out (a core
+    /// leaves 0).
+    pub bytes_sent: u64,
 }
 
 /// What a camera in grid mode (`[method] fusion = "grid"`) says after every frame it
@@ -234,6 +238,10 @@ pub struct TrackReport {
     pub power_mw: f64,
     /// Contributions that arrived after the deadline of their step, cumulative.
     pub late: u64,
+    /// The track's colour histogram (paper 004's HS 10×10 then V 10 bins, summing to 1), from
+    /// the ground-plane observations fused into it, for identity at the server; empty when no
+    /// camera sent one.
+    pub appearance: Vec<f32>,
     /// The grid estimator's posterior, down-sampled (`[method] fusion = "grid"` only).
     pub grid: Option<GridPosterior>,
 }
@@ -335,6 +343,41 @@ pub struct MeasuredFrame {
     pub detections: Vec<MeasuredDetection>,
 }
 
+// ---------------------------------------------------------------- particle filter samples
+
+/// Most samples one [`SampleSet`] carries.
+pub const MAX_SAMPLES: usize = 512;
+
+/// Ask a camera for the sample sets of its per-person particle filters (paper 004 §2.5.1 (i):
+/// the pdf itself, sent only on request). Answered once, from the newest frame, with one
+/// [`SampleSet`] per person to the node that asked.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SampleRequest {
+    /// The camera asked.
+    pub node: NodeId,
+    /// The camera's id of the person, or `None` for everyone it tracks.
+    pub local: Option<u32>,
+}
+
+/// One weighted sample of a camera's particle filter, in the camera's pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImageSample {
+    /// `[x, y, vx, vy, w, h]`: box centre, velocity (pixels per frame) and size, pixels.
+    pub state: [f32; 6],
+    /// Normalized weight π.
+    pub weight: f32,
+}
+
+/// One person's sample set of a camera's newest frame, the answer to a [`SampleRequest`]. A
+/// filter with more than [`MAX_SAMPLES`] samples sends its heaviest.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SampleSet {
+    /// The camera's id of the person.
+    pub local: u32,
+    pub captured: ClusterTime,
+    pub samples: Vec<ImageSample>,
+}
+
 // ---------------------------------------------------------------- every link
 
 /// First frame on every link.
@@ -369,6 +412,8 @@ pub enum Message {
     SyncBeacon(SyncBeacon),
     Liveness(Liveness),
     MeasuredFrame(MeasuredFrame),
+    SampleRequest(SampleRequest),
+    SampleSet(SampleSet),
     FrameReport(FrameReport),
 }
 
@@ -390,6 +435,8 @@ impl Message {
             Message::SyncBeacon(_) => "sync_beacon",
             Message::Liveness(_) => "liveness",
             Message::MeasuredFrame(_) => "measured_frame",
+            Message::SampleRequest(_) => "sample_request",
+            Message::SampleSet(_) => "sample_set",
             Message::FrameReport(_) => "frame_report",
         }
     }
@@ -406,6 +453,7 @@ impl Message {
                 | Message::TrackReport(_)
                 | Message::Heartbeat
                 | Message::MeasuredFrame(_)
+                | Message::SampleSet(_)
                 | Message::FrameReport(_)
         )
     }

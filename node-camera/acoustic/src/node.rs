@@ -227,6 +227,8 @@ impl AcousticNode {
             rejected: c.rejected + c.stalls,
             sync_offset_ns: self.sync.0,
             sync_error_ns: self.sync.1,
+            // The runtime fills it in as the status goes out.
+            bytes_sent: 0,
         };
         self.send(self.cfg.head, Message::NodeStatus(status.clone()), &mut out);
         if self.cfg.server != self.cfg.head {

@@ -3,5 +3,6 @@
 pub mod camera;
 pub mod grid;
 pub mod head;
+pub mod particle;
 pub mod server;
 pub mod transport;
