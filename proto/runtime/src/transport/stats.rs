@@ -48,6 +48,9 @@ pub struct TransportStats {
     pub throttled: AtomicU64,
     /// Decides which rejections are logged (the counters above count them all).
     pub(crate) log: Mutex<LogLimiter>,
+    /// Bytes of the encoded frames this endpoint put on its links: every message it queued
+    /// and the transport's own heartbeats (framing and TCP/IP headers not counted).
+    pub bytes_sent: AtomicU64,
 }
 
 /// A point-in-time copy of [`TransportStats`].
@@ -78,11 +81,18 @@ pub struct StatsSnapshot {
     pub rejected_connections: u64,
     #[serde(default)]
     pub throttled: u64,
+    #[serde(default)]
+    pub bytes_sent: u64,
 }
 
 /// Add one to a counter.
 pub(crate) fn bump(c: &AtomicU64) {
     c.fetch_add(1, Ordering::Relaxed);
+}
+
+/// Add `n` to a counter.
+pub(crate) fn add(c: &AtomicU64, n: usize) {
+    c.fetch_add(n as u64, Ordering::Relaxed);
 }
 
 impl TransportStats {
@@ -110,6 +120,7 @@ impl TransportStats {
             rejected_duplicate: g(&self.rejected_duplicate),
             rejected_connections: g(&self.rejected_connections),
             throttled: g(&self.throttled),
+            bytes_sent: g(&self.bytes_sent),
         }
     }
 

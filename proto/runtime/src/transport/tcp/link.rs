@@ -115,7 +115,9 @@ pub(super) async fn run_link(
                 }
             },
             _ = heartbeat.tick() => {
-                sink.send(ctx.frame(peer, Message::Heartbeat)?).await?;
+                let frame = ctx.frame(peer, Message::Heartbeat)?;
+                super::super::stats::add(&ctx.stats.bytes_sent, frame.len());
+                sink.send(frame).await?;
                 bump(&ctx.stats.heartbeats_sent);
             }
             // A throttled peer is not silent: its frames wait to be read.
