@@ -1,0 +1,329 @@
+//! The pages as a person sees them: a viewer serving a small synthetic cluster, loaded in
+//! headless Chromium (Debian's `chromium`). The map's and the 3D view's DOM must show the
+//! tracks' ids once their scripts ran, and screenshots of both go to `docs/view-map.png` and
+//! `docs/view-3d.png`.
+//!
+//! Without Chromium this test fails and says which package to install: it never passes
+//! silently.
+//!
+//! Chromium is stopped after a real-time `--timeout` rather than a `--virtual-time-budget`: the
+//! pages keep an event stream open, and a pending request stops virtual time, so a budget never
+//! runs out. On a loaded machine a first try can stop before the page drew; it is tried again
+//! with a longer timeout.
+
+use node_server::{Decision, HandoverReason, Record, Stamped};
+use proto::msg::{Contributor, Message, NodeStatus, TrackReport};
+use proto::scenario::Scenario;
+use proto::{ClusterTime, Envelope, Mode, NodeId, TargetId};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::Arc;
+use std::time::Duration;
+use tokio_util::sync::CancellationToken;
+use view::{Geo, ViewState};
+
+const S: i64 = 1_000_000_000;
+/// Cluster time of the synthetic run: an afternoon in 2026, ns since the Unix epoch.
+const T0: i64 = 1_790_000_000 * S;
+
+fn received(at: i64, source: u32, seq: u64, body: Message) -> Stamped {
+    Stamped::new(
+        ClusterTime(at),
+        Record::Received(Envelope {
+            source: NodeId(source),
+            seq,
+            time: ClusterTime(at),
+            body,
+        }),
+    )
+}
+
+fn decided(at: i64, d: Decision) -> Stamped {
+    Stamped::new(ClusterTime(at), Record::Decision(d))
+}
+
+fn report(local: u32, at: i64, p: [f64; 2], v: [f64; 2], sigma: [f64; 3], cameras: &[u32]) -> Message {
+    let mut cov = [[0.0; 6]; 6];
+    cov[0][0] = sigma[0];
+    cov[0][1] = sigma[1];
+    cov[1][0] = sigma[1];
+    cov[1][1] = sigma[2];
+    for (i, row) in cov.iter_mut().enumerate().skip(2) {
+        row[i] = 0.01;
+    }
+    Message::TrackReport(TrackReport {
+        target: TargetId(local),
+        global: None,
+        step: u64::try_from((at - T0) / (S / 5)).unwrap_or(0),
+        time: ClusterTime(at),
+        mean: [p[0], p[1], 0.85, v[0], v[1], 0.0],
+        cov,
+        contributors: cameras
+            .iter()
+            .map(|&c| Contributor {
+                node: NodeId(c),
+                camera: true,
+                rssi: true,
+            })
+            .collect(),
+        power_mw: 2100.0,
+        late: 2,
+    })
+}
+
+/// The default scenario with two people walking for 12 s, one of them handed from head 2 to
+/// head 3, camera 12 down, cameras in all three modes.
+fn synthetic_state() -> ViewState {
+    let sc = Scenario::default_scenario();
+    let mut v = ViewState::new();
+    v.apply(&Stamped::new(ClusterTime(T0), Record::Scenario(sc.to_toml())));
+    v.set_geo(Some(Geo {
+        origin: [48.5362, 9.0589, 320.0],
+        heading_deg: 0.0,
+    }));
+    for node in sc.nodes.iter().filter(|n| n.id != 1) {
+        let role = if node.id < 10 {
+            proto::Role::Head
+        } else {
+            proto::Role::Camera
+        };
+        v.apply(&decided(
+            T0,
+            Decision::Admitted {
+                node: NodeId(node.id),
+                role,
+            },
+        ));
+    }
+    let mut seq = 0;
+    for step in 0..=60i64 {
+        let at = T0 + step * S / 5;
+        let t = step as f64 / 5.0;
+        seq += 1;
+        // Person 7 walks east across the region border at 6 m; person 8 circles in the west.
+        let p7 = [3.0 + 0.45 * t, 2.2 + 0.1 * t];
+        let head7 = if p7[0] < 6.3 { 2 } else { 3 };
+        let local7 = if head7 == 2 { 1 } else { 5 };
+        v.apply(&received(
+            at,
+            head7,
+            seq,
+            report(local7, at, p7, [0.45, 0.1], [0.03, 0.01, 0.012], &[10, 11, 13]),
+        ));
+        let a = t * 0.35;
+        let p8 = [3.0 + 1.5 * a.cos(), 5.5 + 1.2 * a.sin()];
+        v.apply(&received(
+            at,
+            2,
+            seq + 1000,
+            report(
+                2,
+                at,
+                p8,
+                [-0.5 * a.sin(), 0.4 * a.cos()],
+                [0.02, -0.008, 0.05],
+                &[10, 14],
+            ),
+        ));
+        if step == 0 {
+            v.apply(&decided(
+                at,
+                Decision::NewGlobal {
+                    head: NodeId(2),
+                    local: TargetId(1),
+                    global: TargetId(7),
+                },
+            ));
+            v.apply(&decided(
+                at,
+                Decision::NewGlobal {
+                    head: NodeId(2),
+                    local: TargetId(2),
+                    global: TargetId(8),
+                },
+            ));
+        }
+        if head7 == 3 && local7 == 5 && v.tracks.get(&7).is_none_or(|t| t.owner != 3) {
+            v.apply(&decided(
+                at,
+                Decision::Handover {
+                    global: TargetId(7),
+                    from: Some(NodeId(2)),
+                    to: NodeId(3),
+                    reason: HandoverReason::Region,
+                },
+            ));
+            v.apply(&decided(
+                at,
+                Decision::Claimed {
+                    head: NodeId(3),
+                    local: TargetId(5),
+                    global: TargetId(7),
+                },
+            ));
+        }
+        if step % 5 == 0 {
+            for cam in 10..31u32 {
+                let mode = match cam % 4 {
+                    0 | 1 => Mode::Active,
+                    2 => Mode::CameraOff,
+                    _ => Mode::Inactive,
+                };
+                let status = NodeStatus {
+                    mode,
+                    time_in_mode_ns: [0; 3],
+                    frames: u64::try_from(step).unwrap_or(0),
+                    detections: 0,
+                    dropped: u64::from(cam == 15),
+                    rejected: 0,
+                    sync_offset_ns: 120_000,
+                    sync_error_ns: 80_000,
+                };
+                if cam != 12 {
+                    v.apply(&received(at, cam, seq, Message::NodeStatus(status)));
+                }
+            }
+        }
+    }
+    v.apply(&decided(
+        T0 + 12 * S,
+        Decision::Down {
+            node: NodeId(12),
+            silent_ms: 3000,
+        },
+    ));
+    v
+}
+
+fn chromium() -> PathBuf {
+    for name in ["chromium", "chromium-browser"] {
+        for dir in std::env::var("PATH").unwrap_or_default().split(':') {
+            let p = Path::new(dir).join(name);
+            if p.is_file() {
+                return p;
+            }
+        }
+    }
+    panic!(
+        "headless Chromium is needed to test the viewer's pages and was not found on PATH: \
+         install Debian's `chromium` package (apt-get install -y chromium)"
+    );
+}
+
+/// Run Chromium headless on `url` with `extra` arguments, in a fresh profile, stopping the page
+/// after `timeout_ms`; its stdout.
+fn run_chromium(url: &str, timeout_ms: u64, extra: &[String]) -> String {
+    let profile = std::env::temp_dir().join(format!(
+        "ocelli-view-chromium-{}-{}",
+        std::process::id(),
+        extra.len()
+    ));
+    let _ = std::fs::remove_dir_all(&profile);
+    let mut cmd = Command::new(chromium());
+    cmd.args([
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-background-networking",
+        "--no-first-run",
+        "--hide-scrollbars",
+        "--force-device-scale-factor=1",
+        "--window-size=1400,860",
+    ])
+    .arg(format!("--user-data-dir={}", profile.display()))
+    .arg(format!("--timeout={timeout_ms}"))
+    .args(extra)
+    .arg(url)
+    .stdin(Stdio::null())
+    .stdout(Stdio::piped())
+    .stderr(Stdio::piped());
+    let child = cmd.spawn().expect("start chromium");
+    let out = wait_with_timeout(child, Duration::from_secs(120));
+    let _ = std::fs::remove_dir_all(&profile);
+    assert!(
+        out.status.success(),
+        "chromium failed on {url}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn wait_with_timeout(mut child: std::process::Child, limit: Duration) -> std::process::Output {
+    let step = Duration::from_millis(100);
+    let mut waited = Duration::ZERO;
+    while child.try_wait().expect("wait on chromium").is_none() {
+        if waited >= limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("chromium did not finish within {limit:?}");
+        }
+        std::thread::sleep(step);
+        waited += step;
+    }
+    child.wait_with_output().expect("chromium's output")
+}
+
+fn docs() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs")
+}
+
+#[test]
+fn the_pages_show_tracks_in_a_real_browser() {
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let state = synthetic_state();
+    assert_eq!(state.tracks[&7].owner, 3, "the synthetic run handed t7 over");
+    let (mut publisher, feed) = view::channel(ViewState::new());
+    publisher.publish(Arc::new(state));
+    let stop = CancellationToken::new();
+    let listener = rt.block_on(tokio::net::TcpListener::bind("127.0.0.1:0")).unwrap();
+    let addr = listener.local_addr().unwrap();
+    let server = rt.spawn(view::serve(listener, feed, stop.clone()));
+
+    // The DOM once the page's scripts drew the state (tried again, longer, on a slow machine).
+    let dom = |path: &str, drawn: &str| {
+        let mut last = String::new();
+        for timeout in [4000, 15000] {
+            last = run_chromium(&format!("http://{addr}{path}"), timeout, &["--dump-dom".into()]);
+            if last.contains(drawn) {
+                break;
+            }
+        }
+        last
+    };
+    let map = dom("/", ">t8</text>");
+    for id in ["t7", "t8"] {
+        assert!(
+            map.contains(&format!(">{id}</text>")),
+            "the map's SVG has no label {id} after its scripts ran:\n{}",
+            &map[..map.len().min(3000)]
+        );
+    }
+    assert!(map.contains("camera 12: down"), "camera 12 is marked down");
+    assert!(map.contains("head 2 → head 3 (region)"), "the handover is listed");
+    let view3d = dom("/3d", ">t7</div>");
+    assert!(
+        view3d.contains("data-global=\"7\">t7</div>"),
+        "the 3D view labels t7:\n{}",
+        &view3d[..view3d.len().min(3000)]
+    );
+
+    let docs = docs();
+    std::fs::create_dir_all(&docs).unwrap();
+    for (path, file) in [("/", "view-map.png"), ("/3d", "view-3d.png")] {
+        let png = docs.join(file);
+        let _ = std::fs::remove_file(&png);
+        run_chromium(
+            &format!("http://{addr}{path}"),
+            5000,
+            &[format!("--screenshot={}", png.display())],
+        );
+        let bytes = std::fs::read(&png).unwrap_or_else(|e| panic!("no screenshot {}: {e}", png.display()));
+        assert!(
+            bytes.starts_with(b"\x89PNG") && bytes.len() > 20_000,
+            "{file}: {} bytes",
+            bytes.len()
+        );
+    }
+    stop.cancel();
+    rt.block_on(server).unwrap().unwrap();
+}
