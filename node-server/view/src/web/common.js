@@ -97,14 +97,20 @@ const Ocelli = (() => {
     const show = (state) => {
       if (state.seq < seq && !state.playback) return;
       seq = state.seq;
+      if (state.playback && conn.className === "live") conn.textContent = "recording";
       header(state);
       render(state);
     };
     fetch("/api/state").then((r) => r.json()).then(show).catch((e) => console.warn("snapshot:", e));
     if (!window.EventSource) return;
     const events = new EventSource("/events");
-    events.addEventListener("state", (e) => show(JSON.parse(e.data)));
-    events.onopen = () => { conn.textContent = "live"; conn.className = "live"; };
+    events.addEventListener("state", (e) => {
+      const state = JSON.parse(e.data);
+      conn.textContent = state.playback ? "recording" : "live";
+      conn.className = "live";
+      show(state);
+    });
+    events.onopen = () => { conn.textContent = "connected"; conn.className = "live"; };
     events.onerror = () => { conn.textContent = "reconnecting"; conn.className = "lost"; };
   }
 

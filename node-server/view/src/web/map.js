@@ -56,7 +56,7 @@
       const [a, b, c, d] = n.region;
       const colour = Ocelli.headColour(state, n.id);
       g.appendChild(s("rect", { class: "region", stroke: colour, x: view.px(a) + 3, y: view.py(d) + 3, width: (c - a) * view.k - 6, height: (d - b) * view.k - 6 }));
-      g.appendChild(s("text", { class: "region-label", fill: colour, x: view.px(a) + 10, y: view.py(d) + 20 }, "head " + n.id));
+      g.appendChild(s("text", { class: "region-label", fill: colour, x: view.px(a) + 12, y: view.py(d) + 38 }, "head " + n.id + " region"));
     }
     for (const w of state.world.walls) {
       g.appendChild(s("line", { class: "wall", x1: view.px(w.from[0]), y1: view.py(w.from[1]), x2: view.px(w.to[0]), y2: view.py(w.to[1]) }));
@@ -65,10 +65,14 @@
 
   function drawCameras(state) {
     const wedges = s("g", {}), marks = s("g", {});
-    for (const n of state.nodes) {
+    // Cameras whose measurement or reading went into a track this step: their wedges stand out.
+    const seeing = new Set(state.tracks.flatMap((t) => t.cameras.concat(t.rssi)));
+    const nodes = [...state.nodes].sort((a, b) => seeing.has(a.id) - seeing.has(b.id));
+    for (const n of nodes) {
       if (!n.camera) continue;
       const cls = Ocelli.modeClass(n);
-      wedges.appendChild(s("polygon", { class: "wedge " + cls, points: n.camera.footprint.map(pt).join(" ") }));
+      const wedge = cls + (seeing.has(n.id) ? " seeing" : "");
+      wedges.appendChild(s("polygon", { class: "wedge " + wedge, points: n.camera.footprint.map(pt).join(" ") }));
       const [x, y] = [view.px(n.camera.position[0]), view.py(n.camera.position[1])];
       // A short stroke along the viewing direction.
       const f = n.camera.forward, len = Math.hypot(f[0], f[1]) || 1;

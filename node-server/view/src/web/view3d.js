@@ -83,7 +83,10 @@
     if (!state) return;
     const dpr = window.devicePixelRatio || 1;
     const cw = canvas.clientWidth || 800, ch = canvas.clientHeight || 600;
-    if (canvas.width !== Math.round(cw * dpr)) { canvas.width = Math.round(cw * dpr); canvas.height = Math.round(ch * dpr); }
+    if (canvas.width !== Math.round(cw * dpr) || canvas.height !== Math.round(ch * dpr)) {
+      canvas.width = Math.round(cw * dpr);
+      canvas.height = Math.round(ch * dpr);
+    }
     const cam = camera(state);
     ctx.setTransform(1, 0, 0, 1, 0, 0);
     ctx.fillStyle = "#10141b";
@@ -145,14 +148,19 @@
       ctx.lineWidth = 1;
       ctx.stroke();
     }
-    // Cameras: frusta to the floor, coloured by mode.
+    // Cameras: frusta to where their view leaves the room, coloured by mode; the ones whose
+    // measurements went into a track drawn strongly, the others faintly.
+    const seeing = new Set(state.tracks.flatMap((t) => t.cameras));
     for (const n of state.nodes) {
       if (!n.camera) continue;
       const c = n.camera, colour = modeColour(n), dash = n.up && !n.stale ? [] : [4, 4];
+      const strong = seeing.has(n.id) || !n.up;
+      ctx.globalAlpha = strong ? 0.95 : 0.28;
       for (let i = 0; i < 4; i++) {
-        line(cam, [c.position, c.frustum[i]], colour, n.mode === "Active" ? 1.2 : 0.7, dash);
-        line(cam, [c.frustum[i], c.frustum[(i + 1) % 4]], colour, 0.7, dash);
+        line(cam, [c.position, c.frustum[i]], colour, strong ? 1.6 : 0.8, dash);
+        line(cam, [c.frustum[i], c.frustum[(i + 1) % 4]], colour, strong ? 1.2 : 0.8, dash);
       }
+      ctx.globalAlpha = 1;
       const p = cam.project(c.position);
       if (p) {
         ctx.fillStyle = colour;

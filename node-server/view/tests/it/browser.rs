@@ -71,23 +71,38 @@ fn report(local: u32, at: i64, p: [f64; 2], v: [f64; 2], sigma: [f64; 3], camera
     })
 }
 
+const GEO: Geo = Geo {
+    origin: [48.5362, 9.0589, 320.0],
+    heading_deg: 0.0,
+};
+
+/// Records applied to a view as they are made.
+#[derive(Default)]
+struct Run {
+    view: ViewState,
+    records: Vec<Stamped>,
+}
+
+impl Run {
+    fn push(&mut self, s: Stamped) {
+        self.view.apply(&s);
+        self.records.push(s);
+    }
+}
+
 /// The default scenario with two people walking for 12 s, one of them handed from head 2 to
 /// head 3, camera 12 down, cameras in all three modes.
-fn synthetic_state() -> ViewState {
+fn synthetic_run() -> (ViewState, Vec<Stamped>) {
     let sc = Scenario::default_scenario();
-    let mut v = ViewState::new();
-    v.apply(&Stamped::new(ClusterTime(T0), Record::Scenario(sc.to_toml())));
-    v.set_geo(Some(Geo {
-        origin: [48.5362, 9.0589, 320.0],
-        heading_deg: 0.0,
-    }));
+    let mut run = Run::default();
+    run.push(Stamped::new(ClusterTime(T0), Record::Scenario(sc.to_toml())));
     for node in sc.nodes.iter().filter(|n| n.id != 1) {
         let role = if node.id < 10 {
             proto::Role::Head
         } else {
             proto::Role::Camera
         };
-        v.apply(&decided(
+        run.push(decided(
             T0,
             Decision::Admitted {
                 node: NodeId(node.id),
@@ -95,27 +110,32 @@ fn synthetic_state() -> ViewState {
             },
         ));
     }
-    let mut seq = 0;
+    // Each sender numbers its own messages; camera 15 loses one on the way.
+    let mut seqs = std::collections::BTreeMap::<u32, u64>::new();
+    let mut next = |node: u32| {
+        let s = seqs.entry(node).or_insert(0);
+        *s += if node == 15 && *s == 4 { 2 } else { 1 };
+        *s
+    };
     for step in 0..=60i64 {
         let at = T0 + step * S / 5;
         let t = step as f64 / 5.0;
-        seq += 1;
         // Person 7 walks east across the region border at 6 m; person 8 circles in the west.
         let p7 = [3.0 + 0.45 * t, 2.2 + 0.1 * t];
         let head7 = if p7[0] < 6.3 { 2 } else { 3 };
         let local7 = if head7 == 2 { 1 } else { 5 };
-        v.apply(&received(
+        run.push(received(
             at,
             head7,
-            seq,
+            next(head7),
             report(local7, at, p7, [0.45, 0.1], [0.03, 0.01, 0.012], &[10, 11, 13]),
         ));
         let a = t * 0.35;
         let p8 = [3.0 + 1.5 * a.cos(), 5.5 + 1.2 * a.sin()];
-        v.apply(&received(
+        run.push(received(
             at,
             2,
-            seq + 1000,
+            next(2),
             report(
                 2,
                 at,
@@ -126,7 +146,7 @@ fn synthetic_state() -> ViewState {
             ),
         ));
         if step == 0 {
-            v.apply(&decided(
+            run.push(decided(
                 at,
                 Decision::NewGlobal {
                     head: NodeId(2),
@@ -134,7 +154,7 @@ fn synthetic_state() -> ViewState {
                     global: TargetId(7),
                 },
             ));
-            v.apply(&decided(
+            run.push(decided(
                 at,
                 Decision::NewGlobal {
                     head: NodeId(2),
@@ -143,8 +163,8 @@ fn synthetic_state() -> ViewState {
                 },
             ));
         }
-        if head7 == 3 && local7 == 5 && v.tracks.get(&7).is_none_or(|t| t.owner != 3) {
-            v.apply(&decided(
+        if head7 == 3 && local7 == 5 && run.view.tracks.get(&7).is_none_or(|t| t.owner != 3) {
+            run.push(decided(
                 at,
                 Decision::Handover {
                     global: TargetId(7),
@@ -153,7 +173,7 @@ fn synthetic_state() -> ViewState {
                     reason: HandoverReason::Region,
                 },
             ));
-            v.apply(&decided(
+            run.push(decided(
                 at,
                 Decision::Claimed {
                     head: NodeId(3),
@@ -180,19 +200,21 @@ fn synthetic_state() -> ViewState {
                     sync_error_ns: 80_000,
                 };
                 if cam != 12 {
-                    v.apply(&received(at, cam, seq, Message::NodeStatus(status)));
+                    run.push(received(at, cam, next(cam), Message::NodeStatus(status)));
                 }
             }
         }
     }
-    v.apply(&decided(
+    run.push(decided(
         T0 + 12 * S,
         Decision::Down {
             node: NodeId(12),
             silent_ms: 3000,
         },
     ));
-    v
+    let mut view = run.view;
+    view.set_geo(Some(GEO));
+    (view, run.records)
 }
 
 fn chromium() -> PathBuf {
@@ -211,13 +233,11 @@ fn chromium() -> PathBuf {
 }
 
 /// Run Chromium headless on `url` with `extra` arguments, in a fresh profile, stopping the page
-/// after `timeout_ms`; its stdout.
+/// after `timeout_ms`; its stdout, then the page's console messages.
 fn run_chromium(url: &str, timeout_ms: u64, extra: &[String]) -> String {
-    let profile = std::env::temp_dir().join(format!(
-        "ocelli-view-chromium-{}-{}",
-        std::process::id(),
-        extra.len()
-    ));
+    static RUNS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let run = RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let profile = std::env::temp_dir().join(format!("ocelli-view-chromium-{}-{run}", std::process::id()));
     let _ = std::fs::remove_dir_all(&profile);
     let mut cmd = Command::new(chromium());
     cmd.args([
@@ -229,6 +249,8 @@ fn run_chromium(url: &str, timeout_ms: u64, extra: &[String]) -> String {
         "--hide-scrollbars",
         "--force-device-scale-factor=1",
         "--window-size=1400,860",
+        "--enable-logging=stderr",
+        "--v=0",
     ])
     .arg(format!("--user-data-dir={}", profile.display()))
     .arg(format!("--timeout={timeout_ms}"))
@@ -245,7 +267,16 @@ fn run_chromium(url: &str, timeout_ms: u64, extra: &[String]) -> String {
         "chromium failed on {url}: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    String::from_utf8_lossy(&out.stdout).into_owned()
+    let console: Vec<String> = String::from_utf8_lossy(&out.stderr)
+        .lines()
+        .filter(|l| l.contains("CONSOLE") || l.contains("Uncaught"))
+        .map(str::to_owned)
+        .collect();
+    format!(
+        "{}\n<!-- console:\n{}\n-->",
+        String::from_utf8_lossy(&out.stdout),
+        console.join("\n")
+    )
 }
 
 fn wait_with_timeout(mut child: std::process::Child, limit: Duration) -> std::process::Output {
@@ -270,7 +301,7 @@ fn docs() -> PathBuf {
 #[test]
 fn the_pages_show_tracks_in_a_real_browser() {
     let rt = tokio::runtime::Runtime::new().unwrap();
-    let state = synthetic_state();
+    let (state, _) = synthetic_run();
     assert_eq!(state.tracks[&7].owner, 3, "the synthetic run handed t7 over");
     let (mut publisher, feed) = view::channel(ViewState::new());
     publisher.publish(Arc::new(state));
@@ -295,16 +326,16 @@ fn the_pages_show_tracks_in_a_real_browser() {
         assert!(
             map.contains(&format!(">{id}</text>")),
             "the map's SVG has no label {id} after its scripts ran:\n{}",
-            &map[..map.len().min(3000)]
+            &map[map.len().saturating_sub(3000)..]
         );
     }
     assert!(map.contains("camera 12: down"), "camera 12 is marked down");
     assert!(map.contains("head 2 → head 3 (region)"), "the handover is listed");
     let view3d = dom("/3d", ">t7</div>");
     assert!(
-        view3d.contains("data-global=\"7\">t7</div>"),
+        view3d.contains("class=\"label3d\" data-global=\"7\"") && view3d.contains(">t7</div>"),
         "the 3D view labels t7:\n{}",
-        &view3d[..view3d.len().min(3000)]
+        &view3d[view3d.len().saturating_sub(3000)..]
     );
 
     let docs = docs();
@@ -324,6 +355,47 @@ fn the_pages_show_tracks_in_a_real_browser() {
             bytes.len()
         );
     }
+    stop.cancel();
+    rt.block_on(server).unwrap().unwrap();
+}
+
+/// `ocelli view RECORDING`: the same run written as a recording and served with playback; the
+/// page shows the playback bar, playing, and the tracks.
+#[test]
+fn a_recording_plays_back_in_a_real_browser() {
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let (_, records) = synthetic_run();
+    let path = std::env::temp_dir().join(format!("ocelli-view-browser-{}.ocrec", std::process::id()));
+    let mut rec = node_server::Recorder::create(&path, "default").unwrap();
+    for r in &records {
+        rec.append(r).unwrap();
+    }
+    drop(rec);
+    let stop = CancellationToken::new();
+    let listener = rt.block_on(tokio::net::TcpListener::bind("127.0.0.1:0")).unwrap();
+    let addr = listener.local_addr().unwrap();
+    let server =
+        rt.spawn({
+            let (path, stop) = (path.clone(), stop.clone());
+            async move {
+                view::serve_recording(&path, Some(GEO), listener, Duration::from_millis(100), stop).await
+            }
+        });
+    let mut page = String::new();
+    for timeout in [4000, 15000] {
+        page = run_chromium(&format!("http://{addr}/"), timeout, &["--dump-dom".into()]);
+        if page.contains(">t8</text>") {
+            break;
+        }
+    }
+    let _ = std::fs::remove_file(&path);
+    assert!(
+        page.contains("id=\"playback\" class=\"on\""),
+        "no playback bar:\n{}",
+        &page[page.len().saturating_sub(3000)..]
+    );
+    assert!(page.contains(">Pause</button>"), "it plays");
+    assert!(page.contains(">t8</text>"), "a track on the map");
     stop.cancel();
     rt.block_on(server).unwrap().unwrap();
 }
