@@ -249,6 +249,119 @@ fn transform(child: String, ns: i64, p: [f64; 3], q: Quaternion) -> FrameTransfo
     }
 }
 
+fn entities(entities: Vec<SceneEntity>) -> SceneUpdate {
+    SceneUpdate {
+        deletions: Vec::new(),
+        entities,
+    }
+}
+
+/// The view rebuilt record by record, and what has been drawn of it.
+struct Export<'g, W: Write + Seek> {
+    o: Out<W>,
+    state: ViewState,
+    looks: BTreeMap<u32, (bool, bool, Option<Mode>)>,
+    geo: Option<&'g Geo>,
+}
+
+impl<W: Write + Seek> Export<'_, W> {
+    /// The room, every camera and its pose, once the site is known.
+    fn site(&mut self, ns: i64) -> Result<(), McapExportError> {
+        self.o.write(ROOM, ns, &room(&self.state, ns))?;
+        let mut update = SceneUpdate::default();
+        for n in self.state.nodes.values() {
+            update.entities.extend(camera_entity(n, ns));
+            self.looks.insert(n.id, camera_look(n));
+            if let Some(cam) = &n.camera {
+                let [x, y, z, w] = cam.orientation;
+                let q = Quaternion { x, y, z, w };
+                self.o.write(
+                    TF,
+                    ns,
+                    &transform(format!("camera_{}", n.id), ns, cam.position, q),
+                )?;
+            }
+        }
+        self.o.write(CAMERAS, ns, &update)
+    }
+
+    /// A node's status, and its camera again if it looks different now.
+    fn node(&mut self, id: u32, ns: i64) -> Result<(), McapExportError> {
+        let Some(n) = self.state.nodes.get(&id) else {
+            return Ok(());
+        };
+        let msg = NodeStatusMessage {
+            timestamp: Time::from_ns(ns),
+            node: id,
+            role: n.role,
+            up: n.up,
+            stale: n.stale,
+            mode: n.mode,
+            head: n.head,
+            health: &n.health,
+        };
+        self.o.write(NODE_STATUS, ns, &msg)?;
+        if self.looks.get(&id) != Some(&camera_look(n))
+            && let Some(e) = camera_entity(n, ns)
+        {
+            self.looks.insert(id, camera_look(n));
+            self.o.write(CAMERAS, ns, &entities(vec![e]))?;
+        }
+        Ok(())
+    }
+
+    /// A track's entity, frame and fix.
+    fn track(&mut self, g: u32, ns: i64) -> Result<(), McapExportError> {
+        let Some(t) = self.state.tracks.get(&g) else {
+            return Ok(());
+        };
+        if t.updated_ns == 0 {
+            return Ok(()); // owned, but no report seen yet
+        }
+        self.o.write(TRACKS, ns, &entities(vec![track_entity(t, ns)]))?;
+        self.o
+            .write(TF, ns, &transform(format!("track_{g}"), ns, t.position, IDENTITY))?;
+        if let Some(geo) = self.geo {
+            self.o.write(LOCATION, ns, &location(geo, t, ns))?;
+        }
+        Ok(())
+    }
+
+    fn change(&mut self, change: Change, ns: i64) -> Result<(), McapExportError> {
+        match change {
+            Change::Scenario => self.site(ns),
+            Change::Node(id) => self.node(id, ns),
+            Change::Track(g) => self.track(g, ns),
+            Change::TrackRemoved(g) => {
+                let deletion = SceneEntityDeletion {
+                    timestamp: Time::from_ns(ns),
+                    kind: 0,
+                    id: format!("track-{g}"),
+                };
+                let update = SceneUpdate {
+                    deletions: vec![deletion],
+                    entities: Vec::new(),
+                };
+                self.o.write(TRACKS, ns, &update)
+            }
+            Change::Handover(seq) => {
+                let Some(h) = self.state.handovers.iter().find(|h| h.seq == seq) else {
+                    return Ok(());
+                };
+                let msg = HandoverMessage {
+                    timestamp: Time::from_ns(ns),
+                    global: h.global,
+                    from: h.from,
+                    to: h.to,
+                    reason: &h.reason,
+                };
+                self.o.write(HANDOVER, ns, &msg)
+            }
+            Change::Problem => Ok(()),
+        }
+    }
+}
+
 /// Write a recording as MCAP; `geo` adds `/location`.
 ///
 /// # Errors
@@ -277,113 +390,21 @@ pub fn write_mcap<W: Write + Seek>(
     }
     o.channel(NODE_STATUS, "ocelli.NodeStatus", &node_status_schema())?;
     o.channel(HANDOVER, "ocelli.Handover", &handover_schema())?;
-
-    let mut state = ViewState::new();
-    let mut looks: BTreeMap<u32, (bool, bool, Option<Mode>)> = BTreeMap::new();
+    let mut export = Export {
+        o,
+        state: ViewState::new(),
+        looks: BTreeMap::new(),
+        geo,
+    };
     for s in &loaded.records {
-        let ns = s.at.0;
-        for change in state.apply(s) {
-            match change {
-                Change::Scenario => {
-                    o.write(ROOM, ns, &room(&state, ns))?;
-                    let mut update = SceneUpdate::default();
-                    for n in state.nodes.values() {
-                        update.entities.extend(camera_entity(n, ns));
-                        looks.insert(n.id, camera_look(n));
-                        if let Some(cam) = &n.camera {
-                            let [x, y, z, w] = cam.orientation;
-                            o.write(
-                                TF,
-                                ns,
-                                &transform(
-                                    format!("camera_{}", n.id),
-                                    ns,
-                                    cam.position,
-                                    Quaternion { x, y, z, w },
-                                ),
-                            )?;
-                        }
-                    }
-                    o.write(CAMERAS, ns, &update)?;
-                }
-                Change::Node(id) => {
-                    let Some(n) = state.nodes.get(&id) else { continue };
-                    let msg = NodeStatusMessage {
-                        timestamp: Time::from_ns(ns),
-                        node: id,
-                        role: n.role,
-                        up: n.up,
-                        stale: n.stale,
-                        mode: n.mode,
-                        head: n.head,
-                        health: &n.health,
-                    };
-                    o.write(NODE_STATUS, ns, &msg)?;
-                    if looks.get(&id) != Some(&camera_look(n))
-                        && let Some(e) = camera_entity(n, ns)
-                    {
-                        looks.insert(id, camera_look(n));
-                        o.write(
-                            CAMERAS,
-                            ns,
-                            &SceneUpdate {
-                                deletions: Vec::new(),
-                                entities: vec![e],
-                            },
-                        )?;
-                    }
-                }
-                Change::Track(g) => {
-                    let Some(t) = state.tracks.get(&g) else { continue };
-                    if t.updated_ns == 0 {
-                        continue; // owned, but no report seen yet
-                    }
-                    o.write(
-                        TRACKS,
-                        ns,
-                        &SceneUpdate {
-                            deletions: Vec::new(),
-                            entities: vec![track_entity(t, ns)],
-                        },
-                    )?;
-                    o.write(TF, ns, &transform(format!("track_{g}"), ns, t.position, IDENTITY))?;
-                    if let Some(geo) = geo {
-                        o.write(LOCATION, ns, &location(geo, t, ns))?;
-                    }
-                }
-                Change::TrackRemoved(g) => {
-                    let deletion = SceneEntityDeletion {
-                        timestamp: Time::from_ns(ns),
-                        kind: 0,
-                        id: format!("track-{g}"),
-                    };
-                    o.write(
-                        TRACKS,
-                        ns,
-                        &SceneUpdate {
-                            deletions: vec![deletion],
-                            entities: Vec::new(),
-                        },
-                    )?;
-                }
-                Change::Handover(seq) => {
-                    if let Some(h) = state.handovers.iter().find(|h| h.seq == seq) {
-                        let msg = HandoverMessage {
-                            timestamp: Time::from_ns(ns),
-                            global: h.global,
-                            from: h.from,
-                            to: h.to,
-                            reason: &h.reason,
-                        };
-                        o.write(HANDOVER, ns, &msg)?;
-                    }
-                }
-                Change::Problem => {}
-            }
+        for change in export.state.apply(s) {
+            export.change(change, s.at.0)?;
         }
     }
-    o.writer.finish()?;
-    Ok(McapSummary { messages: o.counts })
+    export.o.writer.finish()?;
+    Ok(McapSummary {
+        messages: export.o.counts,
+    })
 }
 
 #[cfg(test)]

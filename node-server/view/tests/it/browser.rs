@@ -81,6 +81,8 @@ const GEO: Geo = Geo {
 struct Run {
     view: ViewState,
     records: Vec<Stamped>,
+    /// Each sender's last sequence number.
+    seqs: std::collections::BTreeMap<u32, u64>,
 }
 
 impl Run {
@@ -88,6 +90,47 @@ impl Run {
         self.view.apply(&s);
         self.records.push(s);
     }
+
+    /// A message from `node` with its next sequence number (camera 15 loses one on the way).
+    fn send(&mut self, at: i64, node: u32, body: Message) {
+        let s = self.seqs.entry(node).or_insert(0);
+        *s += if node == 15 && *s == 4 { 2 } else { 1 };
+        let seq = *s;
+        self.push(received(at, node, seq, body));
+    }
+
+    /// Every camera but 12 reports its status: modes Active, CameraOff and Inactive in turn.
+    fn camera_statuses(&mut self, at: i64, frames: u64) {
+        for cam in (10..31u32).filter(|&c| c != 12) {
+            let mode = match cam % 4 {
+                0 | 1 => Mode::Active,
+                2 => Mode::CameraOff,
+                _ => Mode::Inactive,
+            };
+            let status = NodeStatus {
+                mode,
+                time_in_mode_ns: [0; 3],
+                frames,
+                detections: 0,
+                dropped: u64::from(cam == 15),
+                rejected: 0,
+                sync_offset_ns: 120_000,
+                sync_error_ns: 80_000,
+            };
+            self.send(at, cam, Message::NodeStatus(status));
+        }
+    }
+}
+
+fn new_global(at: i64, head: u32, local: u32, global: u32) -> Stamped {
+    decided(
+        at,
+        Decision::NewGlobal {
+            head: NodeId(head),
+            local: TargetId(local),
+            global: TargetId(global),
+        },
+    )
 }
 
 /// The default scenario with two people walking for 12 s, one of them handed from head 2 to
@@ -110,99 +153,43 @@ fn synthetic_run() -> (ViewState, Vec<Stamped>) {
             },
         ));
     }
-    // Each sender numbers its own messages; camera 15 loses one on the way.
-    let mut seqs = std::collections::BTreeMap::<u32, u64>::new();
-    let mut next = |node: u32| {
-        let s = seqs.entry(node).or_insert(0);
-        *s += if node == 15 && *s == 4 { 2 } else { 1 };
-        *s
-    };
     for step in 0..=60i64 {
         let at = T0 + step * S / 5;
         let t = step as f64 / 5.0;
         // Person 7 walks east across the region border at 6 m; person 8 circles in the west.
         let p7 = [3.0 + 0.45 * t, 2.2 + 0.1 * t];
-        let head7 = if p7[0] < 6.3 { 2 } else { 3 };
-        let local7 = if head7 == 2 { 1 } else { 5 };
-        run.push(received(
-            at,
-            head7,
-            next(head7),
-            report(local7, at, p7, [0.45, 0.1], [0.03, 0.01, 0.012], &[10, 11, 13]),
-        ));
+        let (head7, local7) = if p7[0] < 6.3 { (2, 1) } else { (3, 5) };
+        let r7 = report(local7, at, p7, [0.45, 0.1], [0.03, 0.01, 0.012], &[10, 11, 13]);
+        run.send(at, head7, r7);
         let a = t * 0.35;
         let p8 = [3.0 + 1.5 * a.cos(), 5.5 + 1.2 * a.sin()];
-        run.push(received(
-            at,
-            2,
-            next(2),
-            report(
-                2,
-                at,
-                p8,
-                [-0.5 * a.sin(), 0.4 * a.cos()],
-                [0.02, -0.008, 0.05],
-                &[10, 14],
-            ),
-        ));
+        let v8 = [-0.5 * a.sin(), 0.4 * a.cos()];
+        run.send(at, 2, report(2, at, p8, v8, [0.02, -0.008, 0.05], &[10, 14]));
         if step == 0 {
-            run.push(decided(
-                at,
-                Decision::NewGlobal {
-                    head: NodeId(2),
-                    local: TargetId(1),
-                    global: TargetId(7),
-                },
-            ));
-            run.push(decided(
-                at,
-                Decision::NewGlobal {
-                    head: NodeId(2),
-                    local: TargetId(2),
-                    global: TargetId(8),
-                },
-            ));
+            run.push(new_global(at, 2, 1, 7));
+            run.push(new_global(at, 2, 2, 8));
         }
-        if head7 == 3 && local7 == 5 && run.view.tracks.get(&7).is_none_or(|t| t.owner != 3) {
+        if head7 == 3 && run.view.tracks.get(&7).is_none_or(|t| t.owner != 3) {
+            let (from, to) = (Some(NodeId(2)), NodeId(3));
+            let reason = HandoverReason::Region;
             run.push(decided(
                 at,
                 Decision::Handover {
                     global: TargetId(7),
-                    from: Some(NodeId(2)),
-                    to: NodeId(3),
-                    reason: HandoverReason::Region,
+                    from,
+                    to,
+                    reason,
                 },
             ));
-            run.push(decided(
-                at,
-                Decision::Claimed {
-                    head: NodeId(3),
-                    local: TargetId(5),
-                    global: TargetId(7),
-                },
-            ));
+            let claim = Decision::Claimed {
+                head: to,
+                local: TargetId(5),
+                global: TargetId(7),
+            };
+            run.push(decided(at, claim));
         }
         if step % 5 == 0 {
-            for cam in 10..31u32 {
-                let mode = match cam % 4 {
-                    0 | 1 => Mode::Active,
-                    2 => Mode::CameraOff,
-                    _ => Mode::Inactive,
-                };
-                let status = NodeStatus {
-                    mode,
-                    time_in_mode_ns: [0; 3],
-                    frames: u64::try_from(step).unwrap_or(0),
-                    detections: 0,
-                    dropped: u64::from(cam == 15),
-                    rejected: 0,
-                    sync_offset_ns: 120_000,
-                    sync_error_ns: 80_000,
-                };
-                if cam != 12 {
-                    run.push(received(at, cam, next(cam), Message::NodeStatus(status)));
-                }
-            }
+            run.camera_statuses(at, u64::try_from(step).unwrap_or(0));
         }
     }
     run.push(decided(
