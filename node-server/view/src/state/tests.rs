@@ -92,6 +92,30 @@ fn the_scenario_gives_the_site() {
     assert!(v.problems.is_empty(), "{:?}", v.problems);
 }
 
+/// Every camera of the default scenario sees part of the floor, and its wedge stays in the room.
+#[test]
+fn camera_wedges_lie_on_the_room_floor() {
+    let v = default_view();
+    for c in v.nodes_of(NodeKind::Camera) {
+        let g = c.camera.as_ref().unwrap();
+        let inside = |p: &[f64]| p[0] >= -1e-9 && p[0] <= 12.0 + 1e-9 && p[1] >= -1e-9 && p[1] <= 8.0 + 1e-9;
+        assert!(
+            g.footprint.iter().all(|p| inside(p)),
+            "camera {}: {:?}",
+            c.id,
+            g.footprint
+        );
+        assert!(
+            g.frustum
+                .iter()
+                .all(|p| inside(p) && p[2] >= -1e-9 && p[2] <= 3.0 + 1e-9)
+        );
+        // It looks down into the room, and some corner ray reaches the floor.
+        assert!(g.forward[2] < 0.0, "camera {}", c.id);
+        assert!(g.frustum.iter().any(|p| p[2].abs() < 1e-9), "camera {}", c.id);
+    }
+}
+
 #[test]
 fn a_report_becomes_a_track_when_the_server_names_it() {
     let mut v = default_view();
