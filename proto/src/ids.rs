@@ -70,6 +70,8 @@ pub enum Role {
     Server,
     /// Benchmarks, probes and other tools that speak the protocol.
     Tool,
+    /// A visualization node: subscribes to the server's view feed and has no say in tracking.
+    Viewer,
 }
 
 impl fmt::Display for Role {
@@ -79,6 +81,7 @@ impl fmt::Display for Role {
             Role::Head => "head",
             Role::Server => "server",
             Role::Tool => "tool",
+            Role::Viewer => "viewer",
         })
     }
 }

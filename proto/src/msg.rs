@@ -7,6 +7,7 @@
 use crate::ids::{NodeId, Role, TargetId};
 pub use crate::observation::{Kinds, Observation, ObservationKind, RssiReading};
 use crate::time::ClusterTime;
+pub use crate::view::{ViewSubscribe, ViewUpdate};
 use serde::{Deserialize, Serialize};
 
 /// 6×6 matrix, row-major (information matrices, covariances of the state).
@@ -325,6 +326,10 @@ pub enum Message {
     SyncBeacon(SyncBeacon),
     Liveness(Liveness),
     MeasuredFrame(MeasuredFrame),
+    /// viewer → server: send me the view feed (renewed every second).
+    ViewSubscribe(ViewSubscribe),
+    /// server → viewer: the tracks, nodes and handovers, every step.
+    ViewUpdate(ViewUpdate),
 }
 
 impl Message {
@@ -345,12 +350,15 @@ impl Message {
             Message::SyncBeacon(_) => "sync_beacon",
             Message::Liveness(_) => "liveness",
             Message::MeasuredFrame(_) => "measured_frame",
+            Message::ViewSubscribe(_) => "view_subscribe",
+            Message::ViewUpdate(_) => "view_update",
         }
     }
 
     /// Whether a transport may drop this message when a queue is full. Measurements and
     /// reports are superseded by the next step (a logging run's dropped frames are counted
-    /// by the camera); control messages never are.
+    /// by the camera), and so are a viewer's subscription (renewed every second) and its
+    /// updates; control messages never are.
     pub fn droppable(&self) -> bool {
         matches!(
             self,
@@ -360,6 +368,8 @@ impl Message {
                 | Message::TrackReport(_)
                 | Message::Heartbeat
                 | Message::MeasuredFrame(_)
+                | Message::ViewSubscribe(_)
+                | Message::ViewUpdate(_)
         )
     }
 }
