@@ -20,11 +20,13 @@
 pub mod bench;
 pub mod feed;
 pub mod follow;
-pub mod geo;
+pub use proto::geo;
 pub mod geometry;
 pub mod kml;
+pub mod live;
 pub mod mcap;
 pub mod metrics;
+pub mod node;
 pub mod playback;
 pub mod server;
 pub mod state;

@@ -39,6 +39,7 @@ fn role(kind: NodeKind) -> &'static str {
         NodeKind::Camera => "camera",
         NodeKind::Head => "head",
         NodeKind::Server => "server",
+        NodeKind::Viewer => "viewer",
         NodeKind::Unknown => "unknown",
     }
 }

@@ -25,10 +25,12 @@ use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 
 mod apply;
+mod live;
 #[cfg(test)]
 mod tests;
 
 pub use apply::Change;
+pub use live::kind_of;
 
 /// How much trail each track keeps, ns.
 pub const TRAIL_NS: i64 = 10_000_000_000;
@@ -91,6 +93,8 @@ pub enum NodeKind {
     Camera,
     Head,
     Server,
+    /// A visualization node.
+    Viewer,
     /// Heard from but not in the scenario (yet).
     #[default]
     Unknown,
@@ -221,6 +225,8 @@ struct Bookkeeping {
     /// The last sequence number from each sender.
     last_seq: BTreeMap<u32, u64>,
     handover_seq: u64,
+    /// The live feed's round being received.
+    round: live::Round,
 }
 
 impl ViewState {
@@ -240,6 +246,9 @@ impl ViewState {
     /// field of view, a head's region. What was learnt about the nodes so far is kept.
     pub fn set_scenario(&mut self, sc: &Scenario) {
         self.scenario = sc.name.clone();
+        if sc.world.geo.is_some() {
+            self.geo = sc.world.geo;
+        }
         self.step_ms = sc.method.step_ms;
         self.world = WorldView {
             min: sc.world.min,

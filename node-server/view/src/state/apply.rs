@@ -3,9 +3,9 @@
 use super::{HandoverView, NodeKind, NodeView, RECENT_HANDOVERS, TrackView, ViewState};
 use crate::geometry::Ellipse;
 use node_server::{Decision, HandoverReason, Record, Stamped};
+use proto::Envelope;
 use proto::msg::{Message, NodeStatus, TrackReport};
 use proto::scenario::Scenario;
-use proto::{Envelope, Role};
 
 /// What a record changed in the view (for exports that write only what changed).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -136,7 +136,7 @@ impl ViewState {
         out.push(Change::Track(global));
     }
 
-    fn update_track(&mut self, global: u32, head: u32, at: i64, r: &TrackReport) {
+    pub(super) fn update_track(&mut self, global: u32, head: u32, at: i64, r: &TrackReport) {
         let t = self.tracks.entry(global).or_insert_with(|| TrackView {
             global,
             owner: head,
@@ -202,12 +202,7 @@ impl ViewState {
                 n.stale = false;
                 n.last_heard_ns.get_or_insert(at);
                 if n.role == NodeKind::Unknown {
-                    n.role = match role {
-                        Role::Camera => NodeKind::Camera,
-                        Role::Head => NodeKind::Head,
-                        Role::Server => NodeKind::Server,
-                        Role::Tool => NodeKind::Unknown,
-                    };
+                    n.role = super::live::kind_of(*role);
                 }
                 out.push(Change::Node(node.0));
             }
