@@ -49,6 +49,11 @@ pub enum Command {
     /// Measure parts of the system; prints JSON.
     #[command(subcommand)]
     Bench(Bench),
+    /// Run the visualization node: a client of the server serving the live map, the 3D view,
+    /// `/api/state`, `/metrics` and KML over HTTP.
+    Viewer(cmd::viewer::Args),
+    /// Play a server's recording back in the viewer's pages (play, pause, time slider).
+    View(cmd::view::Args),
     /// Run one transport endpoint as a process (for tests and probes).
     #[command(hide = true)]
     Peer(cmd::peer::Args),
@@ -130,6 +135,8 @@ pub fn main() -> ExitCode {
         Command::Bench(Bench::Camera(args)) => cmd::bench::camera(args),
         Command::Bench(Bench::Server(args)) => cmd::bench::server(args),
         Command::Bench(Bench::Transport(args)) => cmd::bench::transport(args),
+        Command::Viewer(args) => cmd::viewer::run(args),
+        Command::View(args) => cmd::view::run(args),
         Command::Peer(args) => cmd::peer::run(args),
     };
     match result {

@@ -15,3 +15,5 @@ pub mod scenario;
 pub mod server;
 pub mod sim;
 pub mod undistort;
+pub mod view;
+pub mod viewer;

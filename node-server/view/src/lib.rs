@@ -8,7 +8,8 @@
 //! - [`server`]: axum routes — the map (`/`), the 3D view (`/3d`), server-sent events,
 //!   `/api/state`, `/metrics`, `/live.kml` and `/tracks.kml`, playback controls; [`serve`].
 //! - [`playback`]: a recording with checkpoints, played, paused and sought.
-//! - [`follow`]: a live view from the recording the server is writing.
+//! - [`node`], [`live`]: the visualization node — its core, a client of the server's view
+//!   feed, and its process (`ocelli viewer`).
 //! - [`geo`], [`kml`]: `[world.geo]`, local metres → WGS84, KML live and for whole recordings.
 //! - [`mod@mcap`]: recordings as MCAP for Foxglove Studio.
 //! - [`geometry`]: cameras' fields of view and tracks' ellipses; [`metrics`]: Prometheus text.
@@ -19,7 +20,6 @@
 
 pub mod bench;
 pub mod feed;
-pub mod follow;
 pub use proto::geo;
 pub mod geometry;
 pub mod kml;
