@@ -38,8 +38,8 @@ pub struct Args {
 pub fn run(args: Args) -> Result<ExitCode> {
     let scenario = args.scenario.as_deref().map(Scenario::load).transpose()?;
     let loaded = load(&args.recording, scenario)?;
-    if let Some(tail) = &loaded.tail {
-        tracing::warn!(offset = tail.offset, skipped = tail.skipped_bytes, problem = ?tail.problem, "recording has a torn tail; exported what precedes it");
+    for s in &loaded.skipped {
+        tracing::warn!(offset = s.offset, bytes = s.bytes, damage = ?s.damage, "recording: damaged stretch skipped; exported the records around it");
     }
     let format = match args.format {
         FormatArg::Csv => Format::Csv,

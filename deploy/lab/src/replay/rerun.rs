@@ -77,7 +77,7 @@ impl Rerun {
         Loaded {
             scenario: self.scenario.clone(),
             records: self.records.clone(),
-            tail: None,
+            skipped: Vec::new(),
         }
     }
 }
@@ -181,10 +181,12 @@ pub fn replay_recording(
 ) -> Result<(Vec<TrackRow>, Report)> {
     let loaded =
         node_server::analysis::load(path, scenario).with_context(|| format!("reading {}", path.display()))?;
-    if let Some(tail) = &loaded.tail {
+    for s in &loaded.skipped {
         tracing::warn!(
-            skipped_bytes = tail.skipped_bytes,
-            "replay: torn tail of the recording skipped"
+            offset = s.offset,
+            bytes = s.bytes,
+            damage = ?s.damage,
+            "replay: damaged stretch of the recording skipped"
         );
     }
     let opts = opts(&loaded);
@@ -235,7 +237,7 @@ mod tests {
         let loaded = |records| Loaded {
             scenario: scenario.clone(),
             records,
-            tail: None,
+            skipped: Vec::new(),
         };
         let (from_zero, from_wall) = (loaded(at_zero), loaded(shifted));
         assert_eq!(recording_t0(&from_zero), ClusterTime(0));
