@@ -8,15 +8,16 @@
 //! checkpoint interval however long the recording is; records are read from the file, never
 //! held in memory.
 //!
-//! A torn tail (the writer crashed) ends the recording where the intact records end; records
-//! that do not decode (another build, another protocol version) are skipped and counted; both
-//! are named in the view's problems. [`run`] is the producer task: it advances the position
+//! The recording reader skips damage and says where: a torn tail (the writer crashed) ends the
+//! recording where the intact records end; damaged stretches and records that do not decode
+//! (another build, another protocol version) are skipped and counted; all are named in the
+//! view's problems. [`run`] is the producer task: it advances the position
 //! with the clock at the chosen speed, takes the page's commands and publishes the view.
 
 use crate::feed::Publisher;
 use crate::geo::Geo;
 use crate::state::ViewState;
-use node_server::recording::{RecordingError, Tail, TailProblem};
+use node_server::recording::{Damage, RecordingError, Skipped};
 use node_server::{Reader, Stamped};
 use serde::Serialize;
 use std::fs::File;
@@ -78,13 +79,14 @@ struct Checkpoint {
 pub struct RecordingIndex {
     path: PathBuf,
     header: Vec<u8>,
-    /// End of the intact records.
-    valid_len: u64,
+    /// Bytes of the file when it was indexed (a reader reads no further).
+    len: u64,
     start_ns: i64,
     end_ns: i64,
     records: u64,
     checkpoints: Vec<Checkpoint>,
-    tail: Option<Tail>,
+    /// A torn end (damage reaching the end of the file), if any.
+    tail: Option<Skipped>,
 }
 
 impl std::fmt::Debug for RecordingIndex {
@@ -99,24 +101,52 @@ impl std::fmt::Debug for RecordingIndex {
 
 type RecordReader = Reader<Chain<Cursor<Vec<u8>>, BufReader<File>>>;
 
-/// Why a record was skipped, worded for the page.
-fn skipped(e: &RecordingError) -> String {
-    match e {
-        RecordingError::Record { source, .. } => format!("records that do not decode were skipped: {source}"),
-        other => other.to_string(),
+/// Whether a skipped stretch is the file's torn end: cut short where the file ends.
+fn is_torn_end(s: &Skipped, len: u64) -> bool {
+    s.offset + s.bytes >= len && matches!(s.damage, Damage::ShortHeader | Damage::ShortPayload { .. })
+}
+
+/// What was wrong with a skipped stretch, for the page.
+fn damage_text(d: Damage) -> &'static str {
+    match d {
+        Damage::ShortHeader | Damage::ShortPayload { .. } => "cut short",
+        Damage::BadLength { .. } => "a corrupt length",
+        Damage::Checksum => "a checksum mismatch",
+        Damage::Undecodable => "records that do not decode: another build or protocol version",
     }
 }
 
-fn torn_text(t: &Tail) -> String {
-    let why = match t.problem {
-        TailProblem::ShortHeader | TailProblem::ShortPayload { .. } => "cut short",
-        TailProblem::BadLength { .. } => "a corrupt length",
-        TailProblem::Checksum => "a checksum mismatch",
-    };
+/// A damaged stretch inside the recording (at file offset `offset`), worded for the page;
+/// undecodable records share one wording, so the page counts them as one problem.
+fn skipped_text(s: &Skipped, offset: u64) -> String {
+    if s.damage == Damage::Undecodable {
+        // One problem however many: the page counts them.
+        return "records that do not decode were skipped (another build or protocol version)".into();
+    }
     format!(
-        "recording is torn at byte {}: {} bytes skipped ({why}); everything before plays",
-        t.offset, t.skipped_bytes
+        "recording damaged at byte {offset}: {} bytes skipped ({}); the records around it play",
+        s.bytes,
+        damage_text(s.damage)
     )
+}
+
+fn torn_text(t: &Skipped) -> String {
+    format!(
+        "recording is torn at byte {}: {} bytes skipped ({}); everything before plays",
+        t.offset,
+        t.bytes,
+        damage_text(t.damage)
+    )
+}
+
+/// The stretch a reader skipped in its last read, if it skipped one (a read skips at most one:
+/// adjacent damage is merged, and a valid record ends a read).
+fn new_skip<R: Read>(reader: &Reader<R>, seen: &mut usize) -> Option<Skipped> {
+    let list = reader.skipped();
+    (list.len() > *seen).then(|| {
+        *seen = list.len();
+        list[list.len() - 1]
+    })
 }
 
 impl RecordingIndex {
@@ -131,7 +161,8 @@ impl RecordingIndex {
             source,
         };
         let mut reader = Reader::open(path)?;
-        let header_len = reader.valid_len();
+        let header_len = reader.offset();
+        let len = std::fs::metadata(path).map_err(io)?.len();
         let mut header = vec![0u8; usize::try_from(header_len).unwrap_or(0)];
         File::open(path)
             .and_then(|mut f| f.read_exact(&mut header))
@@ -144,9 +175,14 @@ impl RecordingIndex {
             state: state.clone(),
         }];
         let (mut start_ns, mut end_ns, mut records, mut since) = (None, i64::MIN, 0u64, 0u64);
+        let mut seen = 0;
         loop {
-            let offset = reader.valid_len();
-            let Some(item) = reader.next() else { break };
+            let offset = reader.offset();
+            let item = reader.next();
+            if let Some(skip) = new_skip(&reader, &mut seen).filter(|s| !is_torn_end(s, len)) {
+                state.undecodable(state.time_ns, skipped_text(&skip, skip.offset));
+            }
+            let Some(item) = item else { break };
             match item {
                 Ok(s) => {
                     let last = checkpoints.last().map_or(i64::MIN, |c| c.at_ns);
@@ -166,7 +202,6 @@ impl RecordingIndex {
                     since += 1;
                     state.apply(&s);
                 }
-                Err(e @ RecordingError::Record { .. }) => state.undecodable(state.time_ns, skipped(&e)),
                 Err(e) => return Err(e.into()),
             }
         }
@@ -174,7 +209,8 @@ impl RecordingIndex {
             return Err(PlaybackError::Empty(path.into()));
         };
         // Say it from the first moment on, wherever the page seeks to.
-        if let Some(t) = reader.tail() {
+        let tail = reader.skipped().last().filter(|s| is_torn_end(s, len)).copied();
+        if let Some(t) = &tail {
             for c in &mut checkpoints {
                 c.state.note_problem(start_ns, torn_text(t));
             }
@@ -182,12 +218,12 @@ impl RecordingIndex {
         Ok(RecordingIndex {
             path: path.into(),
             header,
-            valid_len: reader.valid_len(),
+            len,
             start_ns,
             end_ns,
             records,
             checkpoints,
-            tail: reader.tail().cloned(),
+            tail,
         })
     }
 
@@ -197,7 +233,7 @@ impl RecordingIndex {
     }
 
     /// Where the recording is torn, if it is.
-    pub fn tail(&self) -> Option<&Tail> {
+    pub fn tail(&self) -> Option<&Skipped> {
         self.tail.as_ref()
     }
 
@@ -214,7 +250,7 @@ impl RecordingIndex {
         };
         let mut f = File::open(&self.path).map_err(io)?;
         f.seek(SeekFrom::Start(offset)).map_err(io)?;
-        let len = self.header.len() as u64 + self.valid_len.saturating_sub(offset);
+        let len = self.header.len() as u64 + self.len.saturating_sub(offset);
         let inner = Cursor::new(self.header.clone()).chain(BufReader::new(f));
         Ok(Reader::new(inner, len, &self.path)?)
     }
@@ -225,6 +261,10 @@ pub struct Player {
     index: Arc<RecordingIndex>,
     state: ViewState,
     reader: RecordReader,
+    /// File offset the reader started at (its offsets count the replayed header first).
+    base: u64,
+    /// Skipped stretches of the reader already counted.
+    seen: usize,
     /// The first record after the position, read but not applied.
     pending: Option<Stamped>,
     position_ns: i64,
@@ -251,6 +291,8 @@ impl Player {
         let reader = index.reader_at(first.offset)?;
         let mut p = Player {
             state: first.state.clone(),
+            base: first.offset,
+            seen: 0,
             index,
             reader,
             pending: None,
@@ -288,12 +330,18 @@ impl Player {
                 self.state.apply(&s);
                 any = true;
             }
-            match self.reader.next() {
+            let item = self.reader.next();
+            if let Some(skip) = new_skip(&self.reader, &mut self.seen) {
+                // Back to file offsets: the reader read the header, then the file from `base`.
+                let offset = skip.offset - self.index.header.len() as u64 + self.base;
+                if !is_torn_end(&Skipped { offset, ..skip }, self.index.len) {
+                    self.state
+                        .undecodable(self.state.time_ns, skipped_text(&skip, offset));
+                }
+            }
+            match item {
                 None => break,
                 Some(Ok(s)) => self.pending = Some(s),
-                Some(Err(e @ RecordingError::Record { .. })) => {
-                    self.state.undecodable(self.state.time_ns, skipped(&e));
-                }
                 Some(Err(e)) => return Err(e.into()),
             }
         }
@@ -311,6 +359,8 @@ impl Player {
         let i = self.index.checkpoints.partition_point(|c| c.at_ns <= t_ns).max(1) - 1;
         let c = &self.index.checkpoints[i];
         self.reader = self.index.reader_at(c.offset)?;
+        self.base = c.offset;
+        self.seen = 0;
         self.state = c.state.clone();
         self.pending = None;
         self.position_ns = i64::MIN;

@@ -103,7 +103,8 @@ fn records_of_another_protocol_version_are_skipped_and_named() {
     let mut p = Player::new(index.clone()).unwrap();
     p.seek(index.span_ns().1).unwrap();
     let s = p.state();
-    assert!(s.totals.undecodable > 10);
+    // Counted per skipped stretch: adjacent undecodable records are skipped as one.
+    assert!(s.totals.undecodable > 0);
     let problem = s.problems.iter().find(|p| p.text.contains("version")).unwrap();
     assert!(problem.text.contains("do not decode"), "{}", problem.text);
     assert_eq!(problem.count, s.totals.undecodable, "one problem, counted");

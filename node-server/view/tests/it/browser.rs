@@ -299,7 +299,7 @@ fn the_pages_show_tracks_in_a_real_browser() {
     // The DOM once the page's scripts drew the state (tried again, longer, on a slow machine).
     let dom = |path: &str, drawn: &str| {
         let mut last = String::new();
-        for timeout in [4000, 15000] {
+        for timeout in [4000, 15000, 40000] {
             last = run_chromium(&format!("http://{addr}{path}"), timeout, &["--dump-dom".into()]);
             if last.contains(drawn) {
                 break;
@@ -368,7 +368,7 @@ fn a_recording_plays_back_in_a_real_browser() {
             }
         });
     let mut page = String::new();
-    for timeout in [4000, 15000] {
+    for timeout in [4000, 15000, 40000] {
         page = run_chromium(&format!("http://{addr}/"), timeout, &["--dump-dom".into()]);
         if page.contains(">t8</text>") {
             break;
