@@ -526,6 +526,7 @@ impl CameraNode {
             rejected: c.rejected,
             sync_offset_ns: self.sync.0,
             sync_error_ns: self.sync.1,
+            bytes_sent: 0,
         };
         self.send_to_head(Message::NodeStatus(status.clone()), &mut out);
         match self.cfg.server {

@@ -198,6 +198,7 @@ impl HeadNode {
                 rejected: self.counters.rejected,
                 sync_offset_ns: self.sync.0,
                 sync_error_ns: self.sync.1,
+                bytes_sent: 0,
             }),
         ));
     }

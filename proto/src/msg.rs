@@ -163,6 +163,10 @@ pub struct NodeStatus {
     /// Estimated offset to the leader's clock, ns, and the residual of the fit, ns.
     pub sync_offset_ns: i64,
     pub sync_error_ns: i64,
+    /// Bytes this node put on the wire so far: the encoded frames its transport took. Only
+    /// the runtime knows it, so the runtime fills it in as the status goes out (a core
+    /// leaves 0).
+    pub bytes_sent: u64,
 }
 
 // ---------------------------------------------------------------- head → camera
@@ -223,6 +227,10 @@ pub struct TrackReport {
     pub power_mw: f64,
     /// Contributions that arrived after the deadline of their step, cumulative.
     pub late: u64,
+    /// The track's colour histogram (paper 004's HS 10×10 then V 10 bins, summing to 1), from
+    /// the ground-plane observations fused into it, for identity at the server; empty when no
+    /// camera sent one.
+    pub appearance: Vec<f32>,
 }
 
 // ---------------------------------------------------------------- server → nodes
@@ -292,6 +300,41 @@ pub struct MeasuredFrame {
     pub detections: Vec<MeasuredDetection>,
 }
 
+// ---------------------------------------------------------------- particle filter samples
+
+/// Most samples one [`SampleSet`] carries.
+pub const MAX_SAMPLES: usize = 512;
+
+/// Ask a camera for the sample sets of its per-person particle filters (paper 004 §2.5.1 (i):
+/// the pdf itself, sent only on request). Answered once, from the newest frame, with one
+/// [`SampleSet`] per person to the node that asked.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SampleRequest {
+    /// The camera asked.
+    pub node: NodeId,
+    /// The camera's id of the person, or `None` for everyone it tracks.
+    pub local: Option<u32>,
+}
+
+/// One weighted sample of a camera's particle filter, in the camera's pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImageSample {
+    /// `[x, y, vx, vy, w, h]`: box centre, velocity (pixels per frame) and size, pixels.
+    pub state: [f32; 6],
+    /// Normalized weight π.
+    pub weight: f32,
+}
+
+/// One person's sample set of a camera's newest frame, the answer to a [`SampleRequest`]. A
+/// filter with more than [`MAX_SAMPLES`] samples sends its heaviest.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SampleSet {
+    /// The camera's id of the person.
+    pub local: u32,
+    pub captured: ClusterTime,
+    pub samples: Vec<ImageSample>,
+}
+
 // ---------------------------------------------------------------- every link
 
 /// First frame on every link.
@@ -326,6 +369,8 @@ pub enum Message {
     SyncBeacon(SyncBeacon),
     Liveness(Liveness),
     MeasuredFrame(MeasuredFrame),
+    SampleRequest(SampleRequest),
+    SampleSet(SampleSet),
     /// viewer → server: send me the view feed (renewed every second).
     ViewSubscribe(ViewSubscribe),
     /// server → viewer: the tracks, nodes and handovers, every step.
@@ -350,6 +395,8 @@ impl Message {
             Message::SyncBeacon(_) => "sync_beacon",
             Message::Liveness(_) => "liveness",
             Message::MeasuredFrame(_) => "measured_frame",
+            Message::SampleRequest(_) => "sample_request",
+            Message::SampleSet(_) => "sample_set",
             Message::ViewSubscribe(_) => "view_subscribe",
             Message::ViewUpdate(_) => "view_update",
         }
@@ -368,6 +415,7 @@ impl Message {
                 | Message::TrackReport(_)
                 | Message::Heartbeat
                 | Message::MeasuredFrame(_)
+                | Message::SampleSet(_)
                 | Message::ViewSubscribe(_)
                 | Message::ViewUpdate(_)
         )

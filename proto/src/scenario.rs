@@ -16,6 +16,9 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 
 mod check;
+pub mod particle;
+
+pub use particle::ParticleParams;
 
 /// The embedded default scenario, modelled on paper 002's 21-camera testbed.
 pub const DEFAULT_SCENARIO_TOML: &str = include_str!("../scenarios/default.toml");
@@ -225,6 +228,20 @@ pub enum Segmentation {
     AdaptiveBackground,
 }
 
+/// What a camera makes of its frames.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CameraTracker {
+    /// Segmented regions, each sent as a pin-hole point (papers 000 and 002).
+    #[default]
+    Segmentation,
+    /// One colour particle filter per person on the adaptive background's regions, each
+    /// person sent as a ground-plane position with size and colour histogram (paper 004 §2,
+    /// §3.2). Needs frames: the measurement-level simulation has none, and converts its
+    /// projected boxes to the ground plane instead.
+    Particle,
+}
+
 /// Method parameters.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case")]
@@ -275,6 +292,13 @@ pub struct Method {
     /// target's colour is known). Empty: in the simulation, its targets' colours.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub target_colours: Vec<[u8; 3]>,
+    /// What cameras make of their frames: segmented regions (the default) or paper 004's
+    /// per-person particle filters.
+    #[serde(default)]
+    pub camera_tracker: CameraTracker,
+    /// The particle filter tracker's parameters (paper 004's values by default).
+    #[serde(default)]
+    pub particle: ParticleParams,
 }
 
 impl Method {
@@ -313,6 +337,8 @@ impl Default for Method {
             drop_lost_cameras: false,
             target_plane_z: None,
             target_colours: Vec::new(),
+            camera_tracker: CameraTracker::Segmentation,
+            particle: ParticleParams::default(),
         }
     }
 }

@@ -148,6 +148,7 @@ impl Validate for Message {
                         format!("negative power {} mW", r.power_mw),
                     ));
                 }
+                check_bins("track_report.appearance", &r.appearance)?;
                 if r.contributors.len() > MAX_CONTRIBUTORS {
                     return Err(err(
                         "track_report.contributors",
@@ -199,6 +200,23 @@ impl Validate for Message {
                     )?;
                     finite("measured_frame.detections.point", &d.point)?;
                     check_cov2("measured_frame.detections.cov", &d.cov)?;
+                }
+                Ok(())
+            }
+            Message::SampleRequest(_) => Ok(()),
+            Message::SampleSet(s) => {
+                if s.samples.len() > MAX_SAMPLES {
+                    return Err(err(
+                        "sample_set.samples",
+                        format!("{} entries exceed the maximum of {MAX_SAMPLES}", s.samples.len()),
+                    ));
+                }
+                for x in &s.samples {
+                    finite32("sample_set.samples", &x.state)?;
+                    finite32("sample_set.samples", &[x.weight])?;
+                    if x.weight < 0.0 {
+                        return Err(err("sample_set.samples", format!("negative weight {}", x.weight)));
+                    }
                 }
                 Ok(())
             }
@@ -283,6 +301,7 @@ impl Validate for Observation {
                 finite("ground.position", &g.position)?;
                 check_cov2("ground.cov", &g.cov)?;
                 finite32("ground.size", &[g.width_m, g.height_m, g.confidence])?;
+                finite32("ground.ml_position", &g.ml_position)?;
                 if g.width_m < 0.0 || g.height_m < 0.0 {
                     return Err(err("ground.size", "negative width or height"));
                 }

@@ -173,6 +173,7 @@ mod tests {
                 rejected: wide,
                 sync_offset_ns: i64::MIN,
                 sync_error_ns: i64::MIN,
+                bytes_sent: wide,
             }),
             steps: wide,
             late: wide,

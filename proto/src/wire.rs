@@ -81,7 +81,7 @@ pub fn decode(frame: &[u8]) -> Result<Envelope, WireError> {
 
 /// Kind names of [`crate::Message`] by wire tag (variant index). A test pins it to
 /// [`crate::Message::kind`].
-pub const MESSAGE_KINDS: [&str; 16] = [
+pub const MESSAGE_KINDS: [&str; 18] = [
     "hello",
     "hello_ack",
     "heartbeat",
@@ -96,6 +96,8 @@ pub const MESSAGE_KINDS: [&str; 16] = [
     "sync_beacon",
     "liveness",
     "measured_frame",
+    "sample_request",
+    "sample_set",
     "view_subscribe",
     "view_update",
 ];

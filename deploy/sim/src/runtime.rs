@@ -175,6 +175,9 @@ struct Timebase {
     /// Latest delivery time scheduled on each outgoing link: links are FIFO (TCP and iceoryx2
     /// both keep order), so jitter delays but never reorders.
     link_tail: BTreeMap<NodeId, i64>,
+    /// Bytes of the encoded frames this node sent, as a transport counts them (a status it
+    /// sends carries the count, as the process runtime fills it in).
+    bytes_sent: u64,
 }
 
 impl Timebase {
@@ -254,6 +257,7 @@ impl Sim {
                     seq: BTreeMap::new(),
                     last_heartbeat: None,
                     link_tail: BTreeMap::new(),
+                    bytes_sent: 0,
                 },
             );
             let now = sim.time[&id].now(0);
@@ -451,12 +455,15 @@ impl Sim {
         }
     }
 
-    fn send(&mut self, t: i64, from: NodeId, o: Outgoing) {
+    fn send(&mut self, t: i64, from: NodeId, mut o: Outgoing) {
         self.counters.sent += 1;
         let now = self.now_of(from, t);
         let Some(tb) = self.time.get_mut(&from) else {
             return;
         };
+        if let Message::NodeStatus(s) = &mut o.body {
+            s.bytes_sent = tb.bytes_sent;
+        }
         let seq = tb.seq.entry(o.to).or_insert(0);
         *seq += 1;
         let env = Envelope {
@@ -477,6 +484,9 @@ impl Sim {
                 return;
             }
         };
+        if let Some(tb) = self.time.get_mut(&from) {
+            tb.bytes_sent += frame.len() as u64;
+        }
         match self.net.fate(t, from, o.to) {
             Fate::Deliver(lat) => {
                 let tail = self

@@ -71,6 +71,7 @@ impl HeadNode {
                         contributors: t.contributors.clone(),
                         power_mw: self.power_mw(),
                         late: self.counters.late,
+                        appearance: t.appearance.clone(),
                     }),
                 ));
             }

@@ -114,6 +114,7 @@ fn busy_view() -> (ViewState, i64) {
                 rejected: 0,
                 sync_offset_ns: 0,
                 sync_error_ns: 1000,
+                bytes_sent: 0,
             };
             v.apply(&Stamped::new(
                 ClusterTime(t),

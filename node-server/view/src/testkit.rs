@@ -72,6 +72,7 @@ pub fn status(node: u32, seq: u64, t: i64, mode: Mode) -> Stamped {
                 rejected: 0,
                 sync_offset_ns: 0,
                 sync_error_ns: 100_000,
+                bytes_sent: 0,
             }),
         }),
     )

@@ -139,6 +139,12 @@ impl Scenario {
                 format!("expected non-negative numbers, got {:?}", m.motion.accel_psd),
             ));
         }
+        if let Err(e) = m.particle.validate() {
+            return Err(bad(
+                format!("method.particle.{}", e.field),
+                format!("expected {}, got {}", e.expected, e.value),
+            ));
+        }
         power("power".into(), &self.power)?;
 
         // Nodes.

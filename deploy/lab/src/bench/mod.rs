@@ -2,5 +2,6 @@
 
 pub mod camera;
 pub mod head;
+pub mod particle;
 pub mod server;
 pub mod transport;

@@ -102,6 +102,7 @@ fn a_viewer_is_admitted_and_sent_every_track_and_node_at_the_step_rate() {
         rejected: 1,
         sync_offset_ns: 10,
         sync_error_ns: 300_000,
+        bytes_sent: 0,
     };
     s.on_message(ms(10), env(NodeId(10), 0, Message::NodeStatus(status.clone())));
     // Head 2 reports a track at 5 Hz; one of its frames (seq 3) never arrives.

@@ -82,6 +82,7 @@ fn the_feed_fills_the_view_and_every_metric_from_real_data() {
         rejected: 2,
         sync_offset_ns: 1_000,
         sync_error_ns: 250_000,
+        bytes_sent: 0,
     };
     for i in 0..30i64 {
         let at = 100 + 200 * i;

@@ -278,6 +278,7 @@ fn node_health_liveness_and_staleness() {
         rejected: 1,
         sync_offset_ns: 1_500_000,
         sync_error_ns: 250_000,
+        bytes_sent: 0,
     };
     v.apply(&received(S, 10, 5, Message::NodeStatus(status.clone())));
     // Seq 5 → 9: frames 6, 7, 8 never arrived.

@@ -115,6 +115,7 @@ impl Run {
                 rejected: 0,
                 sync_offset_ns: 120_000,
                 sync_error_ns: 80_000,
+                bytes_sent: 0,
             };
             self.send(at, cam, Message::NodeStatus(status));
         }

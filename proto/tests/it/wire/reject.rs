@@ -185,7 +185,12 @@ fn observation_f32s(o: &Observation) -> Vec<f32> {
             ]
         }
         Observation::Rssi(_) => Vec::new(),
-        Observation::Ground(g) => [vec![g.width_m, g.height_m, g.confidence], g.histogram.clone()].concat(),
+        Observation::Ground(g) => [
+            vec![g.width_m, g.height_m, g.confidence],
+            g.histogram.clone(),
+            g.ml_position.to_vec(),
+        ]
+        .concat(),
         Observation::Acoustic(a) => [vec![a.first_hz, a.step_hz], a.ild_db.clone()].concat(),
     }
 }
@@ -247,6 +252,12 @@ fn sample_f32s(m: &Message) -> Vec<f32> {
                     d.colour.intensity,
                 ]
             })
+            .collect(),
+        Message::TrackReport(r) => r.appearance.clone(),
+        Message::SampleSet(s) => s
+            .samples
+            .iter()
+            .flat_map(|x| [x.state.to_vec(), vec![x.weight]].concat())
             .collect(),
         _ => Vec::new(),
     }

@@ -109,9 +109,10 @@ fn ground() -> impl Strategy<Value = Observation> {
         (0.0..5.0f32, 0.0..3.0f32, 0.0..=1.0f32),
         prop::collection::vec(0.0..1.0f32, 0..=MAX_BINS),
         time(),
+        prop::array::uniform2(finite32()),
     )
         .prop_map(
-            |(local, position, cov, (width_m, height_m, confidence), histogram, captured)| {
+            |(local, position, cov, (width_m, height_m, confidence), histogram, captured, ml_position)| {
                 Observation::Ground(GroundPoint {
                     local,
                     position,
@@ -121,6 +122,7 @@ fn ground() -> impl Strategy<Value = Observation> {
                     confidence,
                     histogram,
                     captured,
+                    ml_position,
                 })
             },
         )
@@ -290,20 +292,24 @@ fn message() -> impl Strategy<Value = Message> {
             any::<[u64; 3]>(),
             any::<[u64; 4]>(),
             any::<i64>(),
-            any::<i64>()
+            any::<i64>(),
+            any::<u64>()
         )
-            .prop_map(|(mode, time_in_mode_ns, c, sync_offset_ns, sync_error_ns)| {
-                Message::NodeStatus(NodeStatus {
-                    mode,
-                    time_in_mode_ns,
-                    frames: c[0],
-                    detections: c[1],
-                    dropped: c[2],
-                    rejected: c[3],
-                    sync_offset_ns,
-                    sync_error_ns,
-                })
-            }),
+            .prop_map(
+                |(mode, time_in_mode_ns, c, sync_offset_ns, sync_error_ns, bytes_sent)| {
+                    Message::NodeStatus(NodeStatus {
+                        mode,
+                        time_in_mode_ns,
+                        frames: c[0],
+                        detections: c[1],
+                        dropped: c[2],
+                        rejected: c[3],
+                        sync_offset_ns,
+                        sync_error_ns,
+                        bytes_sent,
+                    })
+                }
+            ),
         (any::<u32>(), any::<u64>(), vec6(), psd(), time()).prop_map(|(t, step, mean, cov, deadline)| {
             Message::Prior(Prior {
                 target: TargetId(t),
@@ -320,10 +326,14 @@ fn message() -> impl Strategy<Value = Message> {
         (
             (any::<u32>(), prop::option::of(any::<u32>()), any::<u64>(), time()),
             (vec6(), psd(), contributors()),
-            (0.0..1e6f64, any::<u64>())
+            (
+                0.0..1e6f64,
+                any::<u64>(),
+                prop::collection::vec(0.0..1.0f32, 0..=MAX_BINS)
+            )
         )
             .prop_map(
-                |((t, g, step, time), (mean, cov, contributors), (power_mw, late))| {
+                |((t, g, step, time), (mean, cov, contributors), (power_mw, late, appearance))| {
                     Message::TrackReport(TrackReport {
                         target: TargetId(t),
                         global: g.map(TargetId),
@@ -334,6 +344,7 @@ fn message() -> impl Strategy<Value = Message> {
                         contributors,
                         power_mw,
                         late,
+                        appearance,
                     })
                 }
             ),
@@ -366,6 +377,13 @@ fn message() -> impl Strategy<Value = Message> {
         )),
         (any::<u32>(), any::<bool>()).prop_map(|(n, up)| Message::Liveness(Liveness { node: NodeId(n), up })),
         measured_frame(),
+        (any::<u32>(), prop::option::of(any::<u32>())).prop_map(|(n, local)| Message::SampleRequest(
+            SampleRequest {
+                node: NodeId(n),
+                local
+            }
+        )),
+        sample_set(),
         any::<u32>().prop_map(|period_ms| Message::ViewSubscribe(ViewSubscribe { period_ms })),
         view_update(),
     ]
@@ -419,6 +437,7 @@ fn view_node() -> impl Strategy<Value = ViewNode> {
                 rejected: c[0],
                 sync_offset_ns: -5,
                 sync_error_ns: 7,
+                bytes_sent: 0,
             }),
             steps: c[0],
             late: c[1],
@@ -467,6 +486,23 @@ fn view_update() -> impl Strategy<Value = Message> {
                     handovers: c[2],
                     undelivered: c[3],
                 },
+            })
+        })
+}
+
+fn sample_set() -> impl Strategy<Value = Message> {
+    let sample = (prop::array::uniform6(finite32()), 0.0..=1.0f32)
+        .prop_map(|(state, weight)| ImageSample { state, weight });
+    (
+        any::<u32>(),
+        time(),
+        prop::collection::vec(sample, 0..=MAX_SAMPLES),
+    )
+        .prop_map(|(local, captured, samples)| {
+            Message::SampleSet(SampleSet {
+                local,
+                captured,
+                samples,
             })
         })
 }
