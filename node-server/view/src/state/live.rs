@@ -51,6 +51,7 @@ fn as_report(t: &ViewTrack) -> TrackReport {
         contributors: t.contributors.clone(),
         power_mw: 0.0,
         late: 0,
+        appearance: Vec::new(),
     }
 }
 

@@ -67,6 +67,7 @@ fn report(local: u32, at: i64, p: [f64; 2], v: [f64; 2], sigma: [f64; 3], camera
             .collect(),
         power_mw: 2100.0,
         late: 2,
+        appearance: Vec::new(),
     })
 }
 
