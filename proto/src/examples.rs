@@ -44,7 +44,7 @@ fn env(body: Message) -> Envelope {
 }
 
 /// The number of f64 and f32 slots of each sample, by tag (what the poison test must find).
-pub const FLOAT_SLOTS: [(usize, usize); 18] = [
+pub const FLOAT_SLOTS: [(usize, usize); 19] = [
     (0, 0),   // hello
     (0, 0),   // hello_ack
     (0, 0),   // heartbeat
@@ -53,7 +53,7 @@ pub const FLOAT_SLOTS: [(usize, usize); 18] = [
     (0, 0),   // node_status
     (42, 0),  // prior: mean 6 + cov 36
     (0, 0),   // command
-    (43, 3),  // track_report: mean 6 + cov 36 + power 1; appearance 3
+    (43, 7),  // track_report: mean 6 + cov 36 + power 1; appearance 3; grid origin 2, cell 1, peak 1
     (0, 0),   // assignment
     (42, 0),  // handover
     (0, 0),   // sync_beacon
@@ -61,6 +61,7 @@ pub const FLOAT_SLOTS: [(usize, usize); 18] = [
     (6, 11),  // measured_frame: rssi 1, point 2, cov 3; centre 2, foot 2, box 4, colour 3
     (0, 0),   // sample_request
     (0, 14),  // sample_set: two samples of state 6 + weight 1
+    (0, 0),   // frame_report
     (0, 0),   // view_subscribe
     (12, 0),  // view_update: mean 6 + cov_pos 6
 ];
@@ -190,6 +191,14 @@ pub fn messages() -> Vec<Envelope> {
             power_mw: 1437.5,
             late: 3,
             appearance: vec![0.625, 0.25, 0.125],
+            grid: Some(GridPosterior {
+                origin: [0.5, -1.25],
+                cell_m: 0.375,
+                nx: 3,
+                ny: 2,
+                peak_mass: 0.0625,
+                cells: vec![0, 17, 255, 3, 128, 9],
+            }),
         })),
         env(Message::Assignment(Assignment {
             node: NodeId(10),
@@ -255,6 +264,11 @@ pub fn messages() -> Vec<Envelope> {
                     weight: 0.375,
                 },
             ],
+        })),
+        env(Message::FrameReport(FrameReport {
+            captured: ClusterTime(1_499_993_000),
+            mode: Mode::Active,
+            detections: 2,
         })),
         env(Message::ViewSubscribe(ViewSubscribe { period_ms: 200 })),
         env(Message::ViewUpdate(view_update())),

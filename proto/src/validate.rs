@@ -94,6 +94,39 @@ fn check_cov2(field: &'static str, c: &[f64; 3]) -> Result<(), ValidationError> 
     Ok(())
 }
 
+fn check_grid(g: &GridPosterior) -> Result<(), ValidationError> {
+    finite32(
+        "track_report.grid",
+        &[g.origin[0], g.origin[1], g.cell_m, g.peak_mass],
+    )?;
+    if !(g.cell_m > 0.0 && (0.0..=1.0).contains(&g.peak_mass)) {
+        return Err(err(
+            "track_report.grid",
+            format!(
+                "cell {} m and peak mass {} (expected a positive cell, a mass in [0, 1])",
+                g.cell_m, g.peak_mass
+            ),
+        ));
+    }
+    let side = 1..=MAX_GRID_POSTERIOR_SIDE;
+    if !(side.contains(&g.nx) && side.contains(&g.ny)) {
+        return Err(err(
+            "track_report.grid",
+            format!(
+                "{}x{} cells (expected 1..={MAX_GRID_POSTERIOR_SIDE} per side)",
+                g.nx, g.ny
+            ),
+        ));
+    }
+    if g.cells.len() != usize::from(g.nx) * usize::from(g.ny) {
+        return Err(err(
+            "track_report.grid",
+            format!("{} values for {}x{} cells", g.cells.len(), g.nx, g.ny),
+        ));
+    }
+    Ok(())
+}
+
 impl Validate for Envelope {
     fn validate(&self) -> Result<(), ValidationError> {
         self.body.validate()
@@ -149,6 +182,9 @@ impl Validate for Message {
                     ));
                 }
                 check_bins("track_report.appearance", &r.appearance)?;
+                if let Some(g) = &r.grid {
+                    check_grid(g)?;
+                }
                 if r.contributors.len() > MAX_CONTRIBUTORS {
                     return Err(err(
                         "track_report.contributors",
@@ -167,6 +203,7 @@ impl Validate for Message {
             }
             Message::SyncBeacon(_) => Ok(()),
             Message::Liveness(_) => Ok(()),
+            Message::FrameReport(_) => Ok(()),
             Message::MeasuredFrame(f) => {
                 if f.detections.len() > MAX_MEASURED_DETECTIONS {
                     return Err(err(

@@ -70,6 +70,7 @@ fn report(head: u32, local: u32, seq: u64, t: i64, x: f64) -> Stamped {
                 power_mw: 2000.0,
                 late: 0,
                 appearance: Vec::new(),
+                grid: None,
             }),
         }),
     )

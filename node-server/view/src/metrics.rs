@@ -40,6 +40,7 @@ fn role(kind: NodeKind) -> &'static str {
         NodeKind::Head => "head",
         NodeKind::Server => "server",
         NodeKind::Viewer => "viewer",
+        NodeKind::Acoustic => "acoustic",
         NodeKind::Unknown => "unknown",
     }
 }

@@ -93,6 +93,8 @@ pub enum NodeKind {
     Camera,
     Head,
     Server,
+    /// A two-microphone acoustic node (paper 001).
+    Acoustic,
     /// A visualization node.
     Viewer,
     /// Heard from but not in the scenario (yet).
@@ -275,6 +277,7 @@ impl ViewState {
                 NodeRole::Camera => NodeKind::Camera,
                 NodeRole::Head => NodeKind::Head,
                 NodeRole::Server => NodeKind::Server,
+                NodeRole::Acoustic => NodeKind::Acoustic,
             };
             node.region = spec.region;
             if spec.role == NodeRole::Server {

@@ -52,6 +52,7 @@ pub fn report(head: u32, seq: u64, local: u32, t: i64, x: f64, y: f64) -> Stampe
                 power_mw: 700.0,
                 late: 0,
                 appearance: Vec::new(),
+                grid: None,
             }),
         }),
     )

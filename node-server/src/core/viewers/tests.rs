@@ -62,6 +62,7 @@ fn report(head: NodeId, seq: u64, local: u32, at: i64, x: f64) -> Envelope {
             power_mw: 100.0,
             late: seq / 10,
             appearance: Vec::new(),
+            grid: None,
         }),
     )
 }

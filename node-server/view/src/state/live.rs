@@ -29,6 +29,7 @@ pub fn kind_of(role: Role) -> NodeKind {
         Role::Head => NodeKind::Head,
         Role::Server => NodeKind::Server,
         Role::Viewer => NodeKind::Viewer,
+        Role::Acoustic => NodeKind::Acoustic,
         Role::Tool => NodeKind::Unknown,
     }
 }
@@ -52,6 +53,7 @@ fn as_report(t: &ViewTrack) -> TrackReport {
         power_mw: 0.0,
         late: 0,
         appearance: Vec::new(),
+        grid: None,
     }
 }
 

@@ -50,6 +50,7 @@ fn report(local: u32, at: i64, x: f64, y: f64) -> Message {
         power_mw: 100.0,
         late: 3,
         appearance: Vec::new(),
+        grid: None,
     })
 }
 

@@ -253,7 +253,16 @@ fn sample_f32s(m: &Message) -> Vec<f32> {
                 ]
             })
             .collect(),
-        Message::TrackReport(r) => r.appearance.clone(),
+        Message::TrackReport(r) => r
+            .appearance
+            .iter()
+            .copied()
+            .chain(
+                r.grid
+                    .iter()
+                    .flat_map(|g| [g.origin[0], g.origin[1], g.cell_m, g.peak_mass]),
+            )
+            .collect(),
         Message::SampleSet(s) => s
             .samples
             .iter()

@@ -329,11 +329,12 @@ fn message() -> impl Strategy<Value = Message> {
             (
                 0.0..1e6f64,
                 any::<u64>(),
-                prop::collection::vec(0.0..1.0f32, 0..=MAX_BINS)
+                prop::collection::vec(0.0..1.0f32, 0..=MAX_BINS),
+                prop::option::of(grid_posterior())
             )
         )
             .prop_map(
-                |((t, g, step, time), (mean, cov, contributors), (power_mw, late, appearance))| {
+                |((t, g, step, time), (mean, cov, contributors), (power_mw, late, appearance, grid))| {
                     Message::TrackReport(TrackReport {
                         target: TargetId(t),
                         global: g.map(TargetId),
@@ -345,6 +346,7 @@ fn message() -> impl Strategy<Value = Message> {
                         power_mw,
                         late,
                         appearance,
+                        grid,
                     })
                 }
             ),
@@ -384,6 +386,13 @@ fn message() -> impl Strategy<Value = Message> {
             }
         )),
         sample_set(),
+        (time(), mode(), any::<u32>()).prop_map(|(captured, mode, detections)| Message::FrameReport(
+            FrameReport {
+                captured,
+                mode,
+                detections
+            }
+        )),
         any::<u32>().prop_map(|period_ms| Message::ViewSubscribe(ViewSubscribe { period_ms })),
         view_update(),
     ]
@@ -503,6 +512,29 @@ fn sample_set() -> impl Strategy<Value = Message> {
                 local,
                 captured,
                 samples,
+            })
+        })
+}
+
+fn grid_posterior() -> impl Strategy<Value = GridPosterior> {
+    (
+        1u16..=8,
+        1u16..=8,
+        -50.0f32..50.0,
+        -50.0f32..50.0,
+        0.01f32..2.0,
+        0.0f32..=1.0,
+    )
+        .prop_flat_map(|(nx, ny, x, y, cell_m, peak_mass)| {
+            prop::collection::vec(any::<u8>(), usize::from(nx) * usize::from(ny)).prop_map(move |cells| {
+                GridPosterior {
+                    origin: [x, y],
+                    cell_m,
+                    nx,
+                    ny,
+                    peak_mass,
+                    cells,
+                }
             })
         })
 }
