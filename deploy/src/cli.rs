@@ -51,6 +51,11 @@ pub enum Command {
     Bench(Bench),
     /// Run one acoustic node (`--id N`), or survey fingerprints / locate a sound (paper 001).
     Acoustic(cmd::acoustic::Args),
+    /// Run the visualization node: a client of the server serving the live map, the 3D view,
+    /// `/api/state`, `/metrics` and KML over HTTP.
+    Viewer(cmd::viewer::Args),
+    /// Play a server's recording back in the viewer's pages (play, pause, time slider).
+    View(cmd::view::Args),
     /// Run one transport endpoint as a process (for tests and probes).
     #[command(hide = true)]
     Peer(cmd::peer::Args),
@@ -136,6 +141,8 @@ pub fn main() -> ExitCode {
         Command::Bench(Bench::Transport(args)) => cmd::bench::transport(args),
         Command::Bench(Bench::Grid(args)) => cmd::bench::grid(args),
         Command::Acoustic(args) => cmd::acoustic::run_cmd(args),
+        Command::Viewer(args) => cmd::viewer::run(args),
+        Command::View(args) => cmd::view::run(args),
         Command::Peer(args) => cmd::peer::run(args),
     };
     match result {

@@ -2,7 +2,7 @@
 //!
 //! The launch writes the effective scenario (a domain of its own, free TCP ports) to a run
 //! directory, starts the server, the heads and the cameras as `ocelli server|head|camera`
-//! children, shows live progress read incrementally from the server's recording as it grows
+//! children and the visualization node as `ocelli viewer` (its URL printed), shows live progress read incrementally from the server's recording as it grows
 //! (`node_server::tail::Tailer`: only the newly appended records, an incomplete last record
 //! waited on), and stops in order on Ctrl-C or
 //! after the duration. Whatever happened to the children, it reaps them all and removes the
@@ -34,6 +34,8 @@ pub struct LaunchOptions {
     pub progress: bool,
     /// A logging run: every camera measures every frame and the server records it.
     pub record_measurements: bool,
+    /// Start the viewer serving here (`None`: no viewer).
+    pub view: Option<std::net::SocketAddr>,
 }
 
 /// A free loopback port (bound then released; the child binds it right after).
@@ -99,6 +101,30 @@ fn spawn_node(sup: &mut Supervisor, how: &Spawn<'_>, role: &str, id: u32) -> Res
     let log = std::fs::File::create(opts.run_dir.join(format!("{role}-{id}.log")))?;
     cmd.stdout(Stdio::null()).stderr(log);
     sup.spawn(format!("{role}-{id}"), cmd)?;
+    Ok(())
+}
+
+/// The viewer, a client of the server over the launch's transport, serving `addr`. Its URL is
+/// printed: it is what a person opens.
+fn spawn_viewer(sup: &mut Supervisor, how: &Spawn<'_>, addr: std::net::SocketAddr) -> Result<()> {
+    let mut cmd = Command::new(how.exe);
+    cmd.arg("viewer")
+        .arg("--scenario")
+        .arg(how.scenario_path)
+        .arg("--listen")
+        .arg(addr.to_string())
+        .arg("--transport")
+        .arg(match how.opts.transport {
+            TransportKind::Ipc => "ipc",
+            TransportKind::Tcp => "tcp",
+        });
+    if let Some(dir) = &how.tls_dir {
+        cmd.arg("--tls-dir").arg(dir);
+    }
+    let log = std::fs::File::create(how.opts.run_dir.join("viewer.log"))?;
+    cmd.stdout(Stdio::null()).stderr(log);
+    sup.spawn("viewer", cmd)?;
+    eprintln!("viewer: http://{addr}");
     Ok(())
 }
 
@@ -241,7 +267,11 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
     let tls_dir = (opts.transport == TransportKind::Tcp && !scenario.network.insecure)
         .then(|| opts.run_dir.join("tls"));
     if let Some(dir) = &tls_dir {
-        crate::deploy::certs::issue_all_in(&scenario, dir).context("making the run's certificates")?;
+        let viewer = opts
+            .view
+            .map(|_| (view::node::free_id(&scenario), proto::Role::Viewer));
+        crate::deploy::certs::issue_all_in(&scenario, viewer.as_slice(), dir)
+            .context("making the run's certificates")?;
     }
     let exe = std::env::current_exe().context("locating the ocelli binary")?;
     let mut sup = Supervisor::new(Duration::from_secs(5));
@@ -265,6 +295,9 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
         for id in by_role(role) {
             spawn_node(&mut sup, &how, name, id)?;
         }
+    }
+    if let Some(addr) = opts.view {
+        spawn_viewer(&mut sup, &how, addr)?;
     }
     // Who runs where, for operators and tests that need to stop one node on purpose.
     let pids: String = sup

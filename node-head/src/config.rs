@@ -138,6 +138,7 @@ impl HeadConfig {
             max: self.bounds.1,
             walls: self.walls.clone(),
             radio: proto::scenario::RadioWorld::default(),
+            geo: None,
         }
     }
 }

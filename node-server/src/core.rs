@@ -30,6 +30,9 @@ use proto::scenario::Scenario;
 use proto::{ClusterTime, Envelope, NodeId, PROTOCOL_VERSION, Role, TargetId};
 use std::collections::BTreeMap;
 
+mod viewers;
+pub use viewers::MAX_VIEWERS;
+
 /// Server configuration: the scenario plus the server's own tuning.
 #[derive(Clone, Debug)]
 pub struct ServerConfig {
@@ -89,6 +92,8 @@ pub struct ServerNode {
     counters: Counters,
     /// Which rejections are logged (all are counted).
     log: LogLimiter,
+    /// The visualization nodes' feed.
+    viewers: viewers::ViewFeed,
 }
 
 /// What restoring from a recording found.
@@ -119,6 +124,7 @@ impl ServerNode {
             journal: Vec::new(),
             counters: Counters::default(),
             log: LogLimiter::default(),
+            viewers: viewers::ViewFeed::default(),
         }
     }
 
@@ -171,6 +177,8 @@ impl ServerNode {
 
     fn reject(&mut self, now: ClusterTime, source: Option<NodeId>, what: &str, reason: String) {
         self.counters.rejected += 1;
+        let member = source.is_some_and(|s| self.members.member(s).is_some());
+        self.viewers.rejected(source, member);
         if let Some(more) = self.log.admit(now.0, "message rejected") {
             tracing::warn!(source = ?source, what, %reason, more, "message rejected");
         }
@@ -239,9 +247,12 @@ impl ServerNode {
         }
         let src = env.source;
         let kind = env.body.kind();
-        let tool_hello = matches!(&env.body, Message::Hello(h) if h.role == Role::Tool);
+        // Tools and viewers are not in the scenario: their hello and a viewer's subscription
+        // pass (the subscription admits a viewer, bounded by MAX_VIEWERS).
+        let client_hello = matches!(&env.body, Message::Hello(h) if matches!(h.role, Role::Tool | Role::Viewer))
+            || matches!(&env.body, Message::ViewSubscribe(_));
         let declared = self.members.declared_role(src).is_some_and(|r| r != Role::Server);
-        if self.members.member(src).is_none() && !declared && !tool_hello {
+        if self.members.member(src).is_none() && !declared && !client_hello {
             // Not a member and not one the scenario declares: counted, logged rate-limited,
             // answered if it says hello — and kept out of the state and the recording, so a
             // stranger cannot fill either.
@@ -274,6 +285,10 @@ impl ServerNode {
             self.hello(now, src, h, &mut out);
             return out;
         }
+        if let Message::ViewSubscribe(s) = &env.body {
+            self.subscribe(now, src, env.seq, s, &mut out);
+            return out;
+        }
         // Anything else needs an admitted sender, or one the scenario declares (a node that
         // kept running while the server restarted need not say hello again).
         let role = match self.members.member(src).map(|m| m.role) {
@@ -291,12 +306,14 @@ impl ServerNode {
                 }
             },
         };
+        self.viewers.heard(src, env.seq);
         match env.body {
             Message::Heartbeat => {}
             Message::NodeStatus(s) => {
                 self.status.insert(src, s);
             }
             Message::TrackReport(r) if role == Role::Head => {
+                self.viewers.reported(src, &r);
                 if let Some(d) = self.members.seen(now, src) {
                     self.decide(now, d, &mut out);
                 }
@@ -351,7 +368,7 @@ impl ServerNode {
         } else {
             match (self.members.declared_role(src), h.role) {
                 (_, Role::Server) => Some("a second server".to_string()),
-                (None, Role::Tool) => None,
+                (None, Role::Tool | Role::Viewer) => None,
                 (Some(d), r) if d == r => None,
                 (Some(d), r) => Some(format!("scenario declares {src} as {d}, not {r}")),
                 (None, r) => Some(format!("{src} is not in the scenario (as {r})")),
@@ -417,6 +434,7 @@ impl ServerNode {
     fn decide(&mut self, now: ClusterTime, d: Decision, out: &mut Vec<Outgoing>) {
         tracing::debug!(decision = ?d, "decision");
         self.journal(now, Record::Decision(d.clone()));
+        self.viewers.decided(now, &d);
         match d {
             Decision::Admitted { node, .. } | Decision::Up { node } => {
                 if matches!(d, Decision::Up { .. })
@@ -537,6 +555,8 @@ impl ServerNode {
         if !changed && self.cfg.journal {
             self.journal.truncate(mark);
         }
+        // What the viewers are sent follows from the state: it changes nothing to replay.
+        out.extend(self.view_updates(now));
         out
     }
 

@@ -72,6 +72,8 @@ pub enum Role {
     Tool,
     /// A two-microphone acoustic node (paper 001).
     Acoustic,
+    /// A visualization node: subscribes to the server's view feed and has no say in tracking.
+    Viewer,
 }
 
 impl fmt::Display for Role {
@@ -82,6 +84,7 @@ impl fmt::Display for Role {
             Role::Server => "server",
             Role::Tool => "tool",
             Role::Acoustic => "acoustic",
+            Role::Viewer => "viewer",
         })
     }
 }

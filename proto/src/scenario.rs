@@ -57,6 +57,9 @@ pub struct World {
     /// RSSI propagation of the simulated world (ignored by real deployments).
     #[serde(default)]
     pub radio: RadioWorld,
+    /// Where the world is on Earth (Google Earth, Foxglove's location fixes), if known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geo: Option<crate::geo::Geo>,
 }
 
 /// A vertical wall segment from floor to `height` that occludes cameras and attenuates radio.

@@ -16,3 +16,5 @@ pub mod scenario;
 pub mod server;
 pub mod sim;
 pub mod undistort;
+pub mod view;
+pub mod viewer;

@@ -9,8 +9,8 @@
 
 use super::units::TLS_DIR;
 use super::{Plan, role_name};
-use proto::NodeId;
 use proto::scenario::Scenario;
+use proto::{NodeId, Role};
 use runtime::config::wire_role;
 use runtime::transport::tls::write_file;
 use runtime::transport::{ClusterCa, TlsError, TlsFiles};
@@ -78,16 +78,17 @@ pub fn issue(scenario: &Scenario, plan: &Plan, out: &Path) -> Result<Issued, Tls
     })
 }
 
-/// Issue a certificate for every node of `scenario` into one directory (a launch on one host:
+/// Issue a certificate for every node of `scenario`, and for each client in `clients` (a
+/// viewer: not in the scenario, no say in tracking), into one directory (a launch on one host:
 /// every node reads its own from there).
 ///
 /// # Errors
 /// A certificate cannot be made or a file cannot be written.
-pub fn issue_all_in(scenario: &Scenario, dir: &Path) -> Result<(), TlsError> {
+pub fn issue_all_in(scenario: &Scenario, clients: &[(NodeId, Role)], dir: &Path) -> Result<(), TlsError> {
     let ca = ClusterCa::generate(&scenario.name)?;
-    for node in &scenario.nodes {
-        let id = NodeId(node.id);
-        TlsFiles::in_dir(dir, id).write(ca.cert_pem(), &ca.issue(id, wire_role(node.role))?)?;
+    let nodes = scenario.nodes.iter().map(|n| (NodeId(n.id), wire_role(n.role)));
+    for (id, role) in nodes.chain(clients.iter().copied()) {
+        TlsFiles::in_dir(dir, id).write(ca.cert_pem(), &ca.issue(id, role)?)?;
     }
     Ok(())
 }

@@ -25,6 +25,10 @@ use thiserror::Error;
 pub enum ConfigError {
     #[error("node {0} is not in the scenario")]
     NoSuchNode(NodeId),
+    #[error("node {0} is the scenario's; a client needs an id the scenario does not use")]
+    Declared(NodeId),
+    #[error("the scenario's server has no listen address to dial")]
+    NoServer,
     #[error("node {node}: address `{addr}` of node {peer}: {problem}")]
     Address {
         node: NodeId,
@@ -177,6 +181,49 @@ pub fn transport_config(
                 }
             }
             c.roster = Some(roster(scenario));
+            c.heartbeat = heartbeat;
+            c.liveness_timeout = Duration::from_millis(net.liveness_timeout_ms.max(1));
+            c.queue_len = queue_len;
+            c.clock = clock.for_transport();
+            TransportConfig::Tcp(c)
+        }
+    })
+}
+
+/// The transport of a client the scenario does not declare (a viewer, a tool) with id `id` and
+/// wire role `role`: over iceoryx2 the scenario's domain with its limits and heartbeats; over
+/// TCP it dials the server's listen address.
+///
+/// # Errors
+/// [`ConfigError::Declared`] if the scenario gives `id` to one of its nodes; over TCP, a
+/// server without a listen address or one that does not resolve.
+pub fn client_transport_config(
+    scenario: &Scenario,
+    id: NodeId,
+    role: Role,
+    kind: TransportKind,
+    clock: &HostClock,
+    security: &LinkSecurity,
+) -> Result<TransportConfig, ConfigError> {
+    if scenario.node(id.0).is_some() {
+        return Err(ConfigError::Declared(id));
+    }
+    let net = &scenario.network;
+    let heartbeat = Duration::from_millis(net.heartbeat_ms.max(1));
+    let queue_len = net.queue_len.max(1);
+    Ok(match kind {
+        TransportKind::Ipc => {
+            let mut c = IpcConfig::new(net.domain.clone(), id, role, scenario.nodes.len());
+            c.queue_len = queue_len;
+            c.heartbeat = Some((heartbeat, clock.for_transport()));
+            TransportConfig::Ipc(c)
+        }
+        TransportKind::Tcp => {
+            let server = scenario.server().ok_or(ConfigError::NoServer)?;
+            let addr = server.listen.as_deref().ok_or(ConfigError::NoServer)?;
+            let mut c = TcpConfig::new(id, role, security.resolve(scenario, id)?);
+            c.peers
+                .insert(NodeId(server.id), resolve(id, NodeId(server.id), addr)?);
             c.heartbeat = heartbeat;
             c.liveness_timeout = Duration::from_millis(net.liveness_timeout_ms.max(1));
             c.queue_len = queue_len;

@@ -62,6 +62,9 @@ impl Scenario {
                 ));
             }
         }
+        if let Some(g) = &self.world.geo {
+            g.validate().map_err(|e| bad("world.geo".into(), e.to_string()))?;
+        }
         let r = &self.world.radio;
         if !all_finite(&[
             r.tx_power_dbm,

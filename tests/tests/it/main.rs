@@ -6,3 +6,4 @@ mod harness;
 mod layering;
 mod netns;
 mod transport;
+mod viewer;

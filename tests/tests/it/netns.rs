@@ -205,7 +205,7 @@ fn nodes_in_separate_network_namespaces_track_the_robot_over_tcp() {
     std::fs::write(&scenario_path, s.to_toml()).expect("scenario file");
     let sp = scenario_path.to_str().expect("utf-8 path");
     let tls_dir = dir.join("tls");
-    deploy::deploy::certs::issue_all_in(&s, &tls_dir).expect("certificates");
+    deploy::deploy::certs::issue_all_in(&s, &[], &tls_dir).expect("certificates");
     let tls = tls_dir.to_str().expect("utf-8 path");
     let record = dir.join("rec.ocrec");
     #[allow(clippy::disallowed_methods)] // the synthetic world's epoch, as `ocelli launch` sets it
