@@ -228,7 +228,9 @@ impl CameraNode {
                 }
                 self.counters.priors += 1;
                 if self.cfg.fusion.distributed() {
-                    let c = self.ground_answer(now, &p).unwrap_or_else(|| self.answer(now, &p));
+                    let c = self
+                        .ground_answer(now, &p)
+                        .unwrap_or_else(|| self.answer(now, &p));
                     self.counters.contributions += 1;
                     self.counters.camera_contributions += u64::from(c.folded.camera());
                     out.push(Outgoing::new(env.source, Message::Contribution(c)));

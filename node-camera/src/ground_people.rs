@@ -25,6 +25,11 @@ use proto::sensor::{Detection, Frame};
 use proto::{ClusterTime, TargetId};
 use std::collections::BTreeMap;
 
+/// Added to each axis of a ground position's variance, m²: the lower corners' rays meet the
+/// floor at the person's near edge, the centre is up to half a body's depth behind it, and the
+/// filter's mean box trails a moving person (model error the sample spread does not show).
+pub const GROUND_POSITION_FLOOR_M2: f64 = 0.25 * 0.25;
+
 /// A person's histogram goes out again after this long, ns.
 pub const HISTOGRAM_PERIOD_NS: i64 = 1_000_000_000;
 
@@ -117,7 +122,9 @@ impl GroundPeople {
         };
         for (i, d) in detections.iter().enumerate() {
             let hist = empty.clone();
-            if let Some(obs) = ground::to_ground(camera, &d.bbox, &spread, self.corner_sigma_px, captured, hist) {
+            if let Some(obs) =
+                ground::to_ground(camera, &d.bbox, &spread, self.corner_sigma_px, captured, hist)
+            {
                 let position = obs.position;
                 let mut g = to_point(i as u32, 1.0, obs, position);
                 g.histogram.clear();
@@ -127,7 +134,13 @@ impl GroundPeople {
         self.captured = Some(captured);
     }
 
-    fn ground_point(&mut self, local: u32, confidence: f32, obs: GroundObservation, ml: [f64; 2]) -> GroundPoint {
+    fn ground_point(
+        &mut self,
+        local: u32,
+        confidence: f32,
+        obs: GroundObservation,
+        ml: [f64; 2],
+    ) -> GroundPoint {
         let captured = obs.captured;
         let mut g = to_point(local, confidence, obs, ml);
         let due = self
@@ -176,10 +189,15 @@ impl GroundPeople {
 }
 
 fn to_point(local: u32, confidence: f32, obs: GroundObservation, ml: [f64; 2]) -> GroundPoint {
+    let c = obs.cov;
     GroundPoint {
         local,
         position: obs.position,
-        cov: obs.cov,
+        cov: [
+            c[0] + GROUND_POSITION_FLOOR_M2,
+            c[1],
+            c[2] + GROUND_POSITION_FLOOR_M2,
+        ],
         width_m: obs.width_m as f32,
         height_m: obs.height_m as f32,
         confidence: confidence.clamp(0.0, 1.0),
@@ -238,7 +256,12 @@ pub fn associate(priors: &[(&Prior, f64)], people: &[GroundPoint], gate_chi2: f6
 }
 
 /// The nearest ground point within the gate of one prior.
-pub fn nearest<'a>(prior: &Prior, people: &'a [GroundPoint], age_s: f64, gate_chi2: f64) -> Option<&'a GroundPoint> {
+pub fn nearest<'a>(
+    prior: &Prior,
+    people: &'a [GroundPoint],
+    age_s: f64,
+    gate_chi2: f64,
+) -> Option<&'a GroundPoint> {
     people
         .iter()
         .filter_map(|g| gate_distance2(prior, g, age_s).map(|d2| (d2, g)))
@@ -247,7 +270,8 @@ pub fn nearest<'a>(prior: &Prior, people: &'a [GroundPoint], age_s: f64, gate_ch
         .map(|(_, g)| g)
 }
 
-/// The contribution Ω_i, ξ_i of one ground point at the prior's mean (all zero, nothing folded,
+/// The contribution Ω_i, ξ_i of one ground point at the prior's mean — its floor position and
+/// the centre height its measured height gives (all zero, nothing folded,
 /// when there is none or it cannot be linearized); tag readings go along raw.
 pub fn contribution(
     prior: &Prior,
@@ -260,7 +284,12 @@ pub fn contribution(
     let mean: State = models::vec6_from_wire(&prior.mean);
     let info = person.and_then(|g| {
         let (p, c) = position_and_cov(g);
-        models::ground_contribution_aged(&p, &c, &mean, age_s)
+        let (mut omega, mut xi) = models::ground_contribution_aged(&p, &c, &mean, age_s)?;
+        if let Some((o, x)) = models::ground_height_contribution(f64::from(g.height_m), &mean) {
+            omega += o;
+            xi += x;
+        }
+        Some((omega, xi))
     });
     let (info_matrix, info_vector, folded) = match info {
         Some((omega, xi)) => (

@@ -11,8 +11,8 @@
 
 mod ground;
 
-pub use ground::{GROUND_BIRTH_Z_SIGMA, ground_births};
 use crate::init::{RayObservation, single_camera_prior, state_from_position, triangulate};
+pub use ground::{GROUND_BIRTH_Z_SIGMA, ground_births};
 use nalgebra::{Matrix2, Matrix6, Vector2};
 use proto::camera::CameraModel;
 use proto::models::{State, gate_distance2, ground_gate_distance2, pinhole};
@@ -35,9 +35,9 @@ pub struct Detection {
     pub hint: Option<TargetId>,
     /// When the camera captured the frame.
     pub captured: ClusterTime,
-    /// `point` and `cov` are a floor position `[x, y]`, metres, and its covariance (a
-    /// ground-plane observation), not a normalized pin-hole point.
-    pub ground: bool,
+    /// A ground-plane person's measured height, m: then `point` and `cov` are a floor position
+    /// `[x, y]`, metres, and its covariance, not a normalized pin-hole point.
+    pub ground: Option<f64>,
 }
 
 impl Detection {
@@ -58,7 +58,7 @@ pub fn distance2(
     cov: &Matrix6<f64>,
     at: ClusterTime,
 ) -> Option<f64> {
-    if det.ground {
+    if det.ground.is_some() {
         return ground_gate_distance2(mean, cov, &det.point, &det.cov, det.age_s(at));
     }
     gate_distance2(camera, mean, cov, &det.point, &det.cov, det.age_s(at))
@@ -141,7 +141,7 @@ pub fn births(
 ) -> Vec<Birth> {
     let inside = |p: &nalgebra::Vector3<f64>| within(p, bounds, BIRTH_BOUNDS_MARGIN, 3);
     let mut left: Vec<usize> = (0..dets.len())
-        .filter(|&i| cameras.get(dets[i].slot).is_some() && !dets[i].ground)
+        .filter(|&i| cameras.get(dets[i].slot).is_some() && dets[i].ground.is_none())
         .collect();
     let mut out = ground_births(dets, gate, min_cameras, plane_z, bounds);
     let obs = |i: usize| RayObservation {
@@ -235,7 +235,7 @@ mod tests {
             rssi: Vec::new(),
             hint: None,
             captured: ClusterTime::ZERO,
-            ground: false,
+            ground: None,
         }
     }
 

@@ -399,7 +399,9 @@ impl HeadNode {
             rssi,
             hint: m.target,
             captured,
-            ground: m.pinhole().is_none(),
+            ground: ground
+                .filter(|_| m.pinhole().is_none())
+                .map(|g| f64::from(g.height_m)),
         });
     }
 

@@ -10,15 +10,15 @@ use crate::config::NodeInfo;
 use crate::track::Track;
 use nalgebra::Matrix6;
 use proto::models::{
-    State, camera_contribution_aged, ground_contribution_aged, information_contribution, pinhole_previous,
-    rssi_aged, rssi_information,
+    State, camera_contribution_aged, ground_contribution_aged, ground_height_contribution,
+    information_contribution, pinhole_previous, rssi_aged, rssi_information,
 };
 use proto::observation::ObservationKind;
 
 /// Fold a camera's detection into `track`'s step sums by its kind: a ground-plane person or a
 /// pin-hole point.
 pub fn camera(track: &mut Track, det: &Detection, node: &NodeInfo, previous_point: bool) {
-    if det.ground {
+    if det.ground.is_some() {
         ground(track, det);
     } else {
         pinhole(track, det, node, previous_point);
@@ -26,13 +26,19 @@ pub fn camera(track: &mut Track, det: &Detection, node: &NodeInfo, previous_poin
 }
 
 /// Fold a camera's ground-plane person (floor position and covariance) into `track`'s step
-/// sums, both filters', linearized at the predicted mean at the frame's capture time.
+/// sums, both filters', linearized at the predicted mean at the frame's capture time, with the
+/// centre height its measured height gives.
 pub fn ground(track: &mut Track, det: &Detection) {
     let mean_bar = *track.filter.mean();
     let age_s = det.age_s(track.time);
+    let height = det.ground.and_then(|h| ground_height_contribution(h, &mean_bar));
     if let Some((o, x)) = ground_contribution_aged(&det.point, &det.cov, &mean_bar, age_s) {
         track.acc.add(&o, &x);
         track.aux_acc.add(&o, &x);
+        if let Some((o, x)) = height {
+            track.acc.add(&o, &x);
+            track.aux_acc.add(&o, &x);
+        }
     }
 }
 

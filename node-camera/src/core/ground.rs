@@ -26,7 +26,12 @@ impl CameraNode {
     }
 
     /// A segmented frame's regions through the particle filters; the people are sent.
-    pub(super) fn ground_frame(&mut self, now: ClusterTime, frame: &Frame, regions: &[Detection]) -> Vec<Outgoing> {
+    pub(super) fn ground_frame(
+        &mut self,
+        now: ClusterTime,
+        frame: &Frame,
+        regions: &[Detection],
+    ) -> Vec<Outgoing> {
         let mut out = Vec::new();
         let Some(people) = self.people.as_mut() else {
             return out;
@@ -48,7 +53,12 @@ impl CameraNode {
     }
 
     /// The measurement-level simulation's boxes straight to the ground plane.
-    pub(super) fn ground_boxes(&mut self, now: ClusterTime, captured: ClusterTime, detections: &[Detection]) -> Vec<Outgoing> {
+    pub(super) fn ground_boxes(
+        &mut self,
+        now: ClusterTime,
+        captured: ClusterTime,
+        detections: &[Detection],
+    ) -> Vec<Outgoing> {
         let mut out = Vec::new();
         let Some(people) = self.people.as_mut() else {
             return out;

@@ -1,7 +1,8 @@
 //! Births from ground-plane people: each camera's floor position is already a position, so a
 //! group of detections from distinct cameras whose positions agree (pairwise Mahalanobis with
 //! the summed covariances within the gate) is fused by inverse-covariance weighting and
-//! starts a track on the plane `z = plane_z`, if it lies in the world box.
+//! starts a track at half the measured height (or on `z = plane_z`), if it lies in the world
+//! box.
 
 use super::{BIRTH_BOUNDS_MARGIN, Birth, Detection, within};
 use crate::init::state_from_position;
@@ -12,7 +13,9 @@ pub const GROUND_BIRTH_Z_SIGMA: f64 = 0.5;
 
 fn agree(a: &Detection, b: &Detection, gate: f64) -> bool {
     let d = a.point - b.point;
-    (a.cov + b.cov).cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate)
+    (a.cov + b.cov)
+        .cholesky()
+        .is_some_and(|c| d.dot(&c.solve(&d)) <= gate)
 }
 
 /// Inverse-covariance weighted mean of the members' floor positions and its covariance.
@@ -37,7 +40,7 @@ pub fn ground_births(
     plane_z: f64,
     bounds: ([f64; 3], [f64; 3]),
 ) -> Vec<Birth> {
-    let mut left: Vec<usize> = (0..dets.len()).filter(|&i| dets[i].ground).collect();
+    let mut left: Vec<usize> = (0..dets.len()).filter(|&i| dets[i].ground.is_some()).collect();
     let mut out = Vec::new();
     while !left.is_empty() {
         // The largest group around some seed: the seed plus one agreeing detection per other
@@ -62,7 +65,18 @@ pub fn ground_births(
             continue;
         }
         let Some((p, c)) = fuse(dets, &best) else { continue };
-        let p3 = Vector3::new(p.x, p.y, plane_z);
+        // The centre is at half the measured height (the members' mean); `plane_z` without one.
+        let heights: Vec<f64> = best
+            .iter()
+            .filter_map(|&i| dets[i].ground)
+            .filter(|h| *h > 0.0)
+            .collect();
+        let z = if heights.is_empty() {
+            plane_z
+        } else {
+            0.5 * heights.iter().sum::<f64>() / heights.len() as f64
+        };
+        let p3 = Vector3::new(p.x, p.y, z);
         if !within(&p3, bounds, BIRTH_BOUNDS_MARGIN, 2) {
             continue;
         }
@@ -98,7 +112,7 @@ mod tests {
             rssi: Vec::new(),
             hint: None,
             captured: ClusterTime::ZERO,
-            ground: true,
+            ground: Some(1.8),
         }
     }
 
@@ -109,7 +123,7 @@ mod tests {
         assert_eq!(got.len(), 1, "the lone far person needs a second camera");
         assert_eq!(got[0].members, vec![0, 1]);
         assert!((got[0].mean[0] - 2.05).abs() < 1e-9 && (got[0].mean[1] - 3.025).abs() < 1e-9);
-        assert_eq!(got[0].mean[2], 0.9);
+        assert_eq!(got[0].mean[2], 0.9, "half the measured height");
         // With one camera enough, the far person starts a track too; outside the room none.
         assert_eq!(ground_births(&dets, 13.8, 1, 0.9, ROOM).len(), 2);
         assert!(ground_births(&[det(0, 30.0, 3.0)], 13.8, 1, 0.9, ROOM).is_empty());
@@ -126,6 +140,9 @@ mod tests {
         ];
         let cams = vec![crate::init::tests::cam([0.0, 0.0, 2.5], [3.0, 3.0, 0.0])];
         let dets = vec![det(0, 6.1, 5.0), det(0, 2.0, 2.9), det(0, 9.0, 1.0)];
-        assert_eq!(associate(&tracks, &dets, &cams, 13.8), vec![Some(1), Some(0), None]);
+        assert_eq!(
+            associate(&tracks, &dets, &cams, 13.8),
+            vec![Some(1), Some(0), None]
+        );
     }
 }

@@ -30,7 +30,7 @@ impl Fusion for Ml {
     }
 
     fn absorb(&self, track: &mut Track, det: &Detection, node: &NodeInfo, cfg: &HeadConfig) {
-        let lifted = if det.ground {
+        let lifted = if det.ground.is_some() {
             lift_ground(det, cfg.ml_depth, track.filter.mean()[2])
         } else {
             lift(&node.camera, &det.point, &det.cov, cfg.ml_depth)
@@ -142,7 +142,11 @@ pub fn lift(
 /// A ground-plane person's floor position as a world point: on the known plane (with its σ),
 /// or at the track's height `track_z` with [`crate::association::ground::GROUND_BIRTH_Z_SIGMA`]
 /// when the depth is a mean depth.
-pub fn lift_ground(det: &Detection, depth: DepthHandling, track_z: f64) -> Option<(Vector3<f64>, Matrix3<f64>)> {
+pub fn lift_ground(
+    det: &Detection,
+    depth: DepthHandling,
+    track_z: f64,
+) -> Option<(Vector3<f64>, Matrix3<f64>)> {
     let (z, sigma) = match depth {
         DepthHandling::KnownPlane { z, sigma } => (z, sigma),
         DepthHandling::MeanDepth { .. } => (track_z, crate::association::GROUND_BIRTH_Z_SIGMA),

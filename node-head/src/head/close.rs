@@ -105,7 +105,7 @@ impl HeadNode {
         for d in &dets {
             let node = &self.cfg.nodes[d.slot];
             self.fusion.absorb(track, d, node, &self.cfg);
-            let mut kinds = Kinds::of(if d.ground {
+            let mut kinds = Kinds::of(if d.ground.is_some() {
                 ObservationKind::Ground
             } else {
                 ObservationKind::Pinhole

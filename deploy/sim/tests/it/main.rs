@@ -1,3 +1,4 @@
 //! Integration tests of the simulation runtime (one binary).
 
 mod default_scenario;
+mod particle;
