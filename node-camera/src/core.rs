@@ -606,4 +606,6 @@ impl Node for CameraNode {
 
 mod ground;
 #[cfg(test)]
+mod ground_tests;
+#[cfg(test)]
 mod tests;
