@@ -2,7 +2,7 @@
 //!
 //! The launch writes the effective scenario (a domain of its own, free TCP ports) to a run
 //! directory, starts the server, the heads and the cameras as `ocelli server|head|camera`
-//! children, shows live progress read incrementally from the server's recording as it grows
+//! children and the visualization node as `ocelli viewer` (its URL printed), shows live progress read incrementally from the server's recording as it grows
 //! (`node_server::tail::Tailer`: only the newly appended records, an incomplete last record
 //! waited on), and stops in order on Ctrl-C or
 //! after the duration. Whatever happened to the children, it reaps them all and removes the
@@ -32,6 +32,8 @@ pub struct LaunchOptions {
     pub progress: bool,
     /// A logging run: every camera measures every frame and the server records it.
     pub record_measurements: bool,
+    /// Start the viewer serving here (`None`: no viewer).
+    pub view: Option<std::net::SocketAddr>,
 }
 
 /// A free loopback port (bound then released; the child binds it right after).
@@ -77,6 +79,9 @@ fn spawn_node(sup: &mut Supervisor, how: &Spawn<'_>, role: &str, id: u32) -> Res
         "server" => {
             cmd.arg("--record").arg(&opts.record);
         }
+        "acoustic" => {
+            cmd.arg("--epoch-ns").arg(how.epoch.0.to_string());
+        }
         // Scenario time 0 for the synthetic world, the same for every camera.
         "camera" => {
             cmd.arg("--epoch-ns").arg(how.epoch.0.to_string());
@@ -89,6 +94,27 @@ fn spawn_node(sup: &mut Supervisor, how: &Spawn<'_>, role: &str, id: u32) -> Res
     let log = std::fs::File::create(opts.run_dir.join(format!("{role}-{id}.log")))?;
     cmd.stdout(Stdio::null()).stderr(log);
     sup.spawn(format!("{role}-{id}"), cmd)?;
+    Ok(())
+}
+
+/// The viewer, a client of the server over the launch's transport, serving `addr`. Its URL is
+/// printed: it is what a person opens.
+fn spawn_viewer(sup: &mut Supervisor, how: &Spawn<'_>, addr: std::net::SocketAddr) -> Result<()> {
+    let mut cmd = Command::new(how.exe);
+    cmd.arg("viewer")
+        .arg("--scenario")
+        .arg(how.scenario_path)
+        .arg("--listen")
+        .arg(addr.to_string())
+        .arg("--transport")
+        .arg(match how.opts.transport {
+            TransportKind::Ipc => "ipc",
+            TransportKind::Tcp => "tcp",
+        });
+    let log = std::fs::File::create(how.opts.run_dir.join("viewer.log"))?;
+    cmd.stdout(Stdio::null()).stderr(log);
+    sup.spawn("viewer", cmd)?;
+    eprintln!("viewer: http://{addr}");
     Ok(())
 }
 
@@ -172,6 +198,38 @@ fn remove_domain_files(domain: &str) -> usize {
         .count()
 }
 
+/// A grid-fusing scenario's acoustic nodes without a fingerprint file get the simulated room's
+/// survey (`sim::acoustic::survey`), written to the run directory, as a deployment would
+/// survey its room with `ocelli acoustic survey` before the run.
+///
+/// # Errors
+/// A survey that cannot be made or written.
+fn with_fingerprints(mut scenario: Scenario, run_dir: &Path) -> Result<Scenario> {
+    if scenario.method.fusion != proto::scenario::Fusion::Grid {
+        return Ok(scenario);
+    }
+    let missing: Vec<u32> = scenario
+        .acoustic_nodes()
+        .filter(|n| n.acoustic.as_ref().is_some_and(|a| a.fingerprints.is_none()))
+        .map(|n| n.id)
+        .collect();
+    for id in missing {
+        let db =
+            sim::acoustic::survey(&scenario, id).map_err(|e| anyhow::anyhow!("acoustic node {id}: {e}"))?;
+        let path = run_dir.join(format!("fingerprints-{id}.json"));
+        db.save(&path)?;
+        if let Some(a) = scenario
+            .nodes
+            .iter_mut()
+            .find(|n| n.id == id)
+            .and_then(|n| n.acoustic.as_mut())
+        {
+            a.fingerprints = Some(path);
+        }
+    }
+    Ok(scenario)
+}
+
 /// Run a scenario to the end; returns the final report.
 ///
 /// # Errors
@@ -191,6 +249,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
             .with_context(|| format!("moving the earlier recording {} aside", opts.record.display()))?;
         tracing::info!(to = %aside.display(), "an earlier recording was moved aside");
     }
+    let scenario = with_fingerprints(scenario, &opts.run_dir)?;
     let scenario_path = opts.run_dir.join("scenario.toml");
     std::fs::write(&scenario_path, scenario.to_toml())?;
     let exe = std::env::current_exe().context("locating the ocelli binary")?;
@@ -209,10 +268,14 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
         (NodeRole::Server, "server"),
         (NodeRole::Head, "head"),
         (NodeRole::Camera, "camera"),
+        (NodeRole::Acoustic, "acoustic"),
     ] {
         for id in by_role(role) {
             spawn_node(&mut sup, &how, name, id)?;
         }
+    }
+    if let Some(addr) = opts.view {
+        spawn_viewer(&mut sup, &how, addr)?;
     }
     // Who runs where, for operators and tests that need to stop one node on purpose.
     let pids: String = sup

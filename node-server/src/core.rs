@@ -29,6 +29,9 @@ use proto::scenario::Scenario;
 use proto::{ClusterTime, Envelope, NodeId, PROTOCOL_VERSION, Role, TargetId};
 use std::collections::BTreeMap;
 
+mod viewers;
+pub use viewers::MAX_VIEWERS;
+
 /// Server configuration: the scenario plus the server's own tuning.
 #[derive(Clone, Debug)]
 pub struct ServerConfig {
@@ -83,6 +86,8 @@ pub struct ServerNode {
     status: BTreeMap<NodeId, NodeStatus>,
     journal: Vec<Stamped>,
     counters: Counters,
+    /// The visualization nodes' feed.
+    viewers: viewers::ViewFeed,
 }
 
 /// What restoring from a recording found.
@@ -112,6 +117,7 @@ impl ServerNode {
             status: BTreeMap::new(),
             journal: Vec::new(),
             counters: Counters::default(),
+            viewers: viewers::ViewFeed::default(),
         }
     }
 
@@ -164,6 +170,8 @@ impl ServerNode {
 
     fn reject(&mut self, now: ClusterTime, source: Option<NodeId>, what: &str, reason: String) {
         self.counters.rejected += 1;
+        let member = source.is_some_and(|s| self.members.member(s).is_some());
+        self.viewers.rejected(source, member);
         tracing::warn!(source = ?source, what, %reason, "message rejected");
         self.decide(
             now,
@@ -224,6 +232,10 @@ impl ServerNode {
             self.hello(now, src, h, &mut out);
             return out;
         }
+        if let Message::ViewSubscribe(s) = &env.body {
+            self.subscribe(now, src, env.seq, s, &mut out);
+            return out;
+        }
         // Anything else needs an admitted sender, or one the scenario declares (a node that
         // kept running while the server restarted need not say hello again).
         let role = match self.members.member(src).map(|m| m.role) {
@@ -241,12 +253,14 @@ impl ServerNode {
                 }
             },
         };
+        self.viewers.heard(src, env.seq);
         match env.body {
             Message::Heartbeat => {}
             Message::NodeStatus(s) => {
                 self.status.insert(src, s);
             }
             Message::TrackReport(r) if role == Role::Head => {
+                self.viewers.reported(src, &r);
                 if let Some(d) = self.members.seen(now, src) {
                     self.decide(now, d, &mut out);
                 }
@@ -300,7 +314,7 @@ impl ServerNode {
         } else {
             match (self.members.declared_role(src), h.role) {
                 (_, Role::Server) => Some("a second server".to_string()),
-                (None, Role::Tool) => None,
+                (None, Role::Tool | Role::Viewer) => None,
                 (Some(d), r) if d == r => None,
                 (Some(d), r) => Some(format!("scenario declares {src} as {d}, not {r}")),
                 (None, r) => Some(format!("{src} is not in the scenario (as {r})")),
@@ -361,6 +375,7 @@ impl ServerNode {
     fn decide(&mut self, now: ClusterTime, d: Decision, out: &mut Vec<Outgoing>) {
         tracing::debug!(decision = ?d, "decision");
         self.journal(now, Record::Decision(d.clone()));
+        self.viewers.decided(now, &d);
         match d {
             Decision::Admitted { node, .. } | Decision::Up { node } => {
                 if matches!(d, Decision::Up { .. })
@@ -469,6 +484,8 @@ impl ServerNode {
         if !changed && self.cfg.journal {
             self.journal.truncate(mark);
         }
+        // What the viewers are sent follows from the state: it changes nothing to replay.
+        out.extend(self.view_updates(now));
         out
     }
 

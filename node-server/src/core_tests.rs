@@ -60,6 +60,7 @@ fn report(head: NodeId, local: u32, global: Option<u32>, t: ClusterTime, x: f64,
             power_mw: 100.0,
             late: 0,
             appearance: Vec::new(),
+            grid: None,
         }),
     )
 }

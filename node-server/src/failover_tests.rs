@@ -60,6 +60,7 @@ fn report(head: NodeId, local: u32, global: Option<TargetId>, t: i64, x: f64) ->
             power_mw: 100.0,
             late: 0,
             appearance: Vec::new(),
+            grid: None,
         }),
     )
 }

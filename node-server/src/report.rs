@@ -367,6 +367,7 @@ fn bandwidth(
             let role = match sc.node(node.0)?.role {
                 NodeRole::Camera => "camera",
                 NodeRole::Head => "head",
+                NodeRole::Acoustic => "acoustic",
                 NodeRole::Server => return None,
             };
             let a = first

@@ -112,6 +112,7 @@ fn record_run(name: &str) -> PathBuf {
             power_mw: 1500.0,
             late: k as u64 / 10,
             appearance: Vec::new(),
+            grid: None,
         };
         let out = send(&mut server, &mut rec, t, owner, Message::TrackReport(r), 0);
         for o in out {

@@ -70,6 +70,10 @@ pub enum Role {
     Server,
     /// Benchmarks, probes and other tools that speak the protocol.
     Tool,
+    /// A two-microphone acoustic node (paper 001).
+    Acoustic,
+    /// A visualization node: subscribes to the server's view feed and has no say in tracking.
+    Viewer,
 }
 
 impl fmt::Display for Role {
@@ -79,6 +83,8 @@ impl fmt::Display for Role {
             Role::Head => "head",
             Role::Server => "server",
             Role::Tool => "tool",
+            Role::Acoustic => "acoustic",
+            Role::Viewer => "viewer",
         })
     }
 }

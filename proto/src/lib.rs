@@ -3,14 +3,17 @@
 //! What two nodes must agree on lives here and nowhere else: the messages and their wire
 //! encoding ([`msg`], [`observation`], [`wire`]), what sensors deliver to a node core and the
 //! core's contract ([`sensor`], [`node`]), units and frames ([`ids`],
-//! [`time`]), the camera model ([`camera`], [`opencv`]), the state layout, motion and
-//! measurement models ([`models`]) and the scenario file ([`scenario`]).
+//! [`time`], [`geo`]), the camera model ([`camera`], [`opencv`]), the state layout, motion and
+//! measurement models ([`models`]), the scenario file ([`scenario`]) and the visualization
+//! node's feed ([`view`]).
 //!
 //! Units: metres, seconds (nanoseconds on the wire), radians, dBm, milliwatts. The world frame
 //! is right-handed with z up; camera frames follow OpenCV (x right, y down, z forward).
 
+pub mod acoustic;
 pub mod camera;
 pub mod examples;
+pub mod geo;
 pub mod ids;
 pub mod models;
 pub mod msg;
@@ -22,6 +25,7 @@ pub mod sensor;
 pub mod sync;
 pub mod time;
 pub mod validate;
+pub mod view;
 pub mod wire;
 
 pub use ids::{NodeId, Role, TagId, TargetId};

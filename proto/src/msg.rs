@@ -7,6 +7,7 @@
 use crate::ids::{NodeId, Role, TargetId};
 pub use crate::observation::{Kinds, Observation, ObservationKind, RssiReading};
 use crate::time::ClusterTime;
+pub use crate::view::{ViewSubscribe, ViewUpdate};
 use serde::{Deserialize, Serialize};
 
 /// 6×6 matrix, row-major (information matrices, covariances of the state).
@@ -168,6 +169,18 @@ pub struct NodeStatus {
     pub bytes_sent: u64,
 }
 
+/// What a camera in grid mode (`[method] fusion = "grid"`) says after every frame it
+/// processed, detections or not: that it looked, so the head can use its silence (paper 001's
+/// no-detection likelihood). Its detections travel as `Measurement`s before it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FrameReport {
+    /// When the frame was captured, the camera's cluster time.
+    pub captured: ClusterTime,
+    pub mode: Mode,
+    /// Detections the frame had (each sent as a `Measurement`).
+    pub detections: u32,
+}
+
 // ---------------------------------------------------------------- head → camera
 
 /// The predicted state of one track, broadcast at the start of a step.
@@ -230,6 +243,38 @@ pub struct TrackReport {
     /// the ground-plane observations fused into it, for identity at the server; empty when no
     /// camera sent one.
     pub appearance: Vec<f32>,
+    /// The grid estimator's posterior, down-sampled (`[method] fusion = "grid"` only).
+    pub grid: Option<GridPosterior>,
+}
+
+/// Most cells per side of a [`GridPosterior`] (a report carries at most 64 × 64 bytes of it).
+pub const MAX_GRID_POSTERIOR_SIDE: u16 = 64;
+
+/// A grid estimator's belief in a compact form (paper 001): the floor's cells summed into at
+/// most [`MAX_GRID_POSTERIOR_SIDE`] per side, each cell's probability mass quantized to a byte
+/// relative to the largest (`255` = `peak_mass`), row-major with x fastest.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GridPosterior {
+    /// World `[x, y]` of the first cell's corner, m.
+    pub origin: [f32; 2],
+    /// Side of one (down-sampled) cell, m.
+    pub cell_m: f32,
+    pub nx: u16,
+    pub ny: u16,
+    /// Probability mass of the fullest cell.
+    pub peak_mass: f32,
+    /// `nx × ny` values, `round(255 · mass / peak_mass)`.
+    pub cells: Vec<u8>,
+}
+
+impl GridPosterior {
+    /// Probability mass of cell `(i, j)` (to the quantization's precision).
+    pub fn mass(&self, i: usize, j: usize) -> f32 {
+        let k = j * usize::from(self.nx) + i;
+        self.cells
+            .get(k)
+            .map_or(0.0, |v| f32::from(*v) / 255.0 * self.peak_mass)
+    }
 }
 
 // ---------------------------------------------------------------- server → nodes
@@ -370,6 +415,11 @@ pub enum Message {
     MeasuredFrame(MeasuredFrame),
     SampleRequest(SampleRequest),
     SampleSet(SampleSet),
+    FrameReport(FrameReport),
+    /// viewer → server: send me the view feed (renewed every second).
+    ViewSubscribe(ViewSubscribe),
+    /// server → viewer: the tracks, nodes and handovers, every step.
+    ViewUpdate(ViewUpdate),
 }
 
 impl Message {
@@ -392,12 +442,16 @@ impl Message {
             Message::MeasuredFrame(_) => "measured_frame",
             Message::SampleRequest(_) => "sample_request",
             Message::SampleSet(_) => "sample_set",
+            Message::FrameReport(_) => "frame_report",
+            Message::ViewSubscribe(_) => "view_subscribe",
+            Message::ViewUpdate(_) => "view_update",
         }
     }
 
     /// Whether a transport may drop this message when a queue is full. Measurements and
     /// reports are superseded by the next step (a logging run's dropped frames are counted
-    /// by the camera); control messages never are.
+    /// by the camera), and so are a viewer's subscription (renewed every second) and its
+    /// updates; control messages never are.
     pub fn droppable(&self) -> bool {
         matches!(
             self,
@@ -408,6 +462,9 @@ impl Message {
                 | Message::Heartbeat
                 | Message::MeasuredFrame(_)
                 | Message::SampleSet(_)
+                | Message::FrameReport(_)
+                | Message::ViewSubscribe(_)
+                | Message::ViewUpdate(_)
         )
     }
 }

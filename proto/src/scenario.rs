@@ -15,6 +15,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 
+mod acoustic_spec;
 mod check;
 pub mod particle;
 
@@ -56,6 +57,9 @@ pub struct World {
     /// RSSI propagation of the simulated world (ignored by real deployments).
     #[serde(default)]
     pub radio: RadioWorld,
+    /// Where the world is on Earth (Google Earth, Foxglove's location fixes), if known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geo: Option<crate::geo::Geo>,
 }
 
 /// A vertical wall segment from floor to `height` that occludes cameras and attenuates radio.
@@ -185,6 +189,10 @@ pub enum Fusion {
     CentralizedEif,
     /// Maximum likelihood per step (paper 000 §3).
     Ml,
+    /// Paper 001's grid-based recursive Bayesian estimator: cameras' detections *and*
+    /// non-detections, acoustic nodes' ILD fingerprints and tag RSSI as likelihoods over a grid
+    /// of the floor (`[method.grid]`).
+    Grid,
 }
 
 impl Fusion {
@@ -296,7 +304,12 @@ pub struct Method {
     /// The particle filter tracker's parameters (paper 004's values by default).
     #[serde(default)]
     pub particle: ParticleParams,
+    /// The grid estimator's parameters (`fusion = "grid"`).
+    #[serde(default)]
+    pub grid: GridMethod,
 }
+
+pub use acoustic_spec::{AcousticSpec, GridMethod, low_band};
 
 impl Method {
     /// How far from a node's time a capture may be stamped and still be fused, ms: two filter
@@ -336,6 +349,7 @@ impl Default for Method {
             target_colours: Vec::new(),
             camera_tracker: CameraTracker::Segmentation,
             particle: ParticleParams::default(),
+            grid: GridMethod::default(),
         }
     }
 }
@@ -377,6 +391,8 @@ pub enum NodeRole {
     Camera,
     Head,
     Server,
+    /// A two-microphone acoustic node (paper 001): ILD vectors to its head.
+    Acoustic,
 }
 
 /// One node of the deployment.
@@ -409,6 +425,9 @@ pub struct NodeSpec {
     /// Whether this node measures RSSI of the target's tag.
     #[serde(default = "yes")]
     pub rssi: bool,
+    /// Microphones, analysis and fingerprints (acoustic nodes only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub acoustic: Option<AcousticSpec>,
 }
 
 fn default_host() -> String {
@@ -523,6 +542,11 @@ impl Scenario {
         })?;
         let base = path.parent().unwrap_or(Path::new("."));
         for node in &mut scenario.nodes {
+            if let Some(path) = node.acoustic.as_mut().and_then(|a| a.fingerprints.as_mut())
+                && path.is_relative()
+            {
+                *path = base.join(&*path);
+            }
             if let Some(cam) = &mut node.camera {
                 for p in [&mut cam.opencv_intrinsic, &mut cam.opencv_extrinsic]
                     .into_iter()
@@ -552,6 +576,18 @@ impl Scenario {
 
     pub fn heads(&self) -> impl Iterator<Item = &NodeSpec> {
         self.nodes.iter().filter(|n| n.role == NodeRole::Head)
+    }
+
+    /// The acoustic nodes.
+    pub fn acoustic_nodes(&self) -> impl Iterator<Item = &NodeSpec> {
+        self.nodes.iter().filter(|n| n.role == NodeRole::Acoustic)
+    }
+
+    /// The head a camera or acoustic node reports to: its own, else the first head.
+    pub fn head_of(&self, id: u32) -> Option<u32> {
+        self.node(id)
+            .and_then(|n| n.head)
+            .or_else(|| self.heads().next().map(|h| h.id))
     }
 
     pub fn server(&self) -> Option<&NodeSpec> {

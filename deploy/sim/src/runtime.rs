@@ -16,6 +16,7 @@
 //! skewed and corrected by the server's beacons with the same estimator processes use.
 
 use crate::SimError;
+use crate::acoustic::AcousticSlot;
 use crate::camera::{CameraSlot, Senses};
 use crate::faults::{self, Faults};
 use crate::logged::Recorded;
@@ -141,9 +142,14 @@ impl SimOutcome {
 
 #[derive(Debug)]
 enum Event {
-    Deliver { to: NodeId, frame: Vec<u8> },
+    Deliver {
+        to: NodeId,
+        frame: Vec<u8>,
+    },
     Tick(NodeId),
     Frame(NodeId),
+    /// An acoustic node's frame is complete.
+    Audio(NodeId),
 }
 
 /// The inputs the runtime itself gives every role (sensor inputs go to cameras directly).
@@ -195,6 +201,7 @@ pub struct Sim {
     net: SimNetwork,
     time: BTreeMap<NodeId, Timebase>,
     cameras: BTreeMap<NodeId, CameraSlot>,
+    acoustics: BTreeMap<NodeId, AcousticSlot>,
     heads: BTreeMap<NodeId, HeadNode>,
     server: Option<ServerNode>,
     counters: NetCounters,
@@ -226,6 +233,7 @@ impl Sim {
             queue: EventQueue::default(),
             time: BTreeMap::new(),
             cameras: BTreeMap::new(),
+            acoustics: BTreeMap::new(),
             heads: BTreeMap::new(),
             server: None,
             counters: NetCounters::default(),
@@ -280,10 +288,20 @@ impl Sim {
                     if let Some(d) = sim.opts.ml_depth {
                         cfg.ml_depth = d;
                     }
+                    if cfg.method.fusion == proto::scenario::Fusion::Grid {
+                        crate::acoustic::fill_fingerprints(&scenario, &mut cfg)
+                            .map_err(|(node, problem)| SimError::Node { node, problem })?;
+                    }
                     sim.heads.insert(id, HeadNode::new(cfg));
                 }
                 NodeRole::Server => {
                     sim.server = Some(ServerNode::new(ServerConfig::from_scenario(scenario.clone(), id)));
+                }
+                NodeRole::Acoustic => {
+                    let slot = AcousticSlot::new(&scenario, node.id, sim.opts.seed, now)
+                        .map_err(|problem| SimError::Node { node: id, problem })?;
+                    sim.queue.push(slot.period_ns, Event::Audio(id));
+                    sim.acoustics.insert(id, slot);
                 }
             }
             sim.queue.push(0, Event::Tick(id));
@@ -354,6 +372,7 @@ impl Sim {
             match event {
                 Event::Tick(id) => self.tick(t, id),
                 Event::Frame(id) => self.frame(t, id),
+                Event::Audio(id) => self.audio(t, id),
                 Event::Deliver { to, frame } => self.deliver(t, to, &frame),
             }
             self.drain_server_records();
@@ -382,6 +401,8 @@ impl Sim {
     fn handle(&mut self, id: NodeId, now: ClusterTime, input: Control) -> Option<Vec<Outgoing>> {
         if let Some(c) = self.cameras.get_mut(&id) {
             Some(c.core.handle(now, input.into()))
+        } else if let Some(a) = self.acoustics.get_mut(&id) {
+            Some(a.core.handle(now, input.into()))
         } else if let Some(h) = self.heads.get_mut(&id) {
             Some(h.handle(now, input.into()))
         } else {
@@ -437,6 +458,17 @@ impl Sim {
         };
         self.send_all(t, id, out);
         self.queue.push(t + period, Event::Frame(id));
+    }
+
+    fn audio(&mut self, t: i64, id: NodeId) {
+        let now = self.now_of(id, t);
+        let Some(slot) = self.acoustics.get_mut(&id) else {
+            return;
+        };
+        let period = slot.period_ns;
+        let out = slot.listen(t, now);
+        self.send_all(t, id, out);
+        self.queue.push(t + period, Event::Audio(id));
     }
 
     fn send_all(&mut self, t: i64, from: NodeId, out: Vec<Outgoing>) {

@@ -3,6 +3,7 @@
 use super::common::{TransportArg, load_scenario};
 use crate::launch::{LaunchOptions, launch};
 use anyhow::Result;
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -33,6 +34,13 @@ pub struct Args {
     /// records it, so `ocelli replay` can re-run the recording with any method and policy.
     #[arg(long)]
     pub record_measurements: bool,
+    /// Serve the viewer (live map, 3D view, metrics, KML) here; a busy default port is
+    /// replaced by a free one.
+    #[arg(long, default_value = super::viewer::DEFAULT_LISTEN, conflicts_with = "no_view")]
+    pub view: SocketAddr,
+    /// Start no viewer.
+    #[arg(long)]
+    pub no_view: bool,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -44,6 +52,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         record: args.record,
         progress: !args.quiet,
         record_measurements: args.record_measurements,
+        view: (!args.no_view).then(|| view_address(args.view)),
     };
     let report = launch(scenario, &opts)?;
     if args.json {
@@ -52,4 +61,22 @@ pub fn run(args: Args) -> Result<ExitCode> {
         print!("{}", report.to_table());
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `addr` if it can be bound now; port 0, or the default port when it is taken (another
+/// launch, another viewer), becomes a free port on the same interface, said on standard error.
+fn view_address(addr: SocketAddr) -> SocketAddr {
+    let is_default = addr.to_string() == super::viewer::DEFAULT_LISTEN;
+    if addr.port() != 0 && (!is_default || std::net::TcpListener::bind(addr).is_ok()) {
+        return addr;
+    }
+    match std::net::TcpListener::bind(SocketAddr::new(addr.ip(), 0)).and_then(|l| l.local_addr()) {
+        Ok(free) => {
+            if is_default {
+                eprintln!("{addr} is busy: the viewer serves on {free} instead");
+            }
+            free
+        }
+        Err(_) => addr,
+    }
 }

@@ -1,5 +1,6 @@
 //! One module per `ocelli` subcommand.
 
+pub mod acoustic;
 pub mod bench;
 pub mod camera;
 pub mod common;
@@ -15,3 +16,5 @@ pub mod scenario;
 pub mod server;
 pub mod sim;
 pub mod undistort;
+pub mod view;
+pub mod viewer;

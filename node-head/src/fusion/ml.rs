@@ -29,7 +29,7 @@ impl Fusion for Ml {
         false
     }
 
-    fn absorb(&self, track: &mut Track, det: &Detection, node: &NodeInfo, cfg: &HeadConfig) {
+    fn absorb(&mut self, track: &mut Track, det: &Detection, node: &NodeInfo, cfg: &HeadConfig) {
         let lifted = if det.ground.is_some() {
             lift_ground(det, cfg.ml_depth, track.filter.mean()[2])
         } else {
@@ -40,7 +40,7 @@ impl Fusion for Ml {
         }
     }
 
-    fn update(&self, track: &mut Track, now: ClusterTime) -> Updated {
+    fn update(&mut self, track: &mut Track, now: ClusterTime) -> Updated {
         let points = std::mem::take(&mut track.ml_points);
         let Some((p, c)) = fuse(&points) else {
             return Updated::default();

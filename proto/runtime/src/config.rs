@@ -3,7 +3,8 @@
 //! - iceoryx2 (one host): the scenario's domain, limits sized for its nodes, heartbeats to
 //!   every peer at `network.heartbeat-ms` (liveness on one host rests on them).
 //! - TCP (between hosts): a node listens at its `listen` address if it has one (heads, the
-//!   server); a camera dials its head and the server, a head dials the server. Addresses are
+//!   server); a camera or an acoustic node dials its head and the server, a head dials the
+//!   server. Addresses are
 //!   `host:port` and may name hosts (resolved once, here); every limit is clamped to at least
 //!   1 (ms, frames).
 
@@ -20,6 +21,10 @@ use thiserror::Error;
 pub enum ConfigError {
     #[error("node {0} is not in the scenario")]
     NoSuchNode(NodeId),
+    #[error("node {0} is the scenario's; a client needs an id the scenario does not use")]
+    Declared(NodeId),
+    #[error("the scenario's server has no listen address to dial")]
+    NoServer,
     #[error("node {node}: address `{addr}` of node {peer}: {problem}")]
     Address {
         node: NodeId,
@@ -35,6 +40,7 @@ pub fn wire_role(role: NodeRole) -> Role {
         NodeRole::Camera => Role::Camera,
         NodeRole::Head => Role::Head,
         NodeRole::Server => Role::Server,
+        NodeRole::Acoustic => Role::Acoustic,
     }
 }
 
@@ -55,14 +61,15 @@ pub fn resolve(node: NodeId, peer: NodeId, addr: &str) -> Result<SocketAddr, Con
         .ok_or_else(|| bad("resolves to no address".into()))
 }
 
-/// The nodes `id` dials over TCP: a camera its head and the server, a head the server.
+/// The nodes `id` dials over TCP: a camera or an acoustic node its head and the server, a head
+/// the server.
 pub fn dials(scenario: &Scenario, id: NodeId) -> Vec<NodeId> {
     let Some(me) = scenario.node(id.0) else {
         return Vec::new();
     };
     let server = scenario.server().map(|s| NodeId(s.id));
     match me.role {
-        NodeRole::Camera => {
+        NodeRole::Camera | NodeRole::Acoustic => {
             let head = me
                 .head
                 .or_else(|| scenario.heads().next().map(|h| h.id))
@@ -110,6 +117,48 @@ pub fn transport_config(
                     c.peers.insert(peer, resolve(id, peer, addr)?);
                 }
             }
+            c.heartbeat = heartbeat;
+            c.liveness_timeout = Duration::from_millis(net.liveness_timeout_ms.max(1));
+            c.queue_len = queue_len;
+            c.clock = clock.for_transport();
+            TransportConfig::Tcp(c)
+        }
+    })
+}
+
+/// The transport of a client the scenario does not declare (a viewer, a tool) with id `id` and
+/// wire role `role`: over iceoryx2 the scenario's domain with its limits and heartbeats; over
+/// TCP it dials the server's listen address.
+///
+/// # Errors
+/// [`ConfigError::Declared`] if the scenario gives `id` to one of its nodes; over TCP, a
+/// server without a listen address or one that does not resolve.
+pub fn client_transport_config(
+    scenario: &Scenario,
+    id: NodeId,
+    role: Role,
+    kind: TransportKind,
+    clock: &HostClock,
+) -> Result<TransportConfig, ConfigError> {
+    if scenario.node(id.0).is_some() {
+        return Err(ConfigError::Declared(id));
+    }
+    let net = &scenario.network;
+    let heartbeat = Duration::from_millis(net.heartbeat_ms.max(1));
+    let queue_len = net.queue_len.max(1);
+    Ok(match kind {
+        TransportKind::Ipc => {
+            let mut c = IpcConfig::new(net.domain.clone(), id, role, scenario.nodes.len());
+            c.queue_len = queue_len;
+            c.heartbeat = Some((heartbeat, clock.for_transport()));
+            TransportConfig::Ipc(c)
+        }
+        TransportKind::Tcp => {
+            let server = scenario.server().ok_or(ConfigError::NoServer)?;
+            let addr = server.listen.as_deref().ok_or(ConfigError::NoServer)?;
+            let mut c = TcpConfig::new(id, role);
+            c.peers
+                .insert(NodeId(server.id), resolve(id, NodeId(server.id), addr)?);
             c.heartbeat = heartbeat;
             c.liveness_timeout = Duration::from_millis(net.liveness_timeout_ms.max(1));
             c.queue_len = queue_len;

@@ -62,6 +62,9 @@ impl Scenario {
                 ));
             }
         }
+        if let Some(g) = &self.world.geo {
+            g.validate().map_err(|e| bad("world.geo".into(), e.to_string()))?;
+        }
         let r = &self.world.radio;
         if !all_finite(&[
             r.tx_power_dbm,
@@ -178,8 +181,11 @@ impl Scenario {
                         "only camera nodes have camera geometry".into(),
                     ));
                 }
-                if n.head.is_some() {
-                    return Err(bad(field("head"), "only camera nodes report to a head".into()));
+                if n.head.is_some() && n.role != NodeRole::Acoustic {
+                    return Err(bad(
+                        field("head"),
+                        "only camera and acoustic nodes report to a head".into(),
+                    ));
                 }
             }
             if let Some(region) = n.region {
@@ -261,7 +267,7 @@ impl Scenario {
             }
             positive(field("camera.fps"), cam.fps)?;
         }
-
+        self.check_acoustic(origin)?;
         Ok(())
     }
 }

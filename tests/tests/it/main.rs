@@ -5,3 +5,4 @@ mod harness;
 mod layering;
 mod netns;
 mod transport;
+mod viewer;

@@ -71,6 +71,7 @@ fn report(head: u32, k: u32, step: u64) -> Envelope {
             power_mw: 2000.0,
             late: 0,
             appearance: Vec::new(),
+            grid: None,
         }),
     }
 }

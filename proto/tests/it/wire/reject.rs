@@ -221,6 +221,11 @@ fn sample_f64s(m: &Message) -> Vec<f64> {
             }
             v
         }
+        Message::ViewUpdate(u) => u
+            .tracks
+            .iter()
+            .flat_map(|t| t.mean.into_iter().chain(t.cov_pos))
+            .collect(),
         _ => Vec::new(),
     }
 }
@@ -248,7 +253,16 @@ fn sample_f32s(m: &Message) -> Vec<f32> {
                 ]
             })
             .collect(),
-        Message::TrackReport(r) => r.appearance.clone(),
+        Message::TrackReport(r) => r
+            .appearance
+            .iter()
+            .copied()
+            .chain(
+                r.grid
+                    .iter()
+                    .flat_map(|g| [g.origin[0], g.origin[1], g.cell_m, g.peak_mass]),
+            )
+            .collect(),
         Message::SampleSet(s) => s
             .samples
             .iter()

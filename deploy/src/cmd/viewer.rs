@@ -1,0 +1,58 @@
+//! `ocelli viewer`: the visualization node as its own process — a client of the scenario's
+//! server over its transport, serving the live map, the 3D view, `/api/state`, `/metrics` and
+//! KML on `--listen` (see `view`).
+
+use super::common::{TransportArg, load_scenario, run_node, transport_or_scenario};
+use anyhow::{Context, Result};
+use proto::NodeId;
+use runtime::HostClock;
+use runtime::config::client_transport_config;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use view::node::ViewerConfig;
+
+/// Where the viewer serves unless told otherwise.
+pub const DEFAULT_LISTEN: &str = "127.0.0.1:8080";
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scenario file (default: the embedded default scenario).
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// This viewer's node id: one the scenario does not use (default: the first free from 900).
+    #[arg(long)]
+    pub id: Option<u32>,
+    /// Transport (default: the scenario's `network.transport`).
+    #[arg(long, value_enum)]
+    pub transport: Option<TransportArg>,
+    /// Serve HTTP here.
+    #[arg(long, default_value = DEFAULT_LISTEN)]
+    pub listen: SocketAddr,
+    /// Update period asked of the server, ms (default: the filter's step).
+    #[arg(long, default_value_t = 0)]
+    pub period_ms: u32,
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    let scenario = load_scenario(args.scenario.as_ref())?;
+    let id = NodeId(args.id.unwrap_or_else(|| view::node::free_id(&scenario).0));
+    let kind = transport_or_scenario(args.transport, &scenario);
+    let transport =
+        client_transport_config(&scenario, id, proto::Role::Viewer, kind, &HostClock::follower())?;
+    let mut cfg = ViewerConfig::for_scenario(&scenario, id)?;
+    cfg.period_ms = args.period_ms;
+    let initial = view::ViewState::with_scenario(&scenario);
+    let listen = args.listen;
+    run_node(|shutdown| async move {
+        let listener = tokio::net::TcpListener::bind(listen)
+            .await
+            .with_context(|| format!("the viewer cannot listen on {listen}"))?;
+        let url = format!("http://{}", listener.local_addr()?);
+        tracing::info!(%url, node = %id, "viewer serving");
+        eprintln!("viewer: {url}");
+        view::live::run(cfg, initial, transport, listener, shutdown).await?;
+        Ok(())
+    })?;
+    Ok(ExitCode::SUCCESS)
+}
