@@ -4,7 +4,8 @@ use crate::segment::SegmentParams;
 use proto::NodeId;
 use proto::camera::CameraModel;
 use proto::msg::Mode;
-use proto::scenario::{Fusion, NodeRole, Scenario, ScenarioError};
+use proto::scenario::particle::ParticleParams;
+use proto::scenario::{CameraTracker, Fusion, NodeRole, Scenario, ScenarioError};
 use proto::sensor::ReferencePoint;
 use thiserror::Error;
 
@@ -47,6 +48,12 @@ pub struct CameraConfig {
     /// A logging run: measure every frame whatever the mode and send its measurements to the
     /// server's recording ([`crate::record_all`]).
     pub record_all: bool,
+    /// What the camera makes of its frames: pin-hole points of segmented regions, or paper
+    /// 004's per-person particle filters sending ground-plane people
+    /// ([`crate::ground_people`]).
+    pub tracker: CameraTracker,
+    /// The particle filters' parameters (`[method.particle]`).
+    pub particle: ParticleParams,
 }
 
 impl CameraConfig {
@@ -83,6 +90,8 @@ impl CameraConfig {
             initial_mode: Mode::Active,
             fps,
             record_all: false,
+            tracker: m.camera_tracker,
+            particle: m.particle.clone(),
         })
     }
 }

@@ -10,9 +10,12 @@
 //! (Active, CameraOff, Inactive) follow the head's `Command`s; time in each, the runtime's
 //! sync estimate and what it could not deliver are reported in a `NodeStatus` every status
 //! period. In a logging run ([`crate::record_all`]) every frame is measured whatever the mode
-//! and its measurements go to the server's recording.
+//! and its measurements go to the server's recording. With `camera-tracker = "particle"` the
+//! frames go through paper 004's particle filters and people leave as ground-plane
+//! observations ([`ground`]).
 
 use crate::config::CameraConfig;
+use crate::ground_people::GroundPeople;
 use crate::measure::{self, Measured};
 use crate::previous::{Offer, previous_point};
 use crate::record_all::RecordAll;
@@ -91,6 +94,8 @@ pub struct CameraNode {
     tags: BTreeMap<TagId, RssiReading>,
     /// A logging run's measuring of every frame, whatever the mode.
     record_all: Option<RecordAll>,
+    /// Paper 004's particle filters, when the scenario selects them.
+    people: Option<GroundPeople>,
     mode: Mode,
     mode_since: ClusterTime,
     time_in_mode_ns: [u64; 3],
@@ -108,6 +113,13 @@ impl CameraNode {
     pub fn new(cfg: CameraConfig, now: ClusterTime) -> CameraNode {
         let segmenter = Segmenter::new(&cfg.segment);
         let record_all = cfg.record_all.then(|| RecordAll::new(&cfg));
+        let people = (cfg.tracker == proto::scenario::CameraTracker::Particle)
+            .then(|| GroundPeople::new(&cfg.particle, u64::from(cfg.id.0)))
+            .and_then(|r| {
+                // The scenario's check refuses bad parameters; a hand-made config falls back.
+                r.map_err(|e| warn!(node = %cfg.id, error = %e, "particle tracker refused; segmentation"))
+                    .ok()
+            });
         CameraNode {
             mode: cfg.initial_mode,
             cfg,
@@ -119,6 +131,7 @@ impl CameraNode {
             priors: BTreeMap::new(),
             tags: BTreeMap::new(),
             record_all,
+            people,
             mode_since: now,
             time_in_mode_ns: [0; 3],
             last_status: None,
@@ -175,6 +188,9 @@ impl CameraNode {
             self.measured.clear();
             self.previous.clear();
             self.captured = None;
+            if let Some(p) = self.people.as_mut() {
+                p.clear();
+            }
         }
         if !mode.radio_on() {
             self.tags.clear();
@@ -220,7 +236,9 @@ impl CameraNode {
                 }
                 self.counters.priors += 1;
                 if self.cfg.fusion.distributed() {
-                    let c = self.answer(now, &p);
+                    let c = self
+                        .ground_answer(now, &p)
+                        .unwrap_or_else(|| self.answer(now, &p));
                     self.counters.contributions += 1;
                     self.counters.camera_contributions += u64::from(c.folded.camera());
                     out.push(Outgoing::new(env.source, Message::Contribution(c)));
@@ -241,6 +259,7 @@ impl CameraNode {
                     self.cfg.head = Some(a.head);
                 }
             }
+            Message::SampleRequest(r) => return self.on_sample_request(env.source, &r),
             Message::Heartbeat
             | Message::Hello(_)
             | Message::HelloAck(_)
@@ -316,6 +335,12 @@ impl CameraNode {
             self.reject("frame", e.to_string());
             return out;
         }
+        if self.people.is_some() {
+            let regions = std::mem::take(&mut self.scratch);
+            let out = self.ground_frame(now, frame, &regions);
+            self.scratch = regions;
+            return out;
+        }
         self.counters.frames += 1;
         let detections = std::mem::take(&mut self.scratch);
         let offer = self.offer(frame.captured);
@@ -341,6 +366,9 @@ impl CameraNode {
         if !self.mode.camera_on() {
             self.counters.frames_skipped += 1;
             return out;
+        }
+        if self.people.is_some() {
+            return self.ground_boxes(now, captured, detections);
         }
         self.counters.frames += 1;
         self.apply_detections(now, captured, detections, Offer::All, &mut out);
@@ -594,5 +622,8 @@ impl Node for CameraNode {
     }
 }
 
+mod ground;
+#[cfg(test)]
+mod ground_tests;
 #[cfg(test)]
 mod tests;

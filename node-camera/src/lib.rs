@@ -14,6 +14,7 @@ pub mod colour_difference;
 pub mod config;
 pub mod core;
 pub mod detect;
+pub mod ground_people;
 #[cfg(feature = "gstreamer")]
 pub mod gst;
 pub mod measure;

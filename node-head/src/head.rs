@@ -401,12 +401,20 @@ impl HeadNode {
 
     fn on_measurement(&mut self, now: ClusterTime, slot: usize, m: Measurement) {
         self.nodes[slot].mode = m.mode;
-        let Some(point) = m.pinhole() else {
-            // Only pin-hole detections start or feed tracks here.
-            self.counters.unfused_observations += m.observations.len() as u64;
-            return;
+        let ground = m.observations.iter().find_map(|o| match o {
+            proto::observation::Observation::Ground(g) => Some(g),
+            _ => None,
+        });
+        let (point, cov, prev_point, captured) = match (m.pinhole(), ground) {
+            (Some(p), _) => (p.point, p.cov, p.prev_point.map(Vector2::from), p.captured),
+            (None, Some(g)) => (g.position, g.cov, None, g.captured),
+            (None, None) => {
+                // Only camera detections start or feed tracks here.
+                self.counters.unfused_observations += m.observations.len() as u64;
+                return;
+            }
         };
-        if !self.fresh(now, point.captured, slot, "measurement") {
+        if !self.fresh(now, captured, slot, "measurement") {
             return;
         }
         let readings: Vec<_> = m.rssi().copied().collect();
@@ -422,12 +430,15 @@ impl HeadNode {
         self.detections.push(Detection {
             node: self.nodes[slot].info.id,
             slot,
-            point: Vector2::from(point.point),
-            cov: Matrix2::new(point.cov[0], point.cov[1], point.cov[1], point.cov[2]),
-            prev_point: point.prev_point.map(Vector2::from),
+            point: Vector2::from(point),
+            cov: Matrix2::new(cov[0], cov[1], cov[1], cov[2]),
+            prev_point,
             rssi,
             hint: m.target,
-            captured: point.captured,
+            captured,
+            ground: ground
+                .filter(|_| m.pinhole().is_none())
+                .map(|g| f64::from(g.height_m)),
         });
     }
 

@@ -109,7 +109,11 @@ impl HeadNode {
         for d in &dets {
             let node = &self.cfg.nodes[d.slot];
             self.fusion.absorb(track, d, node, &self.cfg);
-            let mut kinds = Kinds::of(ObservationKind::Pinhole);
+            let mut kinds = Kinds::of(if d.ground.is_some() {
+                ObservationKind::Ground
+            } else {
+                ObservationKind::Pinhole
+            });
             for r in d.rssi.iter().filter(|_| node.rssi) {
                 if track.hear(d.slot, r.dbm, at.secs_since(r.time)) {
                     kinds.insert(ObservationKind::Rssi);

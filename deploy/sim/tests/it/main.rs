@@ -2,3 +2,4 @@
 
 mod default_scenario;
 mod handback;
+mod particle;
