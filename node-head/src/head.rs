@@ -313,7 +313,7 @@ impl HeadNode {
                 }
                 let mut kinds = if camera { c.folded } else { Kinds::NONE };
                 for r in &rssi {
-                    if track.hear(slot, r.dbm, track.time.secs_since(r.time)) {
+                    if track.hear_once(slot, r.time, r.dbm) {
                         kinds.insert(ObservationKind::Rssi);
                     }
                 }
@@ -519,6 +519,7 @@ impl HeadNode {
         });
         self.counters.numeric_failures += failed;
         self.counters.deaths += failed;
+        self.radio_search(now);
         self.step += 1;
         self.step_time = now;
         // Detections are kept: those that arrived between steps are associated at the close.
@@ -578,5 +579,6 @@ impl Node for HeadNode {
 }
 
 mod close;
+mod radio;
 #[cfg(test)]
 mod tests;

@@ -16,6 +16,9 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 
 mod check;
+mod radio_source;
+
+pub use radio_source::{RadioSpec, blind_camera};
 
 /// The embedded default scenario, modelled on paper 002's 21-camera testbed.
 pub const DEFAULT_SCENARIO_TOML: &str = include_str!("../scenarios/default.toml");
@@ -383,6 +386,23 @@ pub struct NodeSpec {
     /// Whether this node measures RSSI of the target's tag.
     #[serde(default = "yes")]
     pub rssi: bool,
+    /// Where the node's radio sits, `[x, y, z]` metres (camera nodes; default: the camera's
+    /// centre). A camera node without `camera` geometry is a radio-only node and needs it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position: Option<[f64; 3]>,
+    /// Where a real node's radio readings come from (camera nodes): `ble`, `ble:ADAPTER` or
+    /// `file:PATH.mbd@SENSOR-MAC` (relative to the scenario file). Absent: launched nodes hear
+    /// the simulated world, others no radio unless `ocelli camera --radio` names one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radio: Option<RadioSpec>,
+}
+
+impl NodeSpec {
+    /// A camera node without a camera: it only hears radio tags (CameraOff is its working
+    /// mode; it is never Active).
+    pub fn radio_only(&self) -> bool {
+        self.role == NodeRole::Camera && self.camera.is_none()
+    }
 }
 
 fn default_host() -> String {
@@ -497,6 +517,7 @@ impl Scenario {
         })?;
         let base = path.parent().unwrap_or(Path::new("."));
         for node in &mut scenario.nodes {
+            node.radio = node.radio.take().map(|r| r.resolved(base));
             if let Some(cam) = &mut node.camera {
                 for p in [&mut cam.opencv_intrinsic, &mut cam.opencv_extrinsic]
                     .into_iter()
@@ -575,6 +596,17 @@ impl Scenario {
             distortion,
             pose,
         })
+    }
+
+    /// Where node `id`'s radio sits: its `position`, else its camera's centre.
+    ///
+    /// # Errors
+    /// The node does not exist, or has neither a position nor usable camera geometry.
+    pub fn sensor_position(&self, id: u32) -> Result<Vector3<f64>, ScenarioError> {
+        match self.node(id).and_then(|n| n.position) {
+            Some(p) => Ok(Vector3::from(p)),
+            None => Ok(self.camera_model(id)?.pose.centre()),
+        }
     }
 
     /// Camera → head map from the scenario (cameras with no head go to the first head).

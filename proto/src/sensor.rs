@@ -4,6 +4,7 @@
 
 mod detection;
 mod frame;
+pub mod mbd;
 mod source;
 
 pub use detection::{Detection, ReferencePoint, hue_distance, rgb_to_hsi};

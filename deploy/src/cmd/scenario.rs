@@ -29,6 +29,18 @@ pub enum Action {
         #[arg(long, default_value_t = super::camera::SYNTHETIC_SEED)]
         seed: u64,
     },
+    /// Print a deployment replaying one trajectory of the BLE RSSI dataset: one radio-only node
+    /// per sensor at its surveyed position, one head tracking from RSSI alone (the law fitted
+    /// on the other trajectories). `ocelli launch` it to score it against the file's truth.
+    BleRssi {
+        /// Trajectory name (`straight_01`, …; default: the first).
+        #[arg(long)]
+        trajectory: Option<String>,
+        /// The dataset's directory (default: `$OCELLI_BLE_RSSI_DIR`, else
+        /// `shared/datasets/ble-rssi` beside the repository).
+        #[arg(long)]
+        dataset: Option<PathBuf>,
+    },
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -68,6 +80,26 @@ pub fn run(args: Args) -> Result<ExitCode> {
             println!(
                 "rssi-default = {{ kind = \"log-distance\", a = {a:.2}, b = {b:.2}, variance = {variance:.1} }}"
             );
+        }
+        Action::BleRssi { trajectory, dataset } => {
+            use lab::experiment::ble_rssi::{data, launch};
+            let dir = dataset.unwrap_or_else(data::default_dir);
+            let ds = data::load(&dir)?;
+            let i = match &trajectory {
+                None => 0,
+                Some(name) => ds
+                    .trajectories
+                    .iter()
+                    .position(|t| &t.name == name)
+                    .ok_or_else(|| {
+                        let names: Vec<&str> = ds.trajectories.iter().map(|t| t.name.as_str()).collect();
+                        anyhow::anyhow!(
+                            "no trajectory {name:?} in {} (there are {names:?})",
+                            dir.display()
+                        )
+                    })?,
+            };
+            print!("{}", launch::scenario_toml(&ds, i)?);
         }
     }
     Ok(ExitCode::SUCCESS)
