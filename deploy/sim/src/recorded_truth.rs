@@ -28,10 +28,13 @@ pub enum RecordedTruthError {
     Files(PathBuf, PathBuf),
 }
 
+/// Where one beacon was: (cluster seconds, position), in time order.
+type Path3 = Vec<(f64, [f64; 3])>;
+
 /// Each beacon's positions over time (cluster seconds), targets numbered 1.. in MAC order.
 #[derive(Clone, Debug)]
 pub struct RecordedTruth {
-    beacons: Vec<(TagId, Vec<(f64, [f64; 3])>)>,
+    beacons: Vec<(TagId, Path3)>,
     skipped: usize,
 }
 
@@ -65,7 +68,7 @@ impl RecordedTruth {
 
     /// From an `.mbd` file's text (lines that do not parse are skipped and counted).
     pub fn from_text(text: &str, epoch: ClusterTime) -> RecordedTruth {
-        let mut by_beacon: BTreeMap<TagId, Vec<(f64, [f64; 3])>> = BTreeMap::new();
+        let mut by_beacon: BTreeMap<TagId, Path3> = BTreeMap::new();
         let mut skipped = 0;
         let mut t0 = f64::INFINITY;
         for line in text.lines() {

@@ -151,7 +151,7 @@ mod tests {
     fn bad_lines_say_what_is_wrong() {
         let cases = [
             (format!("1,aa,cc,-70,1,2,1.8,{ORIENT}"), "sensor MAC"),
-            (format!("1,b827eb4521b4,e78f135624ce,-70,1,2,1.8"), "fields"),
+            ("1,b827eb4521b4,e78f135624ce,-70,1,2,1.8".to_string(), "fields"),
             (
                 format!("1,b827eb4521b4,e78f135624ce,strong,1,2,1.8,{ORIENT}"),
                 "not a number",
