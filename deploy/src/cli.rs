@@ -49,6 +49,8 @@ pub enum Command {
     /// Measure parts of the system; prints JSON.
     #[command(subcommand)]
     Bench(Bench),
+    /// Run one acoustic node (`--id N`), or survey fingerprints / locate a sound (paper 001).
+    Acoustic(cmd::acoustic::Args),
     /// Run one transport endpoint as a process (for tests and probes).
     #[command(hide = true)]
     Peer(cmd::peer::Args),
@@ -65,6 +67,8 @@ pub enum Bench {
     Server(cmd::bench::ScaleArgs),
     /// One-way latency over iceoryx2 and TCP, encode/decode cost per message kind.
     Transport(cmd::bench::TransportArgs),
+    /// The grid estimator's update on 200×200 cells and the ILD of one audio frame.
+    Grid(cmd::bench::ScaleArgs),
 }
 
 /// Install the tracing subscriber (`RUST_LOG`, default `info`) on standard error.
@@ -130,6 +134,8 @@ pub fn main() -> ExitCode {
         Command::Bench(Bench::Camera(args)) => cmd::bench::camera(args),
         Command::Bench(Bench::Server(args)) => cmd::bench::server(args),
         Command::Bench(Bench::Transport(args)) => cmd::bench::transport(args),
+        Command::Bench(Bench::Grid(args)) => cmd::bench::grid(args),
+        Command::Acoustic(args) => cmd::acoustic::run_cmd(args),
         Command::Peer(args) => cmd::peer::run(args),
     };
     match result {

@@ -77,6 +77,9 @@ fn spawn_node(sup: &mut Supervisor, how: &Spawn<'_>, role: &str, id: u32) -> Res
         "server" => {
             cmd.arg("--record").arg(&opts.record);
         }
+        "acoustic" => {
+            cmd.arg("--epoch-ns").arg(how.epoch.0.to_string());
+        }
         // Scenario time 0 for the synthetic world, the same for every camera.
         "camera" => {
             cmd.arg("--epoch-ns").arg(how.epoch.0.to_string());
@@ -172,6 +175,38 @@ fn remove_domain_files(domain: &str) -> usize {
         .count()
 }
 
+/// A grid-fusing scenario's acoustic nodes without a fingerprint file get the simulated room's
+/// survey (`sim::acoustic::survey`), written to the run directory, as a deployment would
+/// survey its room with `ocelli acoustic survey` before the run.
+///
+/// # Errors
+/// A survey that cannot be made or written.
+fn with_fingerprints(mut scenario: Scenario, run_dir: &Path) -> Result<Scenario> {
+    if scenario.method.fusion != proto::scenario::Fusion::Grid {
+        return Ok(scenario);
+    }
+    let missing: Vec<u32> = scenario
+        .acoustic_nodes()
+        .filter(|n| n.acoustic.as_ref().is_some_and(|a| a.fingerprints.is_none()))
+        .map(|n| n.id)
+        .collect();
+    for id in missing {
+        let db =
+            sim::acoustic::survey(&scenario, id).map_err(|e| anyhow::anyhow!("acoustic node {id}: {e}"))?;
+        let path = run_dir.join(format!("fingerprints-{id}.json"));
+        db.save(&path)?;
+        if let Some(a) = scenario
+            .nodes
+            .iter_mut()
+            .find(|n| n.id == id)
+            .and_then(|n| n.acoustic.as_mut())
+        {
+            a.fingerprints = Some(path);
+        }
+    }
+    Ok(scenario)
+}
+
 /// Run a scenario to the end; returns the final report.
 ///
 /// # Errors
@@ -191,6 +226,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
             .with_context(|| format!("moving the earlier recording {} aside", opts.record.display()))?;
         tracing::info!(to = %aside.display(), "an earlier recording was moved aside");
     }
+    let scenario = with_fingerprints(scenario, &opts.run_dir)?;
     let scenario_path = opts.run_dir.join("scenario.toml");
     std::fs::write(&scenario_path, scenario.to_toml())?;
     let exe = std::env::current_exe().context("locating the ocelli binary")?;
@@ -209,6 +245,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
         (NodeRole::Server, "server"),
         (NodeRole::Head, "head"),
         (NodeRole::Camera, "camera"),
+        (NodeRole::Acoustic, "acoustic"),
     ] {
         for id in by_role(role) {
             spawn_node(&mut sup, &how, name, id)?;

@@ -65,6 +65,9 @@ pub struct Track {
     /// [`TAKEN_MEMORY_NS`]: a node repeats its newest reading of a tag in every answer while
     /// it is fresh, and a reading is information once.
     pub taken: Vec<(usize, ClusterTime)>,
+    /// The colour histogram the ground-plane observations fused into it carried, blended
+    /// over time (empty until one came): its appearance for identity at the server.
+    pub appearance: Vec<f32>,
 }
 
 /// How long the readings a track took are remembered (longer than any freshness bound).
@@ -111,6 +114,7 @@ impl Track {
             anchor: None,
             confirmed: global.is_some(),
             taken: Vec::new(),
+            appearance: Vec::new(),
         })
     }
 

@@ -1,4 +1,4 @@
-//! `ocelli bench camera|head|server|transport`: the lab's benchmarks (`lab::bench`), printed as
+//! `ocelli bench camera|head|server|transport|grid`: the lab's benchmarks (`lab::bench`), printed as
 //! JSON on standard output.
 
 use anyhow::Result;
@@ -74,4 +74,8 @@ pub fn transport(a: TransportArgs) -> Result<ExitCode> {
         burst_messages: a.burst_messages,
         codec_iterations: a.codec_iterations,
     })?)
+}
+
+pub fn grid(a: ScaleArgs) -> Result<ExitCode> {
+    print(&bench::grid::run(a.scale))
 }

@@ -51,12 +51,15 @@ impl HeadNode {
             ..StepStats::default()
         };
         let mut rssi_nodes = vec![false; self.nodes.len()];
+        self.hand_sensed_to_fusion();
         for t in 0..self.tracks.len() {
             self.hold_height(t);
             self.fuse_track(t, now, &mut stats, &mut rssi_nodes);
         }
         stats.rssi_nodes = rssi_nodes.iter().filter(|&&b| b).count();
         self.merge_duplicates();
+        let live: Vec<_> = self.tracks.iter().map(|t| t.local).collect();
+        self.fusion.retain(&live);
         stats.tracks = self.tracks.len();
         // A radio track is reported once a tag was heard for it (see `radio_search`).
         let evidenced = |t: &crate::track::Track| {
@@ -76,6 +79,8 @@ impl HeadNode {
                         contributors: t.contributors.clone(),
                         power_mw: self.power_mw(),
                         late: self.counters.late,
+                        appearance: t.appearance.clone(),
+                        grid: self.fusion.posterior(t.local),
                     }),
                 ));
             }

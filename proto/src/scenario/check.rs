@@ -136,6 +136,12 @@ impl Scenario {
                 format!("expected non-negative numbers, got {:?}", m.motion.accel_psd),
             ));
         }
+        if let Err(e) = m.particle.validate() {
+            return Err(bad(
+                format!("method.particle.{}", e.field),
+                format!("expected {}, got {}", e.expected, e.value),
+            ));
+        }
         power("power".into(), &self.power)?;
 
         // Nodes.
@@ -172,8 +178,11 @@ impl Scenario {
                         "only camera nodes have camera geometry".into(),
                     ));
                 }
-                if n.head.is_some() {
-                    return Err(bad(field("head"), "only camera nodes report to a head".into()));
+                if n.head.is_some() && n.role != NodeRole::Acoustic {
+                    return Err(bad(
+                        field("head"),
+                        "only camera and acoustic nodes report to a head".into(),
+                    ));
                 }
             }
             if let Some(region) = n.region {
@@ -283,7 +292,7 @@ impl Scenario {
             }
             positive(field("camera.fps"), cam.fps)?;
         }
-
+        self.check_acoustic(origin)?;
         Ok(())
     }
 }

@@ -39,6 +39,8 @@ pub enum SourceError {
     Device(String),
     #[error("{path}: no readings of sensor {sensor}")]
     NoReadings { path: PathBuf, sensor: TagId },
+    #[error("{source_name}: stalled, no samples for {waited_ms} ms")]
+    Stalled { source_name: String, waited_ms: u64 },
 }
 
 /// Something that produces frames.

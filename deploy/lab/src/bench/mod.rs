@@ -1,6 +1,8 @@
 //! The benchmarks behind `ocelli bench`: each times a hot path and returns its figures as JSON.
 
 pub mod camera;
+pub mod grid;
 pub mod head;
+pub mod particle;
 pub mod server;
 pub mod transport;
