@@ -363,11 +363,16 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<report::Report
     }
     let loaded = node_server::analysis::load(&opts.record, Some(scenario.clone()))
         .with_context(|| format!("reading the recording {}", opts.record.display()))?;
-    let truth = sim::WorldTruth::of(&loaded.scenario, epoch)?;
-    Ok(report::compute(
-        &loaded,
-        truth.as_ref().map(|t| t as &dyn report::Truth),
-    ))
+    if let Some(t) = sim::WorldTruth::of(&loaded.scenario, epoch)? {
+        return Ok(report::compute(&loaded, Some(&t)));
+    }
+    // Radio-only nodes replaying a recording: its positions are the truth, and RSSI-only
+    // tracks err metres, so a track is the beacon's within a wider gate.
+    let recorded = sim::RecordedTruth::of(&scenario, epoch)?;
+    Ok(match &recorded {
+        Some(t) => report::compute_with(&loaded, Some(t), sim::recorded_truth::ASSOCIATION_GATE_M),
+        None => report::compute(&loaded, None),
+    })
 }
 
 #[cfg(test)]

@@ -177,6 +177,12 @@ impl CameraNode {
     }
 
     fn switch_mode(&mut self, now: ClusterTime, mode: Mode) {
+        // A radio-only node has no camera to switch on: Active is CameraOff for it.
+        let mode = if self.cfg.radio_only && mode == Mode::Active {
+            Mode::CameraOff
+        } else {
+            mode
+        };
         if mode == self.mode {
             return;
         }

@@ -346,7 +346,7 @@ impl HeadNode {
                 }
                 let mut kinds = if camera { c.folded } else { Kinds::NONE };
                 for r in &rssi {
-                    if track.hear(slot, r.dbm, track.time.secs_since(r.time)) {
+                    if track.hear_once(slot, r.time, r.dbm) {
                         kinds.insert(ObservationKind::Rssi);
                     }
                 }
@@ -568,6 +568,7 @@ impl HeadNode {
         });
         self.counters.numeric_failures += failed;
         self.counters.deaths += failed;
+        self.radio_search(now);
         self.step += 1;
         self.step_time = now;
         // Detections are kept: those that arrived between steps are associated at the close.
@@ -627,6 +628,7 @@ impl Node for HeadNode {
 }
 
 mod close;
+mod radio;
 mod sensed;
 #[cfg(test)]
 mod tests;

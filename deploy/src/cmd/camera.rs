@@ -53,6 +53,10 @@ pub struct Args {
     /// server's recording (for `ocelli replay`).
     #[arg(long)]
     pub record_measurements: bool,
+    /// Radio: `ble`, `ble:ADAPTER` or `file:PATH.mbd@SENSOR-MAC` (default: the scenario node's
+    /// `radio`, else the synthetic world's with `--source synthetic`).
+    #[arg(long, value_parser = proto::scenario::RadioSpec::parse)]
+    pub radio: Option<proto::scenario::RadioSpec>,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -159,7 +163,19 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
         &args.security.link_security(),
     )?;
     let epoch = args.epoch_ns.map_or_else(|| clock.now(), ClusterTime);
-    let (frames, radio, source_stats) = sources(source, &scenario, args.id, args.seed, epoch)?;
+    let node = scenario.node(args.id);
+    let (frames, radio, source_stats) = if node.is_some_and(|n| n.radio_only()) {
+        // No camera: no frames (its core never captures).
+        let none: OpenFrames =
+            Box::new(|| Ok(Box::new(node_camera::radio::NoCamera) as Box<dyn FrameSource>));
+        (none, None, None)
+    } else {
+        sources(source, &scenario, args.id, args.seed, epoch)?
+    };
+    let radio = match args.radio.as_ref().or(node.and_then(|n| n.radio.as_ref())) {
+        Some(spec) => Some(super::radio::open(spec, &clock, epoch)?),
+        None => radio,
+    };
     let leader = scenario.server().map(|s| NodeId(s.id));
     let cfg = ProcessConfig {
         id: args.id,

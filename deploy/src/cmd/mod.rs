@@ -10,6 +10,7 @@ pub mod export;
 pub mod head;
 pub mod launch;
 pub mod peer;
+pub mod radio;
 pub mod replay;
 pub mod report;
 pub mod scenario;

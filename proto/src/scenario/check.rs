@@ -204,16 +204,44 @@ impl Scenario {
             }
             positive(field("cost-factor"), n.cost_factor)?;
             if n.role != NodeRole::Camera {
+                if n.position.is_some() || n.radio.is_some() {
+                    return Err(bad(
+                        field(if n.radio.is_some() { "radio" } else { "position" }),
+                        "only camera nodes carry a radio".into(),
+                    ));
+                }
                 continue;
             }
-            let Some(cam) = &n.camera else {
-                return Err(bad(field("camera"), "a camera node needs camera geometry".into()));
-            };
+            if let Some(p) = n.position
+                && !all_finite(&p)
+            {
+                return Err(bad(
+                    field("position"),
+                    format!("expected finite [x, y, z], got {p:?}"),
+                ));
+            }
             if let Some(h) = n.head
                 && !heads.contains(&h)
             {
                 return Err(bad(field("head"), format!("no head with id {h}")));
             }
+            let Some(cam) = &n.camera else {
+                // A radio-only node: it needs a place and a radio.
+                if n.position.is_none() {
+                    return Err(bad(
+                        field("camera"),
+                        "a camera node needs camera geometry, or `position` (and rssi) to be a radio-only node"
+                            .into(),
+                    ));
+                }
+                if !n.rssi {
+                    return Err(bad(
+                        field("rssi"),
+                        "a node without a camera must hear radio (rssi = true)".into(),
+                    ));
+                }
+                continue;
+            };
             if cam.opencv_intrinsic.is_none() && cam.intrinsics.is_none() {
                 return Err(bad(
                     field("camera"),

@@ -5,5 +5,6 @@ mod cluster;
 mod harness;
 mod layering;
 mod netns;
+mod radio;
 mod transport;
 mod viewer;

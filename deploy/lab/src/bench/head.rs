@@ -238,6 +238,7 @@ fn head_step_us(n: usize, scale: f64, rssi: bool) -> Result<f64> {
             cost_factor: 1.0,
             fps: 5.0,
             member: true,
+            radio_only: false,
         })
         .collect();
     let cfg = HeadConfig {

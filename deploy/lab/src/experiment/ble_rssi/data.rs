@@ -4,11 +4,12 @@
 //! wrong; nothing is skipped silently.
 
 use nalgebra::Vector3;
+use proto::TagId;
+use proto::sensor::mbd::{self, MbdError};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// Fields of one `.mbd` line: timestamp, sensor MAC, beacon MAC, RSSI, x, y, z, 3×3 orientation.
-pub const MBD_FIELDS: usize = 16;
+pub use proto::sensor::mbd::MBD_FIELDS;
 /// Suffix of the merged (all sensors) trajectory files.
 pub const TRACK_SUFFIX: &str = "_all_sensors.mbd";
 /// Environment variable that overrides the dataset directory.
@@ -114,57 +115,38 @@ pub fn parse_devices(text: &str) -> Result<Vec<Sensor>, String> {
     Ok(sensors)
 }
 
-fn number(field: &str, what: &str) -> Result<f64, String> {
-    let v: f64 = field
-        .trim()
-        .parse()
-        .map_err(|_| format!("{what} {field:?} is not a number"))?;
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(format!("{what} {field:?} is not finite"))
-    }
-}
-
 /// Parse one `.mbd` file's text into packets sorted by time (the merged files are ordered up to
-/// a few sub-millisecond swaps), t relative to the first packet. Blank lines are allowed.
+/// a few sub-millisecond swaps), t relative to the first packet. Blank lines are allowed. Each
+/// line is read by `proto::sensor::mbd`, the parser the file radio source uses.
 ///
 /// # Errors
 /// `(line number, what is wrong)`: a wrong field count, a non-numeric or non-finite number, an
 /// RSSI outside −127..=20 dBm, or a sensor MAC not in `sensors`.
 pub fn parse_track(text: &str, sensors: &[Sensor]) -> Result<Vec<Packet>, (usize, String)> {
+    let macs: Vec<Option<TagId>> = sensors.iter().map(|s| TagId::parse_mac(&s.mac)).collect();
     let mut raw = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let n = i + 1;
-        if line.trim().is_empty() {
-            continue;
-        }
-        let f: Vec<&str> = line.split(',').collect();
-        if f.len() != MBD_FIELDS {
-            return Err((n, format!("{} fields, expected {MBD_FIELDS}", f.len())));
-        }
-        let t = number(f[0], "timestamp").map_err(|m| (n, m))?;
-        let mac = f[1].trim();
-        let sensor = sensors
+        let r = match mbd::parse_line(line) {
+            Ok(Some(r)) => r,
+            Ok(None) => continue,
+            Err(MbdError::Mac {
+                what: "sensor MAC",
+                field,
+            }) => {
+                return Err((n, format!("unknown sensor MAC {:?}", field.trim())));
+            }
+            Err(e) => return Err((n, e.to_string())),
+        };
+        let sensor = macs
             .iter()
-            .position(|s| s.mac == mac)
-            .ok_or_else(|| (n, format!("unknown sensor MAC {mac:?}")))?;
-        let rssi = number(f[3], "RSSI").map_err(|m| (n, m))?;
-        if !(-127.0..=20.0).contains(&rssi) {
-            return Err((n, format!("RSSI {rssi} dBm out of range")));
-        }
-        let mut p = [0.0; 3];
-        for (a, v) in p.iter_mut().enumerate() {
-            *v = number(f[4 + a], "position").map_err(|m| (n, m))?;
-        }
-        for field in &f[7..] {
-            number(field, "orientation").map_err(|m| (n, m))?;
-        }
+            .position(|m| *m == Some(r.sensor))
+            .ok_or_else(|| (n, format!("unknown sensor MAC {:?}", r.sensor.to_string())))?;
         raw.push(Packet {
-            t,
+            t: r.time_s,
             sensor,
-            rssi,
-            truth: Vector3::from(p),
+            rssi: r.dbm,
+            truth: Vector3::from(r.position),
         });
     }
     raw.sort_by(|a, b| a.t.total_cmp(&b.t));
@@ -241,8 +223,8 @@ pub fn load(dir: &Path) -> Result<Dataset, DataError> {
 mod tests {
     use super::*;
 
-    const DEV: &str = r#"Dongles:{"aa": [[1.0, 2.0, 1.5], 1, "s1"], "bb": [[3.0, 4.0, 2.3], 2, "s0"]}
-Beacons:{"cc": [[], 3, "beacon1"] }"#;
+    const DEV: &str = r#"Dongles:{"0000000000aa": [[1.0, 2.0, 1.5], 1, "s1"], "0000000000bb": [[3.0, 4.0, 2.3], 2, "s0"]}
+Beacons:{"0000000000cc": [[], 3, "beacon1"] }"#;
     const ORIENT: &str = "1,0,0,0,1,0,0,0,1";
 
     fn sensors() -> Vec<Sensor> {
@@ -254,7 +236,7 @@ Beacons:{"cc": [[], 3, "beacon1"] }"#;
         let s = sensors();
         assert_eq!(s.len(), 2);
         assert_eq!(s[0].alias, "s0");
-        assert_eq!(s[0].mac, "bb");
+        assert_eq!(s[0].mac, "0000000000bb");
         assert_eq!(s[1].pos, Vector3::new(1.0, 2.0, 1.5));
     }
 
@@ -267,7 +249,9 @@ Beacons:{"cc": [[], 3, "beacon1"] }"#;
 
     #[test]
     fn track_parses_sorts_and_rebases_time() {
-        let text = format!("10.5,aa,cc,-70,1,2,1.8,{ORIENT}\n\n10.0,bb,cc,-80,1.5,2,1.8,{ORIENT}\n");
+        let text = format!(
+            "10.5,0000000000aa,0000000000cc,-70,1,2,1.8,{ORIENT}\n\n10.0,0000000000bb,0000000000cc,-80,1.5,2,1.8,{ORIENT}\n"
+        );
         let p = parse_track(&text, &sensors()).expect("valid track");
         assert_eq!(p.len(), 2);
         assert_eq!(p[0].t, 0.0);
@@ -280,19 +264,25 @@ Beacons:{"cc": [[], 3, "beacon1"] }"#;
     #[test]
     fn track_rejects_malformed_lines_naming_line_and_problem() {
         let s = sensors();
-        let ok = format!("1.0,aa,cc,-70,1,2,1.8,{ORIENT}");
+        let (a, c) = ("0000000000aa", "0000000000cc");
+        let ok = format!("1.0,{a},{c},-70,1,2,1.8,{ORIENT}");
         let cases = [
-            (format!("{ok}\n1.0,aa,cc,-70,1,2,1.8"), 2, "fields"),
+            (format!("{ok}\n1.0,{a},{c},-70,1,2,1.8"), 2, "fields"),
             (
-                format!("{ok}\n1.0,zz,cc,-70,1,2,1.8,{ORIENT}"),
+                format!("{ok}\n1.0,zz,{c},-70,1,2,1.8,{ORIENT}"),
                 2,
                 "unknown sensor",
             ),
-            (format!("1.0,aa,cc,strong,1,2,1.8,{ORIENT}"), 1, "RSSI"),
-            (format!("1.0,aa,cc,-70,1,NaN,1.8,{ORIENT}"), 1, "not finite"),
-            (format!("1.0,aa,cc,-300,1,2,1.8,{ORIENT}"), 1, "out of range"),
             (
-                "1.0,aa,cc,-70,1,2,1.8,1,0,0,0,x,0,0,0,1".to_string(),
+                format!("{ok}\n1.0,0000000000dd,{c},-70,1,2,1.8,{ORIENT}"),
+                2,
+                "unknown sensor",
+            ),
+            (format!("1.0,{a},{c},strong,1,2,1.8,{ORIENT}"), 1, "RSSI"),
+            (format!("1.0,{a},{c},-70,1,NaN,1.8,{ORIENT}"), 1, "not finite"),
+            (format!("1.0,{a},{c},-300,1,2,1.8,{ORIENT}"), 1, "out of range"),
+            (
+                format!("1.0,{a},{c},-70,1,2,1.8,1,0,0,0,x,0,0,0,1"),
                 1,
                 "orientation",
             ),
