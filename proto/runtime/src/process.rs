@@ -100,6 +100,30 @@ pub trait Hooks<N> {
     }
 }
 
+/// After each step, tell a sensor thread whether the core wants its input (a camera's frames,
+/// an acoustic node's audio): the node decides, the thread reads the flag before capturing.
+pub struct SensorSwitch<N> {
+    flag: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    wants: fn(&N) -> bool,
+}
+
+impl<N> SensorSwitch<N> {
+    /// `wants` reads the node's wish; `flag` is shared with the sensor thread.
+    pub fn new(flag: std::sync::Arc<std::sync::atomic::AtomicBool>, wants: fn(&N) -> bool) -> Self {
+        SensorSwitch { flag, wants }
+    }
+}
+
+impl<N> Hooks<N> for SensorSwitch<N> {
+    type Error = std::convert::Infallible;
+
+    fn after(&mut self, node: &mut N, _: ClusterTime, _: &[Outgoing]) -> Result<(), Self::Error> {
+        self.flag
+            .store((self.wants)(node), std::sync::atomic::Ordering::Relaxed);
+        Ok(())
+    }
+}
+
 /// No extra work.
 #[derive(Debug, Default)]
 pub struct NoHooks;
