@@ -20,7 +20,7 @@ use nalgebra::{Matrix2, Vector2};
 use proto::camera::CameraModel;
 use proto::models::{self, State};
 use proto::msg::{Contribution, ImageSample, MAX_SAMPLES, Measurement, Mode, Prior, SampleSet};
-use proto::observation::{GroundPoint, Kinds, Observation, ObservationKind, RssiReading};
+use proto::observation::{GroundPoint, Observation, ObservationKind, RssiReading};
 use proto::sensor::{Detection, Frame};
 use proto::{ClusterTime, TargetId};
 use std::collections::BTreeMap;
@@ -291,24 +291,7 @@ pub fn contribution(
         }
         Some((omega, xi))
     });
-    let (info_matrix, info_vector, folded) = match info {
-        Some((omega, xi)) => (
-            models::mat6_to_wire(&omega),
-            models::vec6_to_wire(&xi),
-            Kinds::of(ObservationKind::Ground),
-        ),
-        None => ([[0.0; 6]; 6], [0.0; 6], Kinds::NONE),
-    };
-    Contribution {
-        target: prior.target,
-        step: prior.step,
-        info_matrix,
-        info_vector,
-        folded,
-        captured,
-        mode,
-        observations: rssi.iter().copied().map(Observation::Rssi).collect(),
-    }
+    crate::measure::folded_contribution(prior, info, ObservationKind::Ground, captured, mode, rssi)
 }
 
 /// A measurement carrying one ground point (and the tag readings of its frame).

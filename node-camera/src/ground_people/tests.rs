@@ -1,5 +1,6 @@
 use super::*;
 use proto::msg::PixelBox;
+use proto::observation::Kinds;
 use proto::scenario::Scenario;
 
 fn person(x: f64, y: f64) -> GroundPoint {
