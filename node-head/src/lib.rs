@@ -8,6 +8,7 @@
 //! step's accounting).
 
 pub mod activation;
+pub mod assign;
 pub mod association;
 pub mod config;
 pub mod eif;
