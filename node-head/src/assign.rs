@@ -149,16 +149,65 @@ impl GatedCosts {
 /// free. Never pairs outside the gate; each track gets at most one detection per camera; the
 /// total cost (d² per pair, the gate per free detection) is minimal up to 10⁻¹² of the gate per
 /// detection.
+///
+/// Each camera's problem is split further into the connected components of its gated pairs
+/// (detections and tracks linked by a pair inside the gate), which are independent: a crowd
+/// becomes many small matchings instead of one large, mostly forbidden one.
 pub fn assign(costs: &GatedCosts) -> Vec<Option<usize>> {
     let mut out = vec![None; costs.detections()];
     let mut rows: Vec<usize> = (0..costs.detections()).collect();
     rows.sort_by_key(|&i| costs.cameras[i]);
     for group in rows.chunk_by(|a, b| costs.cameras[*a] == costs.cameras[*b]) {
-        let pairs = max_weight_matching(group.len(), costs.tracks, costs.gate, |r, t| {
-            costs.cost(group[r], t).map(|d2| costs.gate - d2)
-        });
-        for (r, t) in pairs.into_iter().enumerate() {
-            out[group[r]] = t;
+        for (dets, tracks) in components(costs, group) {
+            let pairs = max_weight_matching(dets.len(), tracks.len(), costs.gate, |r, c| {
+                costs.cost(dets[r], tracks[c]).map(|d2| costs.gate - d2)
+            });
+            for (r, c) in pairs.into_iter().enumerate() {
+                out[dets[r]] = c.map(|c| tracks[c]);
+            }
+        }
+    }
+    out
+}
+
+/// The connected components of the gated pairs among `dets` (one camera's detections) and all
+/// tracks, as (detections, tracks) in increasing order; detections and tracks with no pair
+/// inside the gate are left out.
+fn components(costs: &GatedCosts, dets: &[usize]) -> Vec<(Vec<usize>, Vec<usize>)> {
+    fn root(parent: &mut [usize], mut x: usize) -> usize {
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
+        }
+        x
+    }
+    let n = dets.len();
+    // Nodes 0..n are the detections, n..n + tracks the tracks.
+    let mut parent: Vec<usize> = (0..n + costs.tracks).collect();
+    let mut linked = vec![false; n + costs.tracks];
+    for (r, &det) in dets.iter().enumerate() {
+        for t in 0..costs.tracks {
+            if costs.cost(det, t).is_some() {
+                let (a, b) = (root(&mut parent, r), root(&mut parent, n + t));
+                parent[a.max(b)] = a.min(b);
+                linked[r] = true;
+                linked[n + t] = true;
+            }
+        }
+    }
+    let mut slot = vec![usize::MAX; n + costs.tracks];
+    let mut out: Vec<(Vec<usize>, Vec<usize>)> = Vec::new();
+    for node in (0..n + costs.tracks).filter(|&x| linked[x]) {
+        let r = root(&mut parent, node);
+        if slot[r] == usize::MAX {
+            slot[r] = out.len();
+            out.push((Vec::new(), Vec::new()));
+        }
+        let (ds, ts) = &mut out[slot[r]];
+        if node < n {
+            ds.push(dets[node])
+        } else {
+            ts.push(node - n)
         }
     }
     out
@@ -301,8 +350,17 @@ mod tests {
     fn forbidden_pairs_are_never_chosen() {
         // Kuhn–Munkres pairs every row of a square matrix; detection 0 has no allowed pair
         // (`None`: not computable; +∞; above the gate), so it must come back free.
-        let c = table(9.0, &[(0, &[None, Some(f64::INFINITY), Some(9.5)]), (0, &[None, Some(1.0), None])]);
-        assert_eq!((c.cost(0, 1), c.cost(0, 2), c.cost(1, 1)), (None, None, Some(1.0)));
+        let c = table(
+            9.0,
+            &[
+                (0, &[None, Some(f64::INFINITY), Some(9.5)]),
+                (0, &[None, Some(1.0), None]),
+            ],
+        );
+        assert_eq!(
+            (c.cost(0, 1), c.cost(0, 2), c.cost(1, 1)),
+            (None, None, Some(1.0))
+        );
         assert_eq!(assign(&c), vec![None, Some(1)]);
         // A lone pair just outside the gate stays apart; one on the gate may pair (same cost).
         assert_eq!(assign(&table(4.0, &[(0, &[Some(4.000001)])])), vec![None]);
@@ -367,13 +425,13 @@ mod tests {
     }
 
     /// Up to 6 detections from up to 2 cameras and up to 4 tracks; d² in [0, 12] with gate 9,
-    /// some missing.
-    fn problem() -> impl Strategy<Value = GatedCosts> {
-        (0usize..5).prop_flat_map(|tracks| {
+    /// each present with probability `density` (sparse tables split into several components).
+    fn problem(density: f64) -> impl Strategy<Value = GatedCosts> {
+        (0usize..5).prop_flat_map(move |tracks| {
             prop::collection::vec(
                 (
                     0usize..2,
-                    prop::collection::vec(prop::option::weighted(0.8, 0.0..12.0f64), tracks),
+                    prop::collection::vec(prop::option::weighted(density, 0.0..12.0f64), tracks),
                 ),
                 0..7,
             )
@@ -389,12 +447,28 @@ mod tests {
 
     proptest! {
         #[test]
-        fn matches_brute_force(c in problem()) {
-            let a = assign(&c);
-            let total = c.total_cost(&a);
-            prop_assert!(total.is_some(), "infeasible assignment {:?}", a);
-            let best = brute_force(&c);
-            prop_assert!((total.unwrap() - best).abs() < 1e-9, "{:?} costs {:?}, optimum {}", a, total, best);
+        fn matches_brute_force(c in problem(0.8)) {
+            check_against_brute_force(&c)?;
         }
+
+        #[test]
+        fn matches_brute_force_when_sparse(c in problem(0.3)) {
+            check_against_brute_force(&c)?;
+        }
+    }
+
+    fn check_against_brute_force(c: &GatedCosts) -> Result<(), TestCaseError> {
+        let a = assign(c);
+        let total = c.total_cost(&a);
+        prop_assert!(total.is_some(), "infeasible assignment {:?}", a);
+        let best = brute_force(c);
+        prop_assert!(
+            (total.unwrap() - best).abs() < 1e-9,
+            "{:?} costs {:?}, optimum {}",
+            a,
+            total,
+            best
+        );
+        Ok(())
     }
 }
