@@ -11,6 +11,7 @@
 //! targets) and [`step`] (the distributed step's accounting).
 
 pub mod activation;
+pub mod assign;
 pub mod association;
 pub mod config;
 pub mod eif;
