@@ -11,7 +11,6 @@
 //! targets) and [`step`] (the distributed step's accounting).
 
 pub mod activation;
-pub mod assign;
 pub mod association;
 pub mod config;
 pub mod eif;

@@ -9,7 +9,7 @@
 //! (motmetrics counts tracked → missed transitions between its first and last tracked frame).
 
 use super::Frame;
-use super::lap::max_weight_matching;
+use assign::max_weight_matching;
 use std::collections::{BTreeMap, HashMap};
 
 /// The running counts of a run.

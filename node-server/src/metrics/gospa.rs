@@ -7,7 +7,7 @@
 //! neither are left out of the average here too. Its components are reported in its units:
 //! localisation is the sum of matched distances to the p, missed and false are c^p/2 per target.
 
-use super::lap::max_weight_matching;
+use assign::max_weight_matching;
 
 /// Running sums over frames.
 #[derive(Debug)]

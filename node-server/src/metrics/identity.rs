@@ -8,7 +8,7 @@
 //! frames minus twice the IDTP, so both give the same IDTP.
 
 use super::Frame;
-use super::lap::max_weight_matching_exact;
+use assign::max_weight_matching_exact;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
 /// The counts the matching needs.

@@ -22,7 +22,6 @@
 mod clear;
 mod gospa;
 mod identity;
-mod lap;
 #[cfg(test)]
 mod tests;
 

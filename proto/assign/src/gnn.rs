@@ -8,12 +8,9 @@
 //! camera. Minimising Σ d² + gate · (free detections) is the same as maximising Σ (gate − d²)
 //! over the chosen pairs, so each camera's problem is solved as a maximum-weight matching with
 //! weights gate − d² ≥ 0: the dummy columns folded into the weights, without enlarging the
-//! matrix. The solver is `pathfinding`'s Kuhn–Munkres, on weights quantised to 2⁴⁰ steps of the
-//! gate (the node-server's tracking metrics solve their assignments the same way).
+//! matrix. The solver is [`crate::matching::max_weight_matching`].
 
-use pathfinding::kuhn_munkres::kuhn_munkres;
-use pathfinding::matrix::Matrix;
-use rand::{Rng, SeedableRng};
+use crate::matching::max_weight_matching;
 
 /// One frame's association problem: rows are detections (each seen by one camera), columns
 /// are tracks.
@@ -27,23 +24,46 @@ pub struct GatedCosts {
 }
 
 /// Why a cost table was refused.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum AssignError {
-    #[error("gate {0}: expected a finite number > 0")]
+    /// The gate is not a finite number > 0.
     Gate(f64),
-    #[error("detection {detection}: {got} costs given for {tracks} tracks")]
+    /// A detection's row has the wrong number of costs.
     Width {
         detection: usize,
         got: usize,
         tracks: usize,
     },
-    #[error("detection {detection}, track {track}: squared distance {value} is negative or NaN")]
+    /// A squared distance is negative or NaN.
     Cost {
         detection: usize,
         track: usize,
         value: f64,
     },
 }
+
+impl std::fmt::Display for AssignError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            AssignError::Gate(g) => write!(f, "gate {g}: expected a finite number > 0"),
+            AssignError::Width {
+                detection,
+                got,
+                tracks,
+            } => write!(f, "detection {detection}: {got} costs given for {tracks} tracks"),
+            AssignError::Cost {
+                detection,
+                track,
+                value,
+            } => write!(
+                f,
+                "detection {detection}, track {track}: squared distance {value} is negative or NaN"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for AssignError {}
 
 impl GatedCosts {
     /// An empty table for `tracks` tracks with a gate on d² (e.g. a χ² quantile).
@@ -159,7 +179,7 @@ pub fn assign(costs: &GatedCosts) -> Vec<Option<usize>> {
     rows.sort_by_key(|&i| costs.cameras[i]);
     for group in rows.chunk_by(|a, b| costs.cameras[*a] == costs.cameras[*b]) {
         for (dets, tracks) in components(costs, group) {
-            let pairs = max_weight_matching(dets.len(), tracks.len(), costs.gate, |r, c| {
+            let pairs = max_weight_matching(dets.len(), tracks.len(), costs.gate, false, |r, c| {
                 costs.cost(dets[r], tracks[c]).map(|d2| costs.gate - d2)
             });
             for (r, c) in pairs.into_iter().enumerate() {
@@ -211,94 +231,6 @@ fn components(costs: &GatedCosts, dets: &[usize]) -> Vec<(Vec<usize>, Vec<usize>
         }
     }
     out
-}
-
-/// Steps of the quantised weights (about 10⁻¹² of the weight range).
-const STEPS: i64 = 1 << 40;
-
-/// A maximum-weight matching; `weight(r, c)` is `Some(w)` with `0 ≤ w ≤ max_weight` for an
-/// allowed pair, `None` for a forbidden one, which never appears in the answer.
-fn max_weight_matching(
-    rows: usize,
-    cols: usize,
-    max_weight: f64,
-    weight: impl Fn(usize, usize) -> Option<f64>,
-) -> Vec<Option<usize>> {
-    if rows == 0 || cols == 0 {
-        return vec![None; rows];
-    }
-    let n = rows.min(cols) as i64;
-    // n · steps must fit in an i64 with room for the solver's labels.
-    let steps = STEPS.min(i64::MAX / 16 / ((n + 1) * (n + 1))).max(1);
-    let scale = steps as f64 / max_weight;
-    let integer =
-        |r: usize, c: usize| weight(r, c).map_or(0, |w| ((w * scale).round() as i64).clamp(0, steps));
-    let mut out = if rows <= cols {
-        let m = Matrix::from_fn(rows, cols, |(r, c)| integer(r, c));
-        kuhn_munkres(&m).1.into_iter().map(Some).collect()
-    } else {
-        let m = Matrix::from_fn(cols, rows, |(c, r)| integer(r, c));
-        let mut out = vec![None; rows];
-        for (c, r) in kuhn_munkres(&m).1.into_iter().enumerate() {
-            out[r] = Some(c);
-        }
-        out
-    };
-    for (r, c) in out.iter_mut().enumerate() {
-        if c.is_some_and(|c| weight(r, c).is_none()) {
-            *c = None;
-        }
-    }
-    out
-}
-
-/// A realistic random problem for benchmarks: `tracks` people spread over a square of
-/// 2.25 m² each, `detections` split round-robin over `cameras`, each detection a person seen
-/// with 0.3 m of Gaussian noise (one in ten is clutter anywhere in the room); d² is the squared
-/// distance over 0.3², gated at 9.21 (χ², 2 degrees of freedom, 99%).
-pub fn bench_costs(detections: usize, tracks: usize, cameras: usize, seed: u64) -> GatedCosts {
-    const SIGMA: f64 = 0.3;
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let side = 1.5 * (tracks.max(1) as f64).sqrt();
-    let people: Vec<[f64; 2]> = (0..tracks)
-        .map(|_| [rng.random_range(0.0..side), rng.random_range(0.0..side)])
-        .collect();
-    let mut costs = GatedCosts::new(tracks, 9.21).expect("a valid gate");
-    let cameras = cameras.max(1);
-    for i in 0..detections {
-        let at = if tracks == 0 || rng.random_bool(0.1) {
-            [rng.random_range(0.0..side), rng.random_range(0.0..side)]
-        } else {
-            let p = people[(i / cameras) % tracks];
-            // Box–Muller.
-            let (u, v): (f64, f64) = (rng.random_range(f64::EPSILON..1.0), rng.random());
-            let r = SIGMA * (-2.0 * u.ln()).sqrt();
-            let a = std::f64::consts::TAU * v;
-            [p[0] + r * a.cos(), p[1] + r * a.sin()]
-        };
-        let d2: Vec<Option<f64>> = people
-            .iter()
-            .map(|p| Some(((at[0] - p[0]).powi(2) + (at[1] - p[1]).powi(2)) / (SIGMA * SIGMA)))
-            .collect();
-        costs.push(i % cameras, &d2).expect("finite, non-negative costs");
-    }
-    costs
-}
-
-/// Median time of one [`assign`] on [`bench_costs`]`(detections, tracks, cameras, seed)` over
-/// `repeats` runs, in microseconds (build with `--release`).
-#[allow(clippy::disallowed_methods)] // a bench reads the clock; `assign` does not
-pub fn time_assign(detections: usize, tracks: usize, cameras: usize, repeats: usize, seed: u64) -> f64 {
-    let costs = bench_costs(detections, tracks, cameras, seed);
-    let mut times: Vec<f64> = (0..repeats.max(1))
-        .map(|_| {
-            let start = std::time::Instant::now();
-            std::hint::black_box(assign(std::hint::black_box(&costs)));
-            start.elapsed().as_secs_f64() * 1e6
-        })
-        .collect();
-    times.sort_by(f64::total_cmp);
-    times[times.len() / 2]
 }
 
 #[cfg(test)]
@@ -408,20 +340,6 @@ mod tests {
             Err(AssignError::Cost { track: 0, .. })
         ));
         assert_eq!(c, before);
-    }
-
-    #[test]
-    fn bench_problems_have_the_requested_shape_and_real_choices() {
-        let c = bench_costs(200, 50, 4, 1);
-        assert_eq!((c.detections(), c.tracks()), (200, 50));
-        assert_eq!((0..200).filter(|&i| c.camera(i) == Some(2)).count(), 50);
-        // Most detections are inside the gate of their person; some compete for several tracks.
-        let inside: Vec<usize> = (0..200)
-            .map(|i| (0..50).filter(|&t| c.cost(i, t).is_some()).count())
-            .collect();
-        assert!(inside.iter().filter(|n| **n > 0).count() > 150, "{inside:?}");
-        assert!(inside.iter().any(|n| *n > 1), "{inside:?}");
-        assert_eq!(assign(&c), assign(&bench_costs(200, 50, 4, 1)));
     }
 
     /// Up to 6 detections from up to 2 cameras and up to 4 tracks; d² in [0, 12] with gate 9,

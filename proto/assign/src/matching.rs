@@ -1,12 +1,10 @@
-//! Optimal assignment for the metrics, over `pathfinding`'s Kuhn–Munkres solver.
+//! Maximum-weight matchings over `pathfinding`'s Kuhn–Munkres solver.
 //!
 //! The solver wants exact (integer) weights and at least as many columns as rows; this module
 //! gives it both: float weights are quantised (2⁴⁰ steps over their range, fewer only for
 //! matrices with thousands of rows, so that no sum can overflow), and a tall matrix is solved
 //! transposed. A forbidden pair has weight 0 and is dropped from the answer, so what comes back
-//! only ever pairs allowed entries. The node-head crate's `assign` module solves the head's
-//! association the same way; the two stay separate because the server does not depend on the
-//! head.
+//! only ever pairs allowed entries.
 
 use pathfinding::kuhn_munkres::kuhn_munkres;
 use pathfinding::matrix::Matrix;
@@ -21,7 +19,7 @@ const STEPS: i64 = 1 << 40;
 /// then the largest total weight among those (py-motmetrics' rule: its solver adds "expensive
 /// edges" for forbidden pairs); without, only the total weight counts and a pair of weight 0
 /// is as good as none. Optimal up to the quantisation step (≈ `max_weight` × 10⁻¹²).
-pub(crate) fn max_weight_matching(
+pub fn max_weight_matching(
     rows: usize,
     cols: usize,
     max_weight: f64,
@@ -52,7 +50,7 @@ pub(crate) fn max_weight_matching(
 
 /// A maximum-weight matching over non-negative integer weights (exact); pairs of weight 0 are
 /// left out of the answer.
-pub(crate) fn max_weight_matching_exact(
+pub fn max_weight_matching_exact(
     rows: usize,
     cols: usize,
     weight: impl Fn(usize, usize) -> i64,
