@@ -36,6 +36,8 @@ pub(super) struct Target {
     pub switches: usize,
     pub fragmentations: usize,
     pub hyp_ids: Vec<u32>,
+    /// Sum of its matched distances (matches and switches).
+    pub distance_sum: f64,
     /// Tracked before, and missed since the last time it was tracked.
     interrupted: bool,
 }
@@ -62,6 +64,7 @@ impl Clear {
                 hyp_of[i] = Some(j);
                 self.matches += 1;
                 self.distance_sum += d[i * nh + j];
+                self.targets.entry(*oid).or_default().distance_sum += d[i * nh + j];
             }
         }
         // (2) Optimal assignment of the rest: most pairs, then least total distance.
@@ -78,6 +81,7 @@ impl Clear {
             hyp_of[i] = Some(j);
             claimed[j] = true;
             self.distance_sum += d[i * nh + j];
+            self.targets.entry(oid).or_default().distance_sum += d[i * nh + j];
             if self.last_match.insert(oid, hid).is_some_and(|prev| prev != hid) {
                 self.switches += 1;
                 self.targets.entry(oid).or_default().switches += 1;

@@ -16,6 +16,9 @@ use std::collections::{BTreeMap, BTreeSet, HashMap};
 pub(super) struct Identity {
     truths: BTreeSet<u32>,
     hyps: BTreeSet<u32>,
+    /// Frames each truth and each hypothesis is present in.
+    truth_frames: HashMap<u32, i64>,
+    hyp_frames: HashMap<u32, i64>,
     /// Frames in which the pair (truth, hypothesis) was within the threshold.
     together: HashMap<(u32, u32), i64>,
 }
@@ -26,6 +29,9 @@ pub(super) struct Identities {
     pub idtp: usize,
     /// The hypothesis each truth was matched to, when they share at least one frame.
     pub identity: BTreeMap<u32, u32>,
+    /// Each truth's IDF1: 2 × the frames it shares with its hypothesis over its frames plus
+    /// that hypothesis's (0 for a truth matched to none).
+    pub idf1: BTreeMap<u32, f64>,
     pub unique_hypotheses: usize,
 }
 
@@ -35,6 +41,12 @@ impl Identity {
         let nh = frame.hyps.len();
         self.truths.extend(frame.truth.iter().map(|(id, _)| *id));
         self.hyps.extend(frame.hyps.iter().map(|(id, _)| *id));
+        for (id, _) in &frame.truth {
+            *self.truth_frames.entry(*id).or_default() += 1;
+        }
+        for (id, _) in &frame.hyps {
+            *self.hyp_frames.entry(*id).or_default() += 1;
+        }
         for (i, (oid, _)) in frame.truth.iter().enumerate() {
             for (j, (hid, _)) in frame.hyps.iter().enumerate() {
                 if d[i * nh + j] <= threshold {
@@ -51,15 +63,25 @@ impl Identity {
         let matching = max_weight_matching_exact(truths.len(), hyps.len(), weight);
         let mut idtp = 0;
         let mut identity = BTreeMap::new();
+        let mut idf1 = BTreeMap::new();
         for (r, c) in matching.into_iter().enumerate() {
-            if let Some(c) = c {
-                idtp += weight(r, c) as usize;
-                identity.insert(truths[r], hyps[c]);
+            let frames = self.truth_frames.get(&truths[r]).copied().unwrap_or(0);
+            let (shared, hyp_frames) = match c {
+                Some(c) => {
+                    idtp += weight(r, c) as usize;
+                    identity.insert(truths[r], hyps[c]);
+                    (weight(r, c), self.hyp_frames.get(&hyps[c]).copied().unwrap_or(0))
+                }
+                None => (0, 0),
+            };
+            if frames + hyp_frames > 0 {
+                idf1.insert(truths[r], 2.0 * shared as f64 / (frames + hyp_frames) as f64);
             }
         }
         Identities {
             idtp,
             identity,
+            idf1,
             unique_hypotheses: hyps.len(),
         }
     }

@@ -133,6 +133,10 @@ pub struct TargetMetrics {
     pub hyp_ids: Vec<u32>,
     /// The hypothesis the identity measures gave it (the global id matching), if any.
     pub identity: Option<u32>,
+    /// Mean distance of its matched pairs, metres (`None` when never matched).
+    pub motp_m: Option<f64>,
+    /// 2 × the frames it shares with its identity over its frames plus that identity's.
+    pub idf1: f64,
 }
 
 /// Why metrics could not be computed.
@@ -204,8 +208,10 @@ pub fn evaluate<const D: usize>(
             coverage: ratio(t.tracked as f64, t.frames as f64).unwrap_or(0.0),
             id_switches: t.switches,
             fragmentations: t.fragmentations,
+            motp_m: ratio(t.distance_sum, (t.tracked) as f64),
             hyp_ids: t.hyp_ids,
             identity: ids.identity.get(&id).copied(),
+            idf1: ids.idf1.get(&id).copied().unwrap_or(0.0),
         })
         .collect();
     let class = |lo: f64, hi: f64| {

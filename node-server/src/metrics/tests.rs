@@ -504,6 +504,16 @@ proptest! {
         prop_assert_eq!(m.targets.iter().map(|t| t.tracked).sum::<usize>(), m.matches + m.id_switches);
         if let Some(motp) = m.motp_m {
             prop_assert!((0.0..=1.0).contains(&motp));
+            // The targets' own MOTPs, weighed by their matches, give the run's.
+            let weighed: f64 = m.targets.iter().filter_map(|t| t.motp_m.map(|x| x * t.tracked as f64)).sum();
+            prop_assert!((weighed / (m.matches + m.id_switches) as f64 - motp).abs() < 1e-9);
+        }
+        // Each target's IDF1 counts the frames it shares with its identity: together the IDTP.
+        for t in &m.targets {
+            prop_assert!((0.0..=1.0).contains(&t.idf1));
+            if t.identity.is_none() {
+                prop_assert_eq!(t.idf1, 0.0);
+            }
         }
         // GOSPA with p = 1 adds up, and is at most c/2 per present target.
         prop_assert!((m.gospa_localisation + m.gospa_missed + m.gospa_false - m.gospa_m).abs() < 1e-9);
@@ -519,6 +529,9 @@ proptest! {
         prop_assert_eq!((m.misses, m.false_positives, m.id_switches, m.fragmentations), (0, 0, 0, 0));
         prop_assert_eq!(m.idtp, m.objects);
         prop_assert!(m.gospa_m.abs() < 1e-12);
+        for t in &m.targets {
+            prop_assert_eq!((t.idf1, t.motp_m), (1.0, Some(0.0)));
+        }
         if m.objects > 0 {
             prop_assert_eq!((m.mota, m.idf1), (Some(1.0), Some(1.0)));
         }
