@@ -2,6 +2,7 @@
 
 mod chaos;
 mod cluster;
+mod fuzz_seeds;
 mod harness;
 mod layering;
 mod netns;
