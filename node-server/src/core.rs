@@ -510,7 +510,11 @@ impl ServerNode {
                 self.counters.rejected += 1;
                 self.journal(s.at, Record::Decision(d.clone()));
             }
-            Record::Decision(_) | Record::Scenario(_) | Record::Sent { .. } | Record::Measured(_) => {
+            Record::Decision(_)
+            | Record::Scenario(_)
+            | Record::Sent { .. }
+            | Record::Measured(_)
+            | Record::Origin(_) => {
                 return false;
             }
         }

@@ -116,7 +116,8 @@ pub struct SimOutcome {
 
 impl SimOutcome {
     /// Write the run as a recording, as `ocelli sim --record` does: the scenario it used at
-    /// time 0, then every record.
+    /// time 0, its origin (scenario time 0 is cluster time 0, the world simulated), then every
+    /// record.
     ///
     /// # Errors
     /// The file cannot be created or written.
@@ -132,6 +133,11 @@ impl SimOutcome {
                 Record::Scenario(self.scenario.to_toml()),
             ))?;
         }
+        let origin = node_server::Origin {
+            t0: ClusterTime(0),
+            simulated: true,
+        };
+        rec.append(&Stamped::new(ClusterTime(0), Record::Origin(origin)))?;
         for r in &self.records {
             rec.append(r)?;
         }

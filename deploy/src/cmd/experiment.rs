@@ -15,12 +15,12 @@ pub struct Args {
     /// BLE data from shared/datasets/ble-rssi; not part of `all`).
     pub name: String,
     /// Seeded runs per method.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     pub runs: u32,
     /// Seed of the first run (run k uses seed + k).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Print JSON (`{"experiment", "rows": [...]}`; one object per line with `all`).
+    /// Print only JSON (`{"experiment", "rows": [...]}`; one object per line with `all`).
     #[arg(long)]
     pub json: bool,
     /// Print a Markdown section per experiment (for docs/results.md).
@@ -33,7 +33,7 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub level: Option<super::sim::LevelArg>,
     /// Override the simulated seconds per run.
-    #[arg(long)]
+    #[arg(long, value_parser = super::common::seconds)]
     pub duration: Option<f64>,
 }
 

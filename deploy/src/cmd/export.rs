@@ -1,9 +1,9 @@
 //! `ocelli export`: write the tracks of a recording as CSV or JSON Lines.
 
+use super::common::{ScenarioArg, warn_damage};
 use anyhow::{Context, Result};
 use node_server::analysis::load;
 use node_server::export::{Format, track_rows, write_rows};
-use proto::scenario::Scenario;
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -17,23 +17,22 @@ pub enum FormatArg {
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The server's recording file.
+    #[arg(value_name = "RECORDING")]
     pub recording: PathBuf,
     #[arg(long, value_enum, default_value = "csv")]
     pub format: FormatArg,
     /// Write here instead of standard output.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
-    /// Scenario to replay with (default: the one stored in the recording).
-    #[arg(long)]
-    pub scenario: Option<PathBuf>,
+    /// Replaces the scenario stored in the recording.
+    #[command(flatten)]
+    pub scenario: ScenarioArg,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
-    let scenario = args.scenario.as_deref().map(Scenario::load).transpose()?;
+    let scenario = args.scenario.load_given()?;
     let loaded = load(&args.recording, scenario)?;
-    if let Some(tail) = &loaded.tail {
-        tracing::warn!(offset = tail.offset, skipped = tail.skipped_bytes, problem = ?tail.problem, "recording has a torn tail; exported what precedes it");
-    }
+    warn_damage(&args.recording, &loaded);
     let rows = track_rows(&loaded);
     let format = match args.format {
         FormatArg::Csv => Format::Csv,
