@@ -164,7 +164,7 @@ impl ServerNode {
 
     fn reject(&mut self, now: ClusterTime, source: Option<NodeId>, what: &str, reason: String) {
         self.counters.rejected += 1;
-        tracing::warn!(source = ?source, what, %reason, "message rejected");
+        tracing::warn!(source = %source.map_or_else(|| "unknown".to_string(), |s| s.to_string()), what, %reason, "message rejected");
         self.decide(
             now,
             Decision::Rejected {

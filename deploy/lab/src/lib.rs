@@ -5,6 +5,9 @@
 //! [`bench`] times the hot paths.
 
 pub mod bench;
+mod error;
 pub mod experiment;
 pub mod replay;
 pub mod report;
+
+pub use error::{LabError, Result};

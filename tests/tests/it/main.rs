@@ -4,4 +4,5 @@ mod cluster;
 mod harness;
 mod layering;
 mod netns;
+mod operations;
 mod transport;

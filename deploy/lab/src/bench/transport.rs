@@ -5,7 +5,8 @@
 //! encode/decode cost per message kind. Sender and receiver are two threads of this process,
 //! each with its own current-thread tokio runtime, so they share one clock.
 
-use anyhow::{Context, Result, anyhow};
+use crate::error::OrFailed as _;
+use crate::{LabError, Result};
 use proto::msg::*;
 use proto::node::Outgoing;
 use proto::{ClusterTime, Envelope, NodeId, Role, decode, encode};
@@ -133,7 +134,7 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
                 Kind::Ipc => TransportConfig::Ipc(IpcConfig::new(receiver_domain, NodeId(1), Role::Head, 2)),
                 Kind::Tcp => {
                     let mut c = TcpConfig::new(NodeId(1), Role::Head);
-                    c.listen = Some("127.0.0.1:0".parse()?);
+                    c.listen = Some(std::net::SocketAddr::from(([127, 0, 0, 1], 0)));
                     c.queue_len = 4096;
                     TransportConfig::Tcp(c)
                 }
@@ -141,7 +142,7 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
             let (ep, mut inbox, rstats, shutdown) = open(cfg).await?;
             addr_tx
                 .send(ep.local_addr())
-                .map_err(|_| anyhow!("sender gone"))?;
+                .map_err(|_| LabError::failed("transport bench", "sender gone"))?;
             let mut lat = Vec::with_capacity(count);
             let mut received = 0;
             let (mut first, mut last) = (None, 0i64);
@@ -177,7 +178,7 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
     });
     let addr = addr_rx
         .recv_timeout(Duration::from_secs(10))
-        .map_err(|_| anyhow!("receiver did not start"))?;
+        .map_err(|_| LabError::failed("transport bench", "receiver did not start"))?;
     let sender = std::thread::spawn(move || -> Result<(usize, u64, Duration, Vec<u64>)> {
         let rt = tokio::runtime::Builder::new_current_thread()
             .enable_all()
@@ -187,8 +188,10 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
                 Kind::Ipc => TransportConfig::Ipc(IpcConfig::new(domain, NodeId(2), Role::Camera, 2)),
                 Kind::Tcp => {
                     let mut c = TcpConfig::new(NodeId(2), Role::Camera);
-                    c.peers
-                        .insert(NodeId(1), addr.ok_or_else(|| anyhow!("no listen address"))?);
+                    c.peers.insert(
+                        NodeId(1),
+                        addr.ok_or_else(|| LabError::failed("transport bench", "no listen address"))?,
+                    );
                     c.queue_len = 4096;
                     TransportConfig::Tcp(c)
                 }
@@ -199,7 +202,7 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
                     match tokio::time::timeout(Duration::from_secs(10), inbox.recv()).await {
                         Ok(Some(Event::PeerUp(_))) => break,
                         Ok(Some(_)) => {}
-                        _ => return Err(anyhow!("tcp link did not come up")),
+                        _ => return Err(LabError::failed("transport bench", "tcp link did not come up")),
                     }
                 }
             }
@@ -237,10 +240,13 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
             Ok((count, dropped, wall, calls))
         })
     });
-    let (sent, dropped, wall, send_call_ns) = sender.join().map_err(|_| anyhow!("sender panicked"))??;
+    let (sent, dropped, wall, send_call_ns) = sender
+        .join()
+        .map_err(|_| LabError::failed("transport bench", "sender panicked"))??;
     let _ = done_tx.send(());
-    let (latencies_ns, received, dropped_inbox, span) =
-        receiver.join().map_err(|_| anyhow!("receiver panicked"))??;
+    let (latencies_ns, received, dropped_inbox, span) = receiver
+        .join()
+        .map_err(|_| LabError::failed("transport bench", "receiver panicked"))??;
     Ok(Phase {
         sent,
         received,
@@ -309,7 +315,9 @@ fn tokio_wake_baseline(count: usize, interval: Duration) -> Result<Value> {
             }
         }
     });
-    let mut lat = waiter.join().map_err(|_| anyhow!("waiter panicked"))??;
+    let mut lat = waiter
+        .join()
+        .map_err(|_| LabError::failed("transport bench", "waiter panicked"))??;
     lat.sort_unstable();
     Ok(json!({"p50_us": percentile(&lat, 0.5), "p99_us": percentile(&lat, 0.99), "samples": lat.len()}))
 }
@@ -329,7 +337,7 @@ fn codec_costs(iterations: usize) -> Result<Vec<Value>> {
             time: ClusterTime(987_654_321),
             body,
         };
-        let frame = encode(&env).with_context(|| format!("encoding {kind}"))?;
+        let frame = encode(&env).or_failed(format!("encoding {kind}"))?;
         #[allow(clippy::disallowed_methods)] // a benchmark owns its clock
         let t = Instant::now();
         let mut bytes = 0usize;

@@ -123,7 +123,7 @@ pub fn replay_ml(
         let mut normalized = Vec::with_capacity(frame.len());
         for (det_idx, det) in frame.iter().enumerate() {
             let Some(camera) = ids.iter().position(|id| **id == det.camera) else {
-                tracing::warn!(camera = %det.camera, t, "detection from an unknown camera, skipped");
+                tracing::debug!(camera = %det.camera, t, "detection from an unknown camera, skipped");
                 skipped.unknown_camera += 1;
                 continue;
             };
@@ -136,7 +136,7 @@ pub fn replay_ml(
                     cov: model.normalized_covariance(&point, options.pixel_sigma),
                 }),
                 Err(e) => {
-                    tracing::warn!(camera = %det.camera, t, error = %e, "detection skipped");
+                    tracing::debug!(camera = %det.camera, t, error = %e, "detection skipped");
                     skipped.undistort_failed += 1;
                 }
             }
@@ -243,42 +243,91 @@ fn free_3d(
 /// Complete-linkage grouping of lifted points `(camera, point, cov)` on ground (x, y) distance:
 /// merge the closest two groups while their farthest cross pair is within `gate` and they share
 /// no camera. Returns index groups.
+///
+/// Sparse, so its cost grows with the pairs within `gate` rather than with the square of the
+/// points: a grid of `gate`-sized cells finds those pairs; merged groups' distances follow the
+/// complete-linkage rule d(i∪j, k) = max(d(i, k), d(j, k)), so only pairs within the gate in
+/// both groups survive a merge; a heap hands out the closest pair, stale entries are passed
+/// over. Ties go to the lowest group indices, so the grouping is the dense algorithm's.
 pub fn cluster(points: &[(usize, Vector3<f64>, Matrix3<f64>)], gate: f64) -> Vec<Vec<usize>> {
+    use std::cmp::Reverse;
+    use std::collections::{BinaryHeap, HashMap};
     let n = points.len();
-    let mut members: Vec<Vec<usize>> = (0..n).map(|i| vec![i]).collect();
-    let mut alive = vec![true; n];
-    let mut d = vec![f64::INFINITY; n * n];
-    for i in 0..n {
-        for j in 0..n {
-            if i != j && points[i].0 != points[j].0 {
-                d[i * n + j] = (points[i].1.xy() - points[j].1.xy()).norm();
-            }
-        }
+    // Neighbours within the gate, by group, with the complete-linkage distance.
+    let mut near: Vec<BTreeMap<usize, f64>> = vec![BTreeMap::new(); n];
+    let cell = |p: &Vector3<f64>| ((p.x / gate).floor() as i64, (p.y / gate).floor() as i64);
+    let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+    for (i, p) in points.iter().enumerate() {
+        grid.entry(cell(&p.1)).or_default().push(i);
     }
-    loop {
-        let mut best = (f64::INFINITY, 0, 0);
-        for i in (0..n).filter(|&i| alive[i]) {
-            for j in (i + 1..n).filter(|&j| alive[j]) {
-                if d[i * n + j] < best.0 {
-                    best = (d[i * n + j], i, j);
+    let mut heap = BinaryHeap::new();
+    for (i, p) in points.iter().enumerate() {
+        let (cx, cy) = cell(&p.1);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for &j in grid.get(&(cx + dx, cy + dy)).into_iter().flatten() {
+                    if j <= i || points[j].0 == p.0 {
+                        continue;
+                    }
+                    let d = (p.1.xy() - points[j].1.xy()).norm();
+                    if d <= gate {
+                        near[i].insert(j, d);
+                        near[j].insert(i, d);
+                        heap.push(Reverse((Dist(d), i, j)));
+                    }
                 }
             }
         }
-        let (dist, i, j) = best;
-        if dist > gate {
-            break;
+    }
+    let mut members: Vec<Vec<usize>> = (0..n).map(|i| vec![i]).collect();
+    let mut alive = vec![true; n];
+    while let Some(Reverse((Dist(d), i, j))) = heap.pop() {
+        // Stale: a group merged away, or the pair's distance grew with a merge.
+        if !(alive[i] && alive[j]) || near[i].get(&j) != Some(&d) {
+            continue;
         }
         let moved = std::mem::take(&mut members[j]);
         members[i].extend(moved);
         alive[j] = false;
-        for k in 0..n {
-            // Sharing a camera is an infinite distance, which `max` carries over.
-            let m = d[i * n + k].max(d[j * n + k]);
-            d[i * n + k] = m;
-            d[k * n + i] = m;
+        let from_j = std::mem::take(&mut near[j]);
+        let from_i = std::mem::take(&mut near[i]);
+        for (&k, &dik) in &from_i {
+            near[k].remove(&i);
+            if k == j {
+                continue;
+            }
+            // Within the gate of both, or no longer a candidate at all.
+            if let Some(&djk) = from_j.get(&k) {
+                let m = dik.max(djk);
+                near[i].insert(k, m);
+                near[k].insert(i, m);
+                let (a, b) = if i < k { (i, k) } else { (k, i) };
+                heap.push(Reverse((Dist(m), a, b)));
+            }
+        }
+        for &k in from_j.keys() {
+            near[k].remove(&j);
         }
     }
     members.into_iter().filter(|m| !m.is_empty()).collect()
+}
+
+/// A distance ordered for the heap (never NaN: made from finite points).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Dist(f64);
+
+impl Eq for Dist {}
+
+impl PartialOrd for Dist {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Dist {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&other.0)
+    }
 }
 
 #[cfg(test)]

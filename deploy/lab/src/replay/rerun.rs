@@ -27,7 +27,7 @@
 //! run's transport dropped under backpressure are missing. The live run's decisions are not reproduced record for record —
 //! the methods and policies are compared on the same measurements, which is what matters.
 
-use anyhow::{Context, Result};
+use crate::Result;
 use node_server::analysis::{Loaded, measured_frames};
 use node_server::export::{TrackRow, track_rows};
 use node_server::report::Report;
@@ -121,11 +121,15 @@ pub fn rerun(loaded: &Loaded, opts: &RerunOptions) -> Result<Rerun> {
         ok
     });
     let recorded = Recorded::new(known, opts.t0);
-    anyhow::ensure!(
-        frames > 0,
-        "the recording holds no camera measurements: make a logging run (`ocelli sim \
+    if !(frames > 0) {
+        return Err(crate::LabError::failed(
+            "replay",
+            format!(
+                "the recording holds no camera measurements: make a logging run (`ocelli sim \
          --record-measurements --record FILE` or `ocelli launch --record-measurements`)"
-    );
+            ),
+        ));
+    }
     if unknown > 0 {
         tracing::warn!(
             frames = unknown,
@@ -139,18 +143,22 @@ pub fn rerun(loaded: &Loaded, opts: &RerunOptions) -> Result<Rerun> {
         .max()
         .unwrap_or(0)
         .max(recorded.last_ns().unwrap_or(0));
-    anyhow::ensure!(
-        last_ns <= MAX_REPLAY_NS,
-        "the recording ends {:.0} s after t0 = {} ns: is t0 right? (default: the first \
+    if !(last_ns <= MAX_REPLAY_NS) {
+        return Err(crate::LabError::failed(
+            "replay",
+            format!(
+                "the recording ends {:.0} s after t0 = {} ns: is t0 right? (default: the first \
          record's time)",
-        last_ns as f64 * 1e-9,
-        opts.t0.0
-    );
+                last_ns as f64 * 1e-9,
+                opts.t0.0
+            ),
+        ));
+    }
     let sim_opts = SimOptions {
         duration_s: last_ns as f64 * 1e-9,
         ..opts.sim.clone()
     };
-    let sim = Sim::replaying(scenario.clone(), sim_opts, recorded).context("building the replay's nodes")?;
+    let sim = Sim::replaying(scenario.clone(), sim_opts, recorded)?;
     let outcome = sim.run();
     Ok(Rerun {
         scenario,
@@ -183,8 +191,7 @@ pub fn replay_recording(
     given_t0: Option<ClusterTime>,
     opts: impl FnOnce(&Loaded) -> RerunOptions,
 ) -> Result<(Vec<TrackRow>, Report)> {
-    let loaded =
-        node_server::analysis::load(path, scenario).with_context(|| format!("reading {}", path.display()))?;
+    let loaded = node_server::analysis::load(path, scenario)?;
     let scored = crate::report::Scoring::of(&loaded, given_t0).t0().is_some();
     let opts = opts(&loaded);
     let replay = rerun(&loaded, &opts)?;
