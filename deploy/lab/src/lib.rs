@@ -9,5 +9,6 @@ mod error;
 pub mod experiment;
 pub mod replay;
 pub mod report;
+pub mod skipped;
 
 pub use error::{LabError, Result};

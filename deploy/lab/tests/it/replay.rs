@@ -9,8 +9,11 @@ use std::collections::BTreeMap;
 
 use std::path::{Path, PathBuf};
 
+/// `../shared/` beside the checkout, or `$OCELLI_SHARED`.
 fn shared() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared")
+    std::env::var_os("OCELLI_SHARED")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared"))
 }
 
 fn multiviewx_dir() -> PathBuf {

@@ -1,7 +1,8 @@
 //! Reading the real BLE RSSI dataset (`shared/datasets/ble-rssi/`, Daniş et al. 2022): the
 //! sensors' positions from `cnf/tetam.dev` and one time-ordered packet list per trajectory from
-//! `trk/*_all_sensors.mbd`. A malformed line is an error naming the file, the line and what is
-//! wrong; nothing is skipped silently.
+//! `trk/*_all_sensors.mbd`. A malformed or physically impossible packet line is skipped and
+//! counted (the first few named by line and problem, [`Trajectory::skipped`]): one bad packet
+//! does not cost a whole trajectory, and nothing is skipped silently.
 
 use nalgebra::Vector3;
 use std::collections::BTreeMap;
@@ -40,6 +41,8 @@ pub struct Packet {
 pub struct Trajectory {
     pub name: String,
     pub packets: Vec<Packet>,
+    /// Lines of its file that were skipped.
+    pub skipped: crate::skipped::SkippedLines,
 }
 
 impl Trajectory {
@@ -69,8 +72,6 @@ pub enum DataError {
     Io { path: PathBuf, source: std::io::Error },
     #[error("{path}: {msg}")]
     Devices { path: PathBuf, msg: String },
-    #[error("{path}:{line}: {msg}")]
-    Line { path: PathBuf, line: usize, msg: String },
     #[error("{0}: no trajectory files (*{TRACK_SUFFIX})")]
     NoTracks(PathBuf),
 }
@@ -126,46 +127,59 @@ fn number(field: &str, what: &str) -> Result<f64, String> {
     }
 }
 
+/// The RSSI a BLE receiver can report, dBm.
+pub const RSSI_DBM: std::ops::RangeInclusive<f64> = -127.0..=20.0;
+
+/// One `.mbd` line as a packet, or what is wrong with it.
+fn parse_packet(line: &str, sensors: &[Sensor]) -> Result<Packet, String> {
+    let f: Vec<&str> = line.split(',').collect();
+    if f.len() != MBD_FIELDS {
+        return Err(format!("{} fields, expected {MBD_FIELDS}", f.len()));
+    }
+    let t = number(f[0], "timestamp")?;
+    let mac = f[1].trim();
+    let sensor = sensors
+        .iter()
+        .position(|s| s.mac == mac)
+        .ok_or_else(|| format!("unknown sensor MAC {mac:?}"))?;
+    let rssi = number(f[3], "RSSI")?;
+    if !RSSI_DBM.contains(&rssi) {
+        return Err(format!(
+            "RSSI {rssi} dBm out of range [{}, {}]",
+            RSSI_DBM.start(),
+            RSSI_DBM.end()
+        ));
+    }
+    let mut p = [0.0; 3];
+    for (a, v) in p.iter_mut().enumerate() {
+        *v = number(f[4 + a], "position")?;
+    }
+    for field in &f[7..] {
+        number(field, "orientation")?;
+    }
+    Ok(Packet {
+        t,
+        sensor,
+        rssi,
+        truth: Vector3::from(p),
+    })
+}
+
 /// Parse one `.mbd` file's text into packets sorted by time (the merged files are ordered up to
-/// a few sub-millisecond swaps), t relative to the first packet. Blank lines are allowed.
-///
-/// # Errors
-/// `(line number, what is wrong)`: a wrong field count, a non-numeric or non-finite number, an
-/// RSSI outside −127..=20 dBm, or a sensor MAC not in `sensors`.
-pub fn parse_track(text: &str, sensors: &[Sensor]) -> Result<Vec<Packet>, (usize, String)> {
+/// a few sub-millisecond swaps), t relative to the first packet. Blank lines are allowed; a
+/// line with a wrong field count, a non-numeric or non-finite number, an RSSI outside
+/// [`RSSI_DBM`] or a sensor MAC not in `sensors` is skipped and counted.
+pub fn parse_track(text: &str, sensors: &[Sensor]) -> (Vec<Packet>, crate::skipped::SkippedLines) {
     let mut raw = Vec::new();
+    let mut skipped = crate::skipped::SkippedLines::default();
     for (i, line) in text.lines().enumerate() {
-        let n = i + 1;
         if line.trim().is_empty() {
             continue;
         }
-        let f: Vec<&str> = line.split(',').collect();
-        if f.len() != MBD_FIELDS {
-            return Err((n, format!("{} fields, expected {MBD_FIELDS}", f.len())));
+        match parse_packet(line, sensors) {
+            Ok(p) => raw.push(p),
+            Err(problem) => skipped.add(i + 1, problem),
         }
-        let t = number(f[0], "timestamp").map_err(|m| (n, m))?;
-        let mac = f[1].trim();
-        let sensor = sensors
-            .iter()
-            .position(|s| s.mac == mac)
-            .ok_or_else(|| (n, format!("unknown sensor MAC {mac:?}")))?;
-        let rssi = number(f[3], "RSSI").map_err(|m| (n, m))?;
-        if !(-127.0..=20.0).contains(&rssi) {
-            return Err((n, format!("RSSI {rssi} dBm out of range")));
-        }
-        let mut p = [0.0; 3];
-        for (a, v) in p.iter_mut().enumerate() {
-            *v = number(f[4 + a], "position").map_err(|m| (n, m))?;
-        }
-        for field in &f[7..] {
-            number(field, "orientation").map_err(|m| (n, m))?;
-        }
-        raw.push(Packet {
-            t,
-            sensor,
-            rssi,
-            truth: Vector3::from(p),
-        });
     }
     raw.sort_by(|a, b| a.t.total_cmp(&b.t));
     if let Some(t0) = raw.first().map(|p| p.t) {
@@ -173,7 +187,7 @@ pub fn parse_track(text: &str, sensors: &[Sensor]) -> Result<Vec<Packet>, (usize
             p.t -= t0;
         }
     }
-    Ok(raw)
+    (raw, skipped)
 }
 
 fn read(path: &Path) -> Result<String, DataError> {
@@ -214,18 +228,21 @@ pub fn load(dir: &Path) -> Result<Dataset, DataError> {
     paths.sort();
     let mut trajectories = Vec::with_capacity(paths.len());
     for path in paths {
-        let packets = parse_track(&read(&path)?, &sensors).map_err(|(line, msg)| DataError::Line {
-            path: path.clone(),
-            line,
-            msg,
-        })?;
+        let (packets, skipped) = parse_track(&read(&path)?, &sensors);
+        if skipped.count > 0 {
+            tracing::warn!(file = %path.display(), "BLE dataset: {skipped}");
+        }
         let name = path
             .file_name()
             .and_then(|n| n.to_str())
             .and_then(|n| n.strip_suffix(TRACK_SUFFIX))
             .unwrap_or("?")
             .to_string();
-        trajectories.push(Trajectory { name, packets });
+        trajectories.push(Trajectory {
+            name,
+            packets,
+            skipped,
+        });
     }
     if trajectories.is_empty() {
         return Err(DataError::NoTracks(trk));
@@ -268,7 +285,8 @@ Beacons:{"cc": [[], 3, "beacon1"] }"#;
     #[test]
     fn track_parses_sorts_and_rebases_time() {
         let text = format!("10.5,aa,cc,-70,1,2,1.8,{ORIENT}\n\n10.0,bb,cc,-80,1.5,2,1.8,{ORIENT}\n");
-        let p = parse_track(&text, &sensors()).expect("valid track");
+        let (p, skipped) = parse_track(&text, &sensors());
+        assert_eq!(skipped.count, 0);
         assert_eq!(p.len(), 2);
         assert_eq!(p[0].t, 0.0);
         assert_eq!(p[0].sensor, 0);
@@ -278,7 +296,7 @@ Beacons:{"cc": [[], 3, "beacon1"] }"#;
     }
 
     #[test]
-    fn track_rejects_malformed_lines_naming_line_and_problem() {
+    fn track_skips_malformed_and_impossible_lines_naming_line_and_problem() {
         let s = sensors();
         let ok = format!("1.0,aa,cc,-70,1,2,1.8,{ORIENT}");
         let cases = [
@@ -298,8 +316,16 @@ Beacons:{"cc": [[], 3, "beacon1"] }"#;
             ),
         ];
         for (text, line, what) in cases {
-            let (n, msg) = parse_track(&text, &s).unwrap_err();
-            assert_eq!(n, line, "{msg}");
+            let text = format!("{text}\n2.0,bb,cc,-75,1,2,1.8,{ORIENT}\n");
+            let (packets, skipped) = parse_track(&text, &s);
+            assert_eq!(
+                packets.len(),
+                if line == 2 { 2 } else { 1 },
+                "{what}: the good lines stay"
+            );
+            assert_eq!(skipped.count, 1, "{what}");
+            let (n, msg) = &skipped.first[0];
+            assert_eq!(*n, line, "{msg}");
             assert!(msg.contains(what), "{msg} should mention {what}");
         }
     }
