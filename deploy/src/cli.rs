@@ -90,6 +90,8 @@ pub enum Bench {
     Server(cmd::bench::ScaleArgs),
     /// One-way latency over iceoryx2 and TCP, encode/decode cost per message kind.
     Transport(cmd::bench::TransportArgs),
+    /// Fusing external detections: time against detections per time stamp.
+    Fuse(cmd::bench::ScaleArgs),
 }
 
 /// Run one parsed command.
@@ -108,6 +110,7 @@ fn dispatch(command: Command, log_json: bool) -> anyhow::Result<ExitCode> {
         Command::Bench(Bench::Camera(args)) => cmd::bench::camera(args),
         Command::Bench(Bench::Server(args)) => cmd::bench::server(args),
         Command::Bench(Bench::Transport(args)) => cmd::bench::transport(args),
+        Command::Bench(Bench::Fuse(args)) => cmd::bench::fuse(args),
         Command::Undistort(args) => cmd::undistort::run(args),
         Command::Report(args) => cmd::report::run(args),
         Command::Export(args) => cmd::export::run(args),

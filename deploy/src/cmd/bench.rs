@@ -84,3 +84,7 @@ pub fn transport(a: TransportArgs) -> Result<ExitCode> {
         codec_iterations: a.codec_iterations as usize,
     })?)
 }
+
+pub fn fuse(a: ScaleArgs) -> Result<ExitCode> {
+    print(&bench::fuse::run(&bench::fuse::Options { scale: a.scale })?)
+}

@@ -6,7 +6,8 @@
 
 use super::common::{ScenarioArg, finite, positive};
 use anyhow::{Context, Result};
-use lab::replay::fuse::{CameraSource, FuseMethod, FuseOptions, fuse};
+use lab::replay::fuse::{CameraSource, FuseMethod, FuseOptions, fuse_all};
+use lab::replay::ml::{FOOT_POINT_SIGMA_M, ViewNoise};
 use std::io::{BufReader, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -50,6 +51,25 @@ pub struct Args {
     /// Report only people seen by at least this many cameras.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub min_cameras: u32,
+    /// With --plane-z: a view's ground error beyond its pixel noise — METRES for every view
+    /// (default: a box-bottom foot point's), `estimated` from how the views of each camera
+    /// disagree with the others, or `pixel` for none (detections that are exact projections).
+    #[arg(long, default_value_t = FOOT_POINT_SIGMA_M.to_string(), value_parser = view_noise)]
+    pub view_noise: String,
+}
+
+fn view_noise(s: &str) -> Result<String, String> {
+    parse_view_noise(s).map(|_| s.to_string())
+}
+
+fn parse_view_noise(s: &str) -> Result<ViewNoise, String> {
+    match s {
+        "pixel" => Ok(ViewNoise::Pixel),
+        "estimated" => Ok(ViewNoise::Estimated),
+        m => super::common::non_negative(m)
+            .map(ViewNoise::Fixed)
+            .map_err(|e| format!("expected METRES, `estimated` or `pixel`: {e}")),
+    }
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -91,6 +111,7 @@ impl Args {
             pixel_sigma: self.pixel_sigma,
             gate: self.gate,
             min_cameras: self.min_cameras as usize,
+            view_noise: parse_view_noise(&self.view_noise).map_err(anyhow::Error::msg)?,
         })
     }
 }
@@ -98,14 +119,20 @@ impl Args {
 pub fn run(args: Args) -> Result<ExitCode> {
     let opts = args.fuse_options()?;
     let fused = match args.detections.as_str() {
-        "-" => fuse(&opts, std::io::stdin().lock())?,
+        "-" => fuse_all(&opts, std::io::stdin().lock())?,
         p => {
             let file = std::fs::File::open(p).with_context(|| format!("cannot open {p}"))?;
-            fuse(&opts, BufReader::new(file)).with_context(|| p.to_string())?
+            fuse_all(&opts, BufReader::new(file)).with_context(|| p.to_string())?
         }
     };
+    tracing::info!(
+        detections = fused.detections,
+        skipped_lines = fused.skipped_lines.count,
+        estimates = fused.estimates.len(),
+        "fused"
+    );
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
-    for e in &fused {
+    for e in &fused.estimates {
         writeln!(out, "{}", serde_json::to_string(e)?)?;
     }
     out.flush()?;

@@ -1,6 +1,7 @@
 //! The benchmarks behind `ocelli bench`: each times a hot path and returns its figures as JSON.
 
 pub mod camera;
+pub mod fuse;
 pub mod head;
 pub mod server;
 pub mod transport;

@@ -4,7 +4,7 @@
 
 use super::cameras::{Cameras, CamerasError};
 use super::detections::{DetectionError, SkippedLines, read_detections};
-use super::ml::{Estimate, MlOptions, Skipped, replay_ml};
+use super::ml::{Estimate, MlOptions, Skipped, ViewNoise, replay_ml};
 use super::track::{RssiNodes, TrackOptions, track_with_rssi};
 use proto::scenario::ScenarioError;
 use std::io::BufRead;
@@ -44,6 +44,8 @@ pub struct FuseOptions {
     pub gate: f64,
     /// Report only people seen by at least this many cameras.
     pub min_cameras: usize,
+    /// With a plane: a view's ground error beyond its pixel noise.
+    pub view_noise: ViewNoise,
 }
 
 impl FuseOptions {
@@ -56,6 +58,7 @@ impl FuseOptions {
             pixel_sigma: 2.0,
             gate: 1.0,
             min_cameras: 1,
+            view_noise: ViewNoise::default(),
         }
     }
 }
@@ -205,6 +208,7 @@ pub fn fuse_all(opts: &FuseOptions, input: impl BufRead) -> Result<Fused, FuseEr
         pixel_sigma: opts.pixel_sigma,
         gate_m: opts.gate,
         min_cameras: opts.min_cameras,
+        view_noise: opts.view_noise,
         ..MlOptions::default()
     };
     let (estimates, skipped) = replay_ml(&detections, &cameras, &options);

@@ -32,6 +32,37 @@ pub struct MlOptions {
     pub min_cameras: usize,
     /// Without a plane: the first depth guess (m) along each optical axis.
     pub mean_depth: f64,
+    /// With a plane: how uncertain a view's ground point is beyond its pixel noise.
+    pub view_noise: ViewNoise,
+}
+
+/// A view's ground error beyond what its pixel noise explains: a detector's reference point
+/// is not exactly the person's ground position (a box's bottom centre lies between the feet,
+/// wherever the legs are), an error on the ground rather than in the image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ViewNoise {
+    /// None: pixel noise alone (exact for detections that are projections).
+    Pixel,
+    /// The same standard deviation for every view, m (isotropic on the plane). The default,
+    /// [`FOOT_POINT_SIGMA_M`], is a box-bottom foot point's.
+    Fixed(f64),
+    /// Each camera's own, estimated from the detections alone: how far its lifted points
+    /// fall from the fusion of the other views of the same person, beyond what their
+    /// covariances explain (no ground truth involved). It weighs the views well, but the part
+    /// of the error all views of a person share (the feet's spread) does not show between
+    /// views, so the fused covariance stays too small.
+    Estimated,
+}
+
+/// The ground error of a box's bottom centre as a person's foot point, m: measured once
+/// against MultiviewX's annotated ground positions (the detector's error model, as a
+/// calibration is the camera's; `docs/results-discussion.md`).
+pub const FOOT_POINT_SIGMA_M: f64 = 0.08;
+
+impl Default for ViewNoise {
+    fn default() -> Self {
+        ViewNoise::Fixed(FOOT_POINT_SIGMA_M)
+    }
 }
 
 impl Default for MlOptions {
@@ -43,6 +74,7 @@ impl Default for MlOptions {
             gate_m: 1.0,
             min_cameras: 1,
             mean_depth: 5.0,
+            view_noise: ViewNoise::default(),
         }
     }
 }
@@ -106,96 +138,239 @@ struct Normalized {
     cov: Matrix2<f64>,
 }
 
+/// One view of a group: its camera (none for a point already fused without a plane), its
+/// lifted ground point and the covariance its pixel noise gives it (solver's world).
+#[derive(Clone, Copy, Debug)]
+struct View {
+    camera: Option<usize>,
+    point: Vector3<f64>,
+    cov: Matrix3<f64>,
+}
+
+impl View {
+    /// Its covariance with the camera's ground noise (variance, m²) added on the plane.
+    fn with_noise(&self, variance: &[f64]) -> (Vector3<f64>, Matrix3<f64>) {
+        let mut c = self.cov;
+        if let Some(cam) = self.camera {
+            c[(0, 0)] += variance[cam];
+            c[(1, 1)] += variance[cam];
+        }
+        (self.point, c)
+    }
+}
+
+/// The groups of one time stamp: each group's views and the indices of its detections.
+struct FrameGroups<'a> {
+    frame: &'a [&'a ExternalDetection],
+    groups: Vec<(Vec<View>, Vec<usize>)>,
+}
+
 /// Fuse every `t` of `detections` (any order) into estimates, sorted by `t`.
 pub fn replay_ml(
     detections: &[ExternalDetection],
     cameras: &Cameras,
     options: &MlOptions,
 ) -> (Vec<Estimate>, Skipped) {
-    let ids: Vec<&String> = cameras.models.keys().collect();
     let models: Vec<_> = cameras.models.values().copied().collect();
     let mut skipped = Skipped::default();
     let mut sorted: Vec<&ExternalDetection> = detections.iter().collect();
     sorted.sort_by(|a, b| a.t.total_cmp(&b.t));
+    let frames: Vec<FrameGroups<'_>> = sorted
+        .chunk_by(|a, b| a.t == b.t)
+        .map(|frame| FrameGroups {
+            frame,
+            groups: group_frame(frame, cameras, &models, options, &mut skipped),
+        })
+        .collect();
+    let variance = match options.view_noise {
+        ViewNoise::Pixel => vec![0.0; models.len()],
+        ViewNoise::Fixed(sigma) => vec![sigma * sigma; models.len()],
+        ViewNoise::Estimated => estimate_view_noise(&frames, models.len()),
+    };
     let mut out = Vec::new();
-    for frame in sorted.chunk_by(|a, b| a.t == b.t) {
-        let t = frame[0].t;
-        let mut normalized = Vec::with_capacity(frame.len());
-        for (det_idx, det) in frame.iter().enumerate() {
-            let Some(camera) = ids.iter().position(|id| **id == det.camera) else {
-                tracing::debug!(camera = %det.camera, t, "detection from an unknown camera, skipped");
-                skipped.unknown_camera += 1;
-                continue;
-            };
-            let model = &models[camera];
-            match model.undistort(&Vector2::new(det.u, det.v)) {
-                Ok(point) => normalized.push(Normalized {
-                    det: det_idx,
-                    camera,
-                    point,
-                    cov: model.normalized_covariance(&point, options.pixel_sigma),
-                }),
-                Err(e) => {
-                    tracing::debug!(camera = %det.camera, t, error = %e, "detection skipped");
-                    skipped.undistort_failed += 1;
-                }
-            }
-        }
-        let groups = match options.plane_z {
-            Some(h) => {
-                let z = cameras.to_solver(&Vector3::new(0.0, 0.0, h)).z;
-                let depth = DepthHandling::KnownPlane {
-                    z,
-                    sigma: options.plane_sigma,
-                };
-                let mut lifted = Vec::with_capacity(normalized.len());
-                let mut lifted_det = Vec::with_capacity(normalized.len());
-                for n in &normalized {
-                    match lift(&models[n.camera], &n.point, &n.cov, depth) {
-                        Some((p, c)) => {
-                            lifted.push((n.camera, p, c));
-                            lifted_det.push(n.det);
-                        }
-                        None => skipped.no_intersection += 1,
-                    }
-                }
-                cluster(&lifted, options.gate_m)
-                    .into_iter()
-                    .map(|g| {
-                        let points = g.iter().map(|&i| (lifted[i].1, lifted[i].2)).collect::<Vec<_>>();
-                        (points, g.iter().map(|&i| lifted_det[i]).collect::<Vec<_>>())
-                    })
-                    .collect::<Vec<_>>()
-            }
-            None => free_3d(&normalized, &models, options, &mut skipped)
-                .map(|points| (points, normalized.iter().map(|n| n.det).collect()))
-                .into_iter()
-                .collect(),
-        };
-        for (group, dets) in groups {
+    for f in &frames {
+        for (group, dets) in &f.groups {
             if group.len() < options.min_cameras.max(1) {
                 skipped.too_few_cameras += 1;
                 continue;
             }
-            let Some((p, c)) = fuse(&group) else {
+            let points: Vec<_> = group.iter().map(|v| v.with_noise(&variance)).collect();
+            let Some((p, c)) = fuse(&points) else {
                 skipped.singular += 1;
                 continue;
             };
             let (p, c) = (cameras.to_user(&p), cameras.cov_to_user(&c));
             out.push(Estimate {
-                t,
+                t: f.frame[0].t,
                 x: p.x,
                 y: p.y,
                 z: p.z,
                 cov: [0, 1, 2].map(|r| [0, 1, 2].map(|k| c[(r, k)])),
                 cameras: group.len(),
                 track: None,
-                rssi: merged_rssi(dets.iter().map(|&i| frame[i])),
+                rssi: merged_rssi(dets.iter().map(|&i| f.frame[i])),
                 rssi_nodes: None,
             });
         }
     }
     (out, skipped)
+}
+
+/// One time stamp's detections, undistorted, lifted and grouped per person.
+fn group_frame(
+    frame: &[&ExternalDetection],
+    cameras: &Cameras,
+    models: &[proto::camera::CameraModel],
+    options: &MlOptions,
+    skipped: &mut Skipped,
+) -> Vec<(Vec<View>, Vec<usize>)> {
+    let t = frame[0].t;
+    let mut normalized = Vec::with_capacity(frame.len());
+    for (det_idx, det) in frame.iter().enumerate() {
+        let Some(camera) = cameras.models.keys().position(|id| *id == det.camera) else {
+            tracing::debug!(camera = %det.camera, t, "detection from an unknown camera, skipped");
+            skipped.unknown_camera += 1;
+            continue;
+        };
+        let model = &models[camera];
+        match model.undistort(&Vector2::new(det.u, det.v)) {
+            Ok(point) => normalized.push(Normalized {
+                det: det_idx,
+                camera,
+                point,
+                cov: model.normalized_covariance(&point, options.pixel_sigma),
+            }),
+            Err(e) => {
+                tracing::debug!(camera = %det.camera, t, error = %e, "detection skipped");
+                skipped.undistort_failed += 1;
+            }
+        }
+    }
+    let Some(h) = options.plane_z else {
+        let all = normalized.iter().map(|n| n.det).collect();
+        return free_3d(&normalized, models, options, skipped)
+            .map(|points| {
+                let views = points
+                    .into_iter()
+                    .map(|(point, cov)| View {
+                        camera: None,
+                        point,
+                        cov,
+                    })
+                    .collect();
+                (views, all)
+            })
+            .into_iter()
+            .collect();
+    };
+    let z = cameras.to_solver(&Vector3::new(0.0, 0.0, h)).z;
+    let depth = DepthHandling::KnownPlane {
+        z,
+        sigma: options.plane_sigma,
+    };
+    let mut lifted = Vec::with_capacity(normalized.len());
+    let mut lifted_det = Vec::with_capacity(normalized.len());
+    for n in &normalized {
+        match lift(&models[n.camera], &n.point, &n.cov, depth) {
+            Some((p, c)) => {
+                lifted.push((n.camera, p, c));
+                lifted_det.push(n.det);
+            }
+            None => skipped.no_intersection += 1,
+        }
+    }
+    cluster(&lifted, options.gate_m)
+        .into_iter()
+        .map(|g| {
+            let views = g
+                .iter()
+                .map(|&i| View {
+                    camera: Some(lifted[i].0),
+                    point: lifted[i].1,
+                    cov: lifted[i].2,
+                })
+                .collect();
+            (views, g.iter().map(|&i| lifted_det[i]).collect())
+        })
+        .collect()
+}
+
+/// The smallest ground variance a camera is given, m² (1 mm²): noise-free detections (exact
+/// projections) would otherwise make the fusion singular.
+const MIN_VIEW_VARIANCE: f64 = 1e-6;
+/// Views a camera needs for its own estimate; fewer take the pooled one.
+const MIN_VIEWS_PER_CAMERA: usize = 5;
+
+/// Each camera's ground variance beyond its pixel noise, from the detections alone: a view's
+/// residual r from the fusion of the other views of its group has covariance S + σ²I (S: its
+/// own pixel covariance plus the others' fused one, on the plane), so a camera's σ² is the one
+/// that makes its mean rᵀ(S + σ²I)⁻¹r equal 2, its two degrees of freedom (at least
+/// [`MIN_VIEW_VARIANCE`]; cameras with few views take the pooled value). A few fixed-point
+/// rounds, as the others' fusion depends on their variances.
+fn estimate_view_noise(frames: &[FrameGroups<'_>], cameras: usize) -> Vec<f64> {
+    let mut variance = vec![0.05f64.powi(2); cameras];
+    for _ in 0..4 {
+        let mut residuals: Vec<Vec<(Vector2<f64>, Matrix2<f64>)>> = vec![Vec::new(); cameras];
+        for (views, _) in frames.iter().flat_map(|f| &f.groups).filter(|(v, _)| v.len() >= 2) {
+            for (i, v) in views.iter().enumerate() {
+                let Some(cam) = v.camera else { continue };
+                let others: Vec<_> = views
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != i)
+                    .map(|(_, o)| o.with_noise(&variance))
+                    .collect();
+                let Some((m, cm)) = fuse(&others) else { continue };
+                let s = (v.cov + cm).fixed_view::<2, 2>(0, 0).into_owned();
+                residuals[cam].push(((v.point - m).xy(), s));
+            }
+        }
+        let all: Vec<_> = residuals.iter().flatten().copied().collect();
+        if all.is_empty() {
+            return vec![MIN_VIEW_VARIANCE; cameras];
+        }
+        let pooled = consistent_variance(&all);
+        for (c, r) in residuals.iter().enumerate() {
+            variance[c] = if r.len() >= MIN_VIEWS_PER_CAMERA {
+                consistent_variance(r)
+            } else {
+                pooled
+            };
+        }
+    }
+    tracing::debug!(
+        sigma_m = %variance.iter().map(|v| format!("{:.3}", v.sqrt())).collect::<Vec<_>>().join(" "),
+        "estimated ground noise per camera"
+    );
+    variance
+}
+
+/// The σ² ≥ [`MIN_VIEW_VARIANCE`] that makes the mean of rᵀ(S + σ²I)⁻¹r over `residuals` equal
+/// 2 (the mean falls as σ² grows: bisection on a log scale).
+fn consistent_variance(residuals: &[(Vector2<f64>, Matrix2<f64>)]) -> f64 {
+    let mean_nis = |v: f64| {
+        residuals
+            .iter()
+            .filter_map(|(r, s)| {
+                let m = s + Matrix2::identity() * v;
+                m.try_inverse().map(|inv| (r.transpose() * inv * r)[0])
+            })
+            .sum::<f64>()
+            / residuals.len() as f64
+    };
+    let (mut lo, mut hi) = (MIN_VIEW_VARIANCE.ln(), 1.0f64.ln());
+    if mean_nis(MIN_VIEW_VARIANCE) <= 2.0 {
+        return MIN_VIEW_VARIANCE;
+    }
+    for _ in 0..50 {
+        let mid = 0.5 * (lo + hi);
+        if mean_nis(mid.exp()) > 2.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    (0.5 * (lo + hi)).exp()
 }
 
 /// Without a plane: all detections of one `t` as one target, lifted at the mean depth, then

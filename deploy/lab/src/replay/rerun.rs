@@ -121,13 +121,11 @@ pub fn rerun(loaded: &Loaded, opts: &RerunOptions) -> Result<Rerun> {
         ok
     });
     let recorded = Recorded::new(known, opts.t0);
-    if !(frames > 0) {
+    if frames == 0 {
         return Err(crate::LabError::failed(
             "replay",
-            format!(
-                "the recording holds no camera measurements: make a logging run (`ocelli sim \
-         --record-measurements --record FILE` or `ocelli launch --record-measurements`)"
-            ),
+            "the recording holds no camera measurements: make a logging run (`ocelli sim \
+             --record-measurements --record FILE` or `ocelli launch --record-measurements`)",
         ));
     }
     if unknown > 0 {
@@ -143,7 +141,7 @@ pub fn rerun(loaded: &Loaded, opts: &RerunOptions) -> Result<Rerun> {
         .max()
         .unwrap_or(0)
         .max(recorded.last_ns().unwrap_or(0));
-    if !(last_ns <= MAX_REPLAY_NS) {
+    if last_ns > MAX_REPLAY_NS {
         return Err(crate::LabError::failed(
             "replay",
             format!(
