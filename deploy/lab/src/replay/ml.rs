@@ -311,7 +311,11 @@ fn estimate_view_noise(frames: &[FrameGroups<'_>], cameras: usize) -> Vec<f64> {
     let mut variance = vec![0.05f64.powi(2); cameras];
     for _ in 0..4 {
         let mut residuals: Vec<Vec<(Vector2<f64>, Matrix2<f64>)>> = vec![Vec::new(); cameras];
-        for (views, _) in frames.iter().flat_map(|f| &f.groups).filter(|(v, _)| v.len() >= 2) {
+        for (views, _) in frames
+            .iter()
+            .flat_map(|f| &f.groups)
+            .filter(|(v, _)| v.len() >= 2)
+        {
             for (i, v) in views.iter().enumerate() {
                 let Some(cam) = v.camera else { continue };
                 let others: Vec<_> = views

@@ -145,7 +145,10 @@ fn multiviewx_ml_on_the_ground_plane() {
     // (measured 2.00; pixel noise alone: 143, a σ of ≈ 1 cm for errors of ≈ 9 cm).
     let mean_nees = nees(&est, &truth).iter().sum::<f64>() / est.len() as f64;
     println!("mean NEES {mean_nees:.2}");
-    assert!((1.4..=2.8).contains(&mean_nees), "mean NEES {mean_nees:.2}, expected about 2");
+    assert!(
+        (1.4..=2.8).contains(&mean_nees),
+        "mean NEES {mean_nees:.2}, expected about 2"
+    );
     // Nearly every person seen twice is found, and few estimates are spurious splits.
     assert!(
         localized_multi as f64 >= 0.95 * multi_view as f64,
