@@ -4,7 +4,7 @@
 //! report`'s). External detections are fused, not replayed: that is `ocelli fuse`.
 
 use super::common::{NetArgs, ScenarioArg, warn_damage};
-use anyhow::Result;
+use anyhow::{Context, Result};
 use lab::replay::rerun::{RerunOptions, recording_t0, replay_recording};
 use proto::ClusterTime;
 use proto::scenario::{Activation, Fusion};
@@ -102,8 +102,8 @@ impl Default for RecordingArgs {
 pub struct Args {
     /// A logging run's recording (`ocelli sim --record-measurements --record FILE`, or
     /// `ocelli launch --record-measurements`) to re-run through the heads.
-    #[arg(value_name = "RECORDING")]
-    pub recording: PathBuf,
+    #[arg(value_name = "RECORDING", required_unless_present = "detections")]
+    pub recording: Option<PathBuf>,
     /// Replaces the recorded scenario.
     #[command(flatten)]
     pub scenario: ScenarioArg,
@@ -154,12 +154,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
             "external detections are fused, not replayed: run `ocelli fuse {file} --scenario FILE` (or --opencv-calibration DIR)"
         );
     }
+    let recording = args.recording.as_deref().context("a recording is required")?;
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     let scenario = args.scenario.load_given()?;
     let given_t0 = args.rec.t0_ns.map(ClusterTime);
-    let (rows, report) = replay_recording(&args.recording, scenario, given_t0, |loaded| {
-        warn_damage(&args.recording, loaded);
+    let (rows, report) = replay_recording(recording, scenario, given_t0, |loaded| {
+        warn_damage(recording, loaded);
         args.rerun_options(loaded)
     })?;
     if !write_lines(&rows, &mut out)? {
