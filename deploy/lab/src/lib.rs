@@ -7,6 +7,7 @@
 pub mod bench;
 mod error;
 pub mod experiment;
+pub mod progress;
 pub mod replay;
 pub mod report;
 pub mod skipped;

@@ -52,39 +52,54 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }),
         duration_s: args.duration,
     };
+    let bar = super::bar::study_runs(&args.name);
     for name in names {
+        if let Some(b) = &bar {
+            b.set_prefix(name.to_string());
+        }
         let outcome = experiment::run(name, &opts)?;
         let figures = match &args.plot {
             Some(dir) => plot::write_all(&outcome, dir)?,
             None => Vec::new(),
         };
-        if args.json {
-            println!("{}", serde_json::to_string(&table::to_json(&outcome))?);
-        } else if args.markdown {
-            let mut command = format!(
-                "ocelli experiment {name} --runs {} --seed {}",
-                args.runs, args.seed
-            );
-            if let Some(d) = args.duration {
-                command.push_str(&format!(" --duration {d}"));
+        let print = || -> Result<()> {
+            if args.json {
+                println!("{}", serde_json::to_string(&table::to_json(&outcome))?);
+            } else if args.markdown {
+                let mut command = format!(
+                    "ocelli experiment {name} --runs {} --seed {}",
+                    args.runs, args.seed
+                );
+                if let Some(d) = args.duration {
+                    command.push_str(&format!(" --duration {d}"));
+                }
+                if args.level.is_some() {
+                    command.push_str(&format!(
+                        " --level {}",
+                        serde_json::to_value(outcome.level)?.as_str().unwrap_or("?")
+                    ));
+                }
+                let names: Vec<String> = figures
+                    .iter()
+                    .filter_map(|p| p.file_name().map(|f| format!("figures/{}", f.to_string_lossy())))
+                    .collect();
+                print!("{}", table::to_markdown(&outcome, &command, &names));
+            } else {
+                println!("{}", table::to_text(&outcome));
+                for f in &figures {
+                    println!("figure: {}", f.display());
+                }
             }
-            if args.level.is_some() {
-                command.push_str(&format!(
-                    " --level {}",
-                    serde_json::to_value(outcome.level)?.as_str().unwrap_or("?")
-                ));
-            }
-            let names: Vec<String> = figures
-                .iter()
-                .filter_map(|p| p.file_name().map(|f| format!("figures/{}", f.to_string_lossy())))
-                .collect();
-            print!("{}", table::to_markdown(&outcome, &command, &names));
-        } else {
-            println!("{}", table::to_text(&outcome));
-            for f in &figures {
-                println!("figure: {}", f.display());
-            }
+            Ok(())
+        };
+        // The table is printed with the bar cleared, then the bar comes back.
+        match &bar {
+            Some(b) => b.suspend(print)?,
+            None => print()?,
         }
+    }
+    if let Some(b) = bar {
+        b.finish_and_clear();
     }
     Ok(ExitCode::SUCCESS)
 }

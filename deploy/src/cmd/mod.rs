@@ -1,5 +1,6 @@
 //! One module per `ocelli` subcommand.
 
+pub mod bar;
 pub mod bench;
 pub mod camera;
 pub mod common;

@@ -74,7 +74,15 @@ pub fn run(args: Args) -> Result<ExitCode> {
         record_measurements: args.record_measurements,
         ..SimOptions::default()
     };
-    let outcome = Sim::new(scenario, opts)?.run();
+    let bar = super::bar::simulated_seconds(args.duration);
+    let outcome = Sim::new(scenario, opts)?.run_telling(|s| {
+        if let Some(b) = &bar {
+            b.set_position(s);
+        }
+    });
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
     if let Some(path) = &args.record {
         if path.exists() {
             std::fs::remove_file(path).with_context(|| format!("replacing {}", path.display()))?;

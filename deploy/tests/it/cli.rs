@@ -228,3 +228,18 @@ fn binary_replays_a_sim_recording_to_its_own_estimates() {
     assert!(three < all_on, "three-mode {three} vs all-on {all_on} cameras");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Piped, a long command stays quiet: no progress bar, no colour codes.
+#[test]
+fn piped_output_has_no_progress_bar_and_no_colour_codes() {
+    let out = Command::new(env!("CARGO_BIN_EXE_ocelli"))
+        .args(["sim", "--duration", "2", "--level", "measurement", "--json"])
+        .env_remove("RUST_LOG")
+        .output()
+        .expect("ocelli runs");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("simulated s"), "no bar when piped: {err}");
+    assert!(!err.contains('\u{1b}'), "no escape codes when piped: {err}");
+    serde_json::from_slice::<serde_json::Value>(&out.stdout).expect("--json prints only JSON");
+}

@@ -229,6 +229,10 @@ pub fn run_once(
             })
         })
         .collect();
+    crate::progress::tell(&crate::progress::Step::Run {
+        method: &m.label,
+        seed,
+    });
     Ok((report, samples))
 }
 
