@@ -4,7 +4,7 @@
 
 use crate::core::{ServerConfig, ServerNode};
 use crate::record::{Record, Stamped};
-use crate::recording::{RecordingError, Tail, read_all};
+use crate::recording::{RecordingError, Skipped, read_all};
 use proto::NodeId;
 use proto::scenario::{Scenario, ScenarioError};
 use std::path::Path;
@@ -26,7 +26,9 @@ pub enum LoadError {
 pub struct Loaded {
     pub scenario: Scenario,
     pub records: Vec<Stamped>,
-    pub tail: Option<Tail>,
+    /// Damaged stretches of the recording that reading skipped, in file order (empty for
+    /// records that did not come from a file).
+    pub skipped: Vec<Skipped>,
 }
 
 impl Loaded {
@@ -54,7 +56,8 @@ impl Loaded {
     }
 }
 
-/// Load a recording; `scenario` overrides the one recorded in it.
+/// Load a recording; `scenario` overrides the one recorded in it. Damaged stretches are
+/// skipped and listed in [`Loaded::skipped`].
 ///
 /// # Errors
 /// An unreadable recording, a recorded scenario that does not parse, or no scenario at all.
@@ -77,7 +80,7 @@ pub fn load(path: &Path, scenario: Option<Scenario>) -> Result<Loaded, LoadError
     Ok(Loaded {
         scenario,
         records: back.records,
-        tail: back.tail,
+        skipped: back.skipped,
     })
 }
 

@@ -75,10 +75,11 @@ pub fn start(
     }
     let cfg = server_cfg;
     let (mut node, stats) = ServerNode::restore(cfg, &back.records);
-    let skipped = back.tail.as_ref().map_or(0, |t| t.skipped_bytes);
+    let skipped = back.skipped_bytes();
     tracing::info!(
         records = back.records.len(),
         skipped_bytes = skipped,
+        skipped_stretches = back.skipped.len(),
         decisions_matched = stats.decisions_matched,
         decisions_mismatched = stats.decisions_mismatched,
         "resumed from recording"

@@ -1,22 +1,43 @@
-//! The recording file: append-only, crash-safe, self-checking.
+//! The recording file: append-only, crash-safe, self-checking, and readable past damage.
 //!
 //! Layout: a header — magic `OCELLIRC`, `u16 LE` format version, `u16 LE` name length, the
 //! scenario name (UTF-8) — then records, each `u32 LE len | u32 LE crc32(payload) | payload`
 //! (payloads are [`Stamped`] records).
 //!
 //! Crash safety: [`Recorder`] writes each record with a single `write(2)` on an unbuffered
-//! file, so a record that returned is in the kernel and survives a crash of the process; the
-//! runtime calls [`Recorder::sync`] on a timer to survive a crash of the host. A crash mid-write
-//! leaves a torn tail: [`Reader`] stops at the first record that is short or fails its CRC,
-//! reports how many bytes it skipped, and everything before it reads back intact.
-//! [`Recorder::resume`] truncates the torn tail before appending, so new records never hide
-//! behind it.
+//! file opened `O_APPEND`, so a record that returned is in the kernel and survives a crash of
+//! the process; the runtime calls [`Recorder::sync`] on a timer to survive a crash of the host.
+//! The recorder holds an exclusive lock on the file: a second server process on the same
+//! recording is refused ([`RecordingError::InUse`]). New files are created `0640`.
+//!
+//! Damage: a crash mid-write leaves a torn tail, and a disk can flip bits anywhere. [`Reader`]
+//! skips a damaged stretch by scanning forward, byte by byte, to the next valid record (see
+//! [`frames`]) and reports each stretch it skipped as a [`Skipped`]; every valid record before
+//! and after it reads back.
+//!
+//! A recording's bytes are never changed once written, not even a torn tail's:
+//! [`Recorder::resume`] appends after whatever the file ends with, and readers resynchronise
+//! past it. Cutting the tail off (or moving it to a side file first) would be a second,
+//! non-atomic write path that a crash could interrupt, and it would need a rule for telling a
+//! torn tail from damage mid-file; leaving the bytes in place keeps everything, and costs each
+//! later reader one skip that it reports. The one exception is a file too short to hold its
+//! header: if its bytes begin the header this server would write, the rest of the header is
+//! appended; otherwise the file is renamed aside (`<file>.damaged-<n>`) and a new one started.
+
+mod frames;
+mod recorder;
+#[cfg(test)]
+mod tests;
 
 use crate::record::{RecordError, Stamped};
-use std::fs::{File, OpenOptions};
-use std::io::{BufReader, Read, Seek, SeekFrom, Write};
+use serde::Serialize;
+use std::fs::File;
+use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
+
+pub(crate) use frames::{FRAME_HEADER, Step, next_valid, step};
+pub use recorder::Recorder;
 
 /// File magic.
 pub const MAGIC: [u8; 8] = *b"OCELLIRC";
@@ -25,6 +46,10 @@ pub const MAGIC: [u8; 8] = *b"OCELLIRC";
 pub const FORMAT_VERSION: u16 = 2;
 /// Largest record payload accepted; a length beyond it is corruption, not an allocation.
 pub const MAX_RECORD_BYTES: u32 = 16 * 1024 * 1024;
+/// Permissions of a new recording: not world-readable (further narrowed by the umask).
+pub const FILE_MODE: u32 = 0o640;
+/// Bytes a [`Reader`] reads ahead at a time.
+const READ_AHEAD: usize = 64 * 1024;
 
 /// A recording that cannot be opened or written.
 #[derive(Debug, Error)]
@@ -46,40 +71,69 @@ pub enum RecordingError {
         offset: u64,
         source: RecordError,
     },
+    #[error("recording {path}: a record payload of {bytes} bytes is outside 1..={MAX_RECORD_BYTES}")]
+    RecordSize { path: PathBuf, bytes: usize },
+    #[error("recording {path} is in use by another process (it holds the file's lock)")]
+    InUse { path: PathBuf },
     #[error("scenario name of {0} bytes is too long for the header")]
     NameTooLong(usize),
 }
 
-/// Why reading stopped before the end of the file.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum TailProblem {
-    /// The file ends inside a record's 8-byte frame header.
+/// What was wrong where a reader had to skip.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case", tag = "kind")]
+pub enum Damage {
+    /// The data ends inside a record's 8-byte frame header.
     ShortHeader,
-    /// The file ends inside a record's payload.
+    /// The data ends inside a record's payload.
     ShortPayload { len: u32 },
-    /// The length field is beyond [`MAX_RECORD_BYTES`] or zero.
+    /// The length field is zero or beyond [`MAX_RECORD_BYTES`].
     BadLength { len: u32 },
     /// The payload does not match its CRC.
     Checksum,
+    /// The frame is intact (its CRC holds) but its payload is not a record this build knows.
+    Undecodable,
 }
 
-/// A torn or corrupt tail: where it starts and how many bytes were skipped.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Tail {
+/// One stretch of a recording that a reader skipped: where it starts, how long it is, and
+/// what was wrong at its start. Adjacent skips are merged into one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Skipped {
     pub offset: u64,
-    pub skipped_bytes: u64,
-    pub problem: TailProblem,
+    pub bytes: u64,
+    pub damage: Damage,
 }
 
-/// Streaming reader of a recording's records.
+/// Add a skip to a list, merging it into the last one when they touch.
+pub(crate) fn note_skip(list: &mut Vec<Skipped>, offset: u64, bytes: u64, damage: Damage) {
+    match list.last_mut() {
+        Some(last) if last.offset + last.bytes == offset => last.bytes += bytes,
+        _ => list.push(Skipped {
+            offset,
+            bytes,
+            damage,
+        }),
+    }
+}
+
+/// Total bytes of a list of skips.
+pub fn skipped_bytes(list: &[Skipped]) -> u64 {
+    list.iter().map(|s| s.bytes).sum()
+}
+
+/// Streaming reader of a recording's records; skips damage and remembers what it skipped.
 #[derive(Debug)]
 pub struct Reader<R> {
     inner: R,
     path: PathBuf,
     name: String,
-    offset: u64,
+    /// Bytes of the file (the reader reads no further).
     len: u64,
-    tail: Option<Tail>,
+    /// Bytes read from `inner` but not consumed yet start at `buf[start]`, file offset `offset`.
+    buf: Vec<u8>,
+    start: usize,
+    offset: u64,
+    skipped: Vec<Skipped>,
     records: u64,
 }
 
@@ -124,9 +178,11 @@ impl<R: Read> Reader<R> {
             inner,
             path: path.into(),
             name,
+            len: len.max(offset),
+            buf: Vec::new(),
+            start: 0,
             offset,
-            len,
-            tail: None,
+            skipped: Vec::new(),
             records: 0,
         })
     }
@@ -136,13 +192,13 @@ impl<R: Read> Reader<R> {
         &self.name
     }
 
-    /// Where the torn tail starts, once reading hit it.
-    pub fn tail(&self) -> Option<&Tail> {
-        self.tail.as_ref()
+    /// The stretches skipped so far, in file order.
+    pub fn skipped(&self) -> &[Skipped] {
+        &self.skipped
     }
 
-    /// Byte length of the intact part read so far (header + whole, valid records).
-    pub fn valid_len(&self) -> u64 {
+    /// File offset of the first byte not read yet (header, records and skips behind it).
+    pub fn offset(&self) -> u64 {
         self.offset
     }
 
@@ -151,69 +207,70 @@ impl<R: Read> Reader<R> {
         self.records
     }
 
-    fn torn(&mut self, problem: TailProblem) {
-        self.tail = Some(Tail {
-            offset: self.offset,
-            skipped_bytes: self.len.saturating_sub(self.offset),
-            problem,
-        });
+    /// Make at least `want` unconsumed bytes available, or all that is left of the file.
+    fn fill(&mut self, want: usize) -> Result<(), RecordingError> {
+        let have = self.buf.len() - self.start;
+        let end = self.offset + have as u64;
+        if have >= want || end >= self.len {
+            return Ok(());
+        }
+        if self.start > 0 {
+            self.buf.drain(..self.start);
+            self.start = 0;
+        }
+        let ask = (want - have).max(READ_AHEAD) as u64;
+        let ask = ask.min(self.len - end);
+        let got = (&mut self.inner)
+            .take(ask)
+            .read_to_end(&mut self.buf)
+            .map_err(io(&self.path))?;
+        if (got as u64) < ask {
+            // The file is shorter than it was said to be: its end is here.
+            self.len = end + got as u64;
+        }
+        Ok(())
     }
 
-    /// The next record's raw payload; `None` at the end or at a torn tail.
+    fn consume(&mut self, n: usize) {
+        self.start += n;
+        self.offset += n as u64;
+    }
+
+    /// The next valid record, skipping (and noting) damage; `None` at the end.
     ///
     /// # Errors
     /// IO errors only.
-    pub fn next_payload(&mut self) -> Result<Option<Vec<u8>>, RecordingError> {
-        if self.tail.is_some() || self.offset >= self.len {
-            return Ok(None);
+    pub fn next_record(&mut self) -> Result<Option<Stamped>, RecordingError> {
+        let mut want = READ_AHEAD;
+        loop {
+            self.fill(want)?;
+            let window = &self.buf[self.start..];
+            let at_end = self.offset + window.len() as u64 >= self.len;
+            match step(window, at_end) {
+                Step::End => return Ok(None),
+                Step::Record { record, frame_len } => {
+                    self.consume(frame_len);
+                    self.records += 1;
+                    return Ok(Some(record));
+                }
+                Step::Skip { bytes, damage } => {
+                    note_skip(&mut self.skipped, self.offset, bytes as u64, damage);
+                    self.consume(bytes);
+                    want = READ_AHEAD;
+                }
+                // `need` is more than the window holds and the file has more: fill reads some.
+                Step::NeedMore { need, .. } => want = need,
+            }
         }
-        let mut head = [0u8; 8];
-        let path = self.path.clone();
-        if !read_full(&mut self.inner, &mut head).map_err(io(&path))? {
-            self.torn(TailProblem::ShortHeader);
-            return Ok(None);
-        }
-        let len = u32::from_le_bytes([head[0], head[1], head[2], head[3]]);
-        let crc = u32::from_le_bytes([head[4], head[5], head[6], head[7]]);
-        if len == 0 || len > MAX_RECORD_BYTES {
-            self.torn(TailProblem::BadLength { len });
-            return Ok(None);
-        }
-        if self.offset + 8 + u64::from(len) > self.len {
-            self.torn(TailProblem::ShortPayload { len });
-            return Ok(None);
-        }
-        let mut payload = vec![0u8; len as usize];
-        if !read_full(&mut self.inner, &mut payload).map_err(io(&path))? {
-            self.torn(TailProblem::ShortPayload { len });
-            return Ok(None);
-        }
-        if crc32fast::hash(&payload) != crc {
-            self.torn(TailProblem::Checksum);
-            return Ok(None);
-        }
-        self.offset += 8 + u64::from(len);
-        self.records += 1;
-        Ok(Some(payload))
     }
 }
 
 impl<R: Read> Iterator for Reader<R> {
     type Item = Result<Stamped, RecordingError>;
 
-    /// The next decoded record. A record whose CRC holds but whose payload does not decode is an
-    /// error (it was written by another build), not a torn tail.
+    /// The next valid record; damage is skipped and noted in [`Reader::skipped`].
     fn next(&mut self) -> Option<Self::Item> {
-        let offset = self.offset;
-        match self.next_payload() {
-            Err(e) => Some(Err(e)),
-            Ok(None) => None,
-            Ok(Some(p)) => Some(Stamped::decode(&p).map_err(|source| RecordingError::Record {
-                path: self.path.clone(),
-                offset,
-                source,
-            })),
-        }
+        self.next_record().transpose()
     }
 }
 
@@ -235,167 +292,49 @@ pub(crate) fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<bo
 #[derive(Debug)]
 pub struct ReadBack {
     pub name: String,
+    /// Every valid record, in file order.
     pub records: Vec<Stamped>,
-    pub valid_len: u64,
-    pub tail: Option<Tail>,
+    /// The damaged stretches skipped, in file order.
+    pub skipped: Vec<Skipped>,
+    /// Bytes read (the file's length when it was read).
+    pub len: u64,
 }
 
-/// Read a whole recording into memory.
-///
-/// # Errors
-/// As [`Reader::open`], plus a record that does not decode.
-pub fn read_all(path: &Path) -> Result<ReadBack, RecordingError> {
-    let mut reader = Reader::open(path)?;
+impl ReadBack {
+    /// Total bytes skipped.
+    pub fn skipped_bytes(&self) -> u64 {
+        skipped_bytes(&self.skipped)
+    }
+}
+
+/// Read all records from `reader`.
+fn read_back<R: Read>(mut reader: Reader<R>) -> Result<ReadBack, RecordingError> {
     let mut records = Vec::new();
-    for r in reader.by_ref() {
-        records.push(r?);
+    while let Some(r) = reader.next_record()? {
+        records.push(r);
     }
     Ok(ReadBack {
-        name: reader.name().to_owned(),
+        name: reader.name,
         records,
-        valid_len: reader.valid_len(),
-        tail: reader.tail().cloned(),
+        skipped: reader.skipped,
+        len: reader.offset,
     })
 }
 
-/// The append side of a recording.
-#[derive(Debug)]
-pub struct Recorder {
-    file: File,
-    path: PathBuf,
-    written: u64,
-    bytes: u64,
+/// Read a whole recording into memory, skipping damage.
+///
+/// # Errors
+/// As [`Reader::open`].
+pub fn read_all(path: &Path) -> Result<ReadBack, RecordingError> {
+    read_back(Reader::open(path)?)
 }
 
-impl Recorder {
-    /// Create a new recording (fails if the file exists).
-    ///
-    /// # Errors
-    /// IO errors (including an existing file) and an over-long name.
-    pub fn create(path: &Path, scenario_name: &str) -> Result<Self, RecordingError> {
-        let header = header_bytes(scenario_name)?;
-        let mut file = OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(path)
-            .map_err(io(path))?;
-        file.write_all(&header).map_err(io(path))?;
-        file.sync_data().map_err(io(path))?;
-        Ok(Recorder {
-            file,
-            path: path.into(),
-            written: 0,
-            bytes: header.len() as u64,
-        })
-    }
-
-    /// Reopen an existing recording: read it back, cut off a torn tail, and append from there.
-    /// A file whose header never made it to disk is started afresh.
-    ///
-    /// # Errors
-    /// IO errors, a file that is not a recording, or a record that does not decode.
-    pub fn resume(path: &Path, scenario_name: &str) -> Result<(Self, ReadBack), RecordingError> {
-        let back = match read_all(path) {
-            Err(RecordingError::TruncatedHeader { .. }) => {
-                std::fs::remove_file(path).map_err(io(path))?;
-                return Recorder::fresh(path, scenario_name);
-            }
-            other => other?,
-        };
-        if back.name != scenario_name {
-            tracing::warn!(path = %path.display(), recorded = %back.name, now = %scenario_name, "resuming a recording made with another scenario");
-        }
-        let mut file = OpenOptions::new().write(true).open(path).map_err(io(path))?;
-        if back.tail.is_some() {
-            tracing::warn!(path = %path.display(), tail = ?back.tail, "recording has a torn tail; truncating it");
-            file.set_len(back.valid_len).map_err(io(path))?;
-            file.sync_data().map_err(io(path))?;
-        }
-        file.seek(SeekFrom::Start(back.valid_len)).map_err(io(path))?;
-        Ok((
-            Recorder {
-                file,
-                path: path.into(),
-                written: 0,
-                bytes: back.valid_len,
-            },
-            back,
-        ))
-    }
-
-    /// Open `path` for recording: resume it if it exists, else create it.
-    ///
-    /// # Errors
-    /// As [`Recorder::create`] and [`Recorder::resume`].
-    pub fn open(path: &Path, scenario_name: &str) -> Result<(Self, ReadBack), RecordingError> {
-        if path.exists() {
-            Recorder::resume(path, scenario_name)
-        } else {
-            Recorder::fresh(path, scenario_name)
-        }
-    }
-
-    /// A new recording, with the (empty) read-back that resuming one would give.
-    fn fresh(path: &Path, scenario_name: &str) -> Result<(Self, ReadBack), RecordingError> {
-        let rec = Recorder::create(path, scenario_name)?;
-        let back = ReadBack {
-            name: scenario_name.into(),
-            records: Vec::new(),
-            valid_len: rec.bytes,
-            tail: None,
-        };
-        Ok((rec, back))
-    }
-
-    /// Append one record with a single write.
-    ///
-    /// # Errors
-    /// IO errors, and records whose envelope the wire encoding refuses.
-    pub fn append(&mut self, record: &Stamped) -> Result<(), RecordingError> {
-        let payload = record.encode().map_err(|source| RecordingError::Record {
-            path: self.path.clone(),
-            offset: self.bytes,
-            source,
-        })?;
-        self.append_payload(&payload)
-    }
-
-    /// Append a raw payload (framing and CRC added here).
-    ///
-    /// # Errors
-    /// IO errors.
-    pub fn append_payload(&mut self, payload: &[u8]) -> Result<(), RecordingError> {
-        let mut buf = Vec::with_capacity(payload.len() + 8);
-        buf.extend_from_slice(&(payload.len() as u32).to_le_bytes());
-        buf.extend_from_slice(&crc32fast::hash(payload).to_le_bytes());
-        buf.extend_from_slice(payload);
-        self.file.write_all(&buf).map_err(io(&self.path))?;
-        self.written += 1;
-        self.bytes += buf.len() as u64;
-        Ok(())
-    }
-
-    /// Flush file data to the device (call on a timer and at shutdown).
-    ///
-    /// # Errors
-    /// IO errors.
-    pub fn sync(&mut self) -> Result<(), RecordingError> {
-        self.file.sync_data().map_err(io(&self.path))
-    }
-
-    /// Records appended by this recorder.
-    pub fn written(&self) -> u64 {
-        self.written
-    }
-
-    /// Size of the file, bytes.
-    pub fn bytes(&self) -> u64 {
-        self.bytes
-    }
-
-    pub fn path(&self) -> &Path {
-        &self.path
-    }
+/// Read a recording held in memory (`path` names it in errors), skipping damage.
+///
+/// # Errors
+/// A wrong magic or version, or a header cut short.
+pub fn read_bytes(bytes: &[u8], path: &Path) -> Result<ReadBack, RecordingError> {
+    read_back(Reader::new(bytes, bytes.len() as u64, path)?)
 }
 
 /// The header's scenario name and byte length; `None` while it is not all written.
@@ -425,169 +364,4 @@ pub(crate) fn read_header(
         String::from_utf8_lossy(&name).into_owned(),
         12 + name.len() as u64,
     )))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::decision::Decision;
-    use crate::record::Record;
-    use proto::{ClusterTime, NodeId};
-
-    fn tmp(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("ocelli-rec-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir.join("rec.ocelli")
-    }
-
-    fn sample(n: i64) -> Vec<Stamped> {
-        (0..n)
-            .map(|i| {
-                Stamped::new(
-                    ClusterTime(i * 1000),
-                    if i % 2 == 0 {
-                        Record::Tick
-                    } else {
-                        Record::Decision(Decision::Up {
-                            node: NodeId(i as u32),
-                        })
-                    },
-                )
-            })
-            .collect()
-    }
-
-    fn write(path: &Path, recs: &[Stamped]) {
-        let mut r = Recorder::create(path, "test").unwrap();
-        for s in recs {
-            r.append(s).unwrap();
-        }
-        r.sync().unwrap();
-    }
-
-    #[test]
-    fn records_read_back_in_order() {
-        let path = tmp("order");
-        let recs = sample(5);
-        write(&path, &recs);
-        let back = read_all(&path).unwrap();
-        assert_eq!(back.name, "test");
-        assert_eq!(back.records, recs);
-        assert_eq!(back.tail, None);
-        assert_eq!(back.valid_len, std::fs::metadata(&path).unwrap().len());
-    }
-
-    #[test]
-    fn truncation_at_every_offset_of_the_last_record_keeps_the_rest() {
-        let path = tmp("trunc");
-        let recs = sample(4);
-        write(&path, &recs[..3]);
-        let before = std::fs::metadata(&path).unwrap().len();
-        let mut r = Recorder::resume(&path, "test").unwrap().0;
-        r.append(&recs[3]).unwrap();
-        let full = std::fs::read(&path).unwrap();
-        for cut in before..full.len() as u64 {
-            std::fs::write(&path, &full[..cut as usize]).unwrap();
-            let back = read_all(&path).unwrap();
-            assert_eq!(back.records, recs[..3], "cut at {cut}");
-            if cut == before {
-                assert_eq!(back.tail, None);
-            } else {
-                let tail = back.tail.expect("torn tail reported");
-                assert_eq!(tail.offset, before);
-                assert_eq!(tail.skipped_bytes, cut - before);
-            }
-        }
-    }
-
-    #[test]
-    fn a_flipped_byte_is_caught_by_the_crc() {
-        let path = tmp("flip");
-        let recs = sample(3);
-        write(&path, &recs);
-        let full = std::fs::read(&path).unwrap();
-        let last_start = {
-            let mut rd = Reader::open(&path).unwrap();
-            rd.next_payload().unwrap();
-            rd.next_payload().unwrap();
-            rd.valid_len()
-        };
-        let mut bad = full.clone();
-        let i = full.len() - 2; // inside the last payload
-        bad[i] ^= 0x10;
-        std::fs::write(&path, &bad).unwrap();
-        let back = read_all(&path).unwrap();
-        assert_eq!(back.records, recs[..2]);
-        let tail = back.tail.unwrap();
-        assert_eq!(tail.problem, TailProblem::Checksum);
-        assert_eq!(tail.offset, last_start);
-    }
-
-    #[test]
-    fn resume_cuts_a_torn_tail_and_appends_after_it() {
-        let path = tmp("resume");
-        let recs = sample(3);
-        write(&path, &recs);
-        let full = std::fs::read(&path).unwrap();
-        std::fs::write(&path, &full[..full.len() - 3]).unwrap();
-        let (mut rec, back) = Recorder::resume(&path, "test").unwrap();
-        assert_eq!(back.records, recs[..2]);
-        assert!(back.tail.is_some());
-        rec.append(&recs[2]).unwrap();
-        let again = read_all(&path).unwrap();
-        assert_eq!(again.records, recs);
-        assert_eq!(again.tail, None);
-    }
-
-    #[test]
-    fn not_a_recording_is_a_clear_error() {
-        let path = tmp("magic");
-        std::fs::write(&path, b"hello world, not a recording").unwrap();
-        assert!(matches!(read_all(&path), Err(RecordingError::BadMagic { .. })));
-        std::fs::write(&path, b"OCEL").unwrap();
-        assert!(matches!(
-            read_all(&path),
-            Err(RecordingError::TruncatedHeader { .. })
-        ));
-        // A header-only torn file is restarted by `resume`.
-        let (_, back) = Recorder::resume(&path, "fresh").unwrap();
-        assert!(back.records.is_empty());
-        assert_eq!(read_all(&path).unwrap().name, "fresh");
-    }
-
-    #[test]
-    fn create_refuses_to_clobber() {
-        let path = tmp("clobber");
-        write(&path, &sample(1));
-        assert!(matches!(
-            Recorder::create(&path, "x"),
-            Err(RecordingError::Io { .. })
-        ));
-    }
-
-    proptest::proptest! {
-        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
-        /// Cut anywhere after the header: exactly the records that fit whole read back.
-        #[test]
-        fn any_cut_reads_back_the_whole_records_before_it(n in 1i64..12, frac in 0.0f64..1.0) {
-            let path = tmp(&format!("prop-{n}-{}", (frac * 1e6) as u64));
-            let recs = sample(n);
-            let mut r = Recorder::create(&path, "p").unwrap();
-            let mut ends = Vec::new();
-            for s in &recs {
-                r.append(s).unwrap();
-                ends.push(r.bytes());
-            }
-            let full = std::fs::read(&path).unwrap();
-            let header = 12 + 1; // magic, version, name length, "p"
-            let cut = header + ((full.len() as u64 - header) as f64 * frac) as u64;
-            std::fs::write(&path, &full[..cut as usize]).unwrap();
-            let back = read_all(&path).unwrap();
-            let whole = ends.iter().filter(|e| **e <= cut).count();
-            proptest::prop_assert_eq!(&back.records[..], &recs[..whole]);
-            let _ = std::fs::remove_dir_all(path.parent().unwrap());
-            proptest::prop_assert_eq!(back.tail.is_some(), cut != header && !ends.contains(&cut));
-        }
-    }
 }

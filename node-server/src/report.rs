@@ -103,8 +103,8 @@ pub struct Report {
     pub sync: Vec<NodeSync>,
     pub handovers: u64,
     pub global_ids: u64,
-    /// Bytes skipped at a torn tail of the recording.
-    pub torn_tail_bytes: u64,
+    /// Damaged stretches of the recording that reading skipped.
+    pub skipped: Vec<crate::recording::Skipped>,
 }
 
 fn mean_std(xs: &[f64]) -> (f64, f64, f64) {
@@ -328,7 +328,7 @@ pub fn compute_with(loaded: &Loaded, truth_of: Option<&dyn Truth>, gate_m: f64) 
         sync,
         handovers,
         global_ids: globals,
-        torn_tail_bytes: loaded.tail.as_ref().map_or(0, |t| t.skipped_bytes),
+        skipped: loaded.skipped.clone(),
     }
 }
 
@@ -370,8 +370,23 @@ impl Report {
         );
         let _ = writeln!(s, "handovers       {}", self.handovers);
         let _ = writeln!(s, "global ids      {}", self.global_ids);
-        if self.torn_tail_bytes > 0 {
-            let _ = writeln!(s, "torn tail       {} bytes skipped", self.torn_tail_bytes);
+        if !self.skipped.is_empty() {
+            let mut at: Vec<String> = self
+                .skipped
+                .iter()
+                .take(5)
+                .map(|k| k.offset.to_string())
+                .collect();
+            if self.skipped.len() > at.len() {
+                at.push("…".into());
+            }
+            let _ = writeln!(
+                s,
+                "damage          {} bytes skipped in {} stretches (at bytes {})",
+                crate::recording::skipped_bytes(&self.skipped),
+                self.skipped.len(),
+                at.join(", ")
+            );
         }
         if !self.targets.is_empty() {
             let _ = writeln!(

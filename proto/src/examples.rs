@@ -10,6 +10,7 @@ use crate::{ClusterTime, Envelope, Message, Mode};
 
 /// A symmetric, diagonally dominant (so positive-definite) matrix whose upper-triangle entries
 /// are distinct and differ from those of other seeds.
+#[allow(clippy::needless_range_loop)] // (i, j) index pairs read clearer than zipped iterators
 pub fn spd(seed: u32) -> Mat6 {
     let s = f64::from(seed);
     let mut m = [[0.0; 6]; 6];

@@ -276,7 +276,19 @@ pub fn read_intrinsics_with(
     path: &Path,
     image_size: Option<(u32, u32)>,
 ) -> Result<(Intrinsics, Distortion), OpenCvError> {
-    let nodes = parse_storage(path, &read_text(path)?)?;
+    parse_intrinsics(path, &read_text(path)?, image_size)
+}
+
+/// [`read_intrinsics_with`] on the text of a file; `path` names it in errors.
+///
+/// # Errors
+/// A missing / malformed matrix, naming the file.
+pub fn parse_intrinsics(
+    path: &Path,
+    text: &str,
+    image_size: Option<(u32, u32)>,
+) -> Result<(Intrinsics, Distortion), OpenCvError> {
+    let nodes = parse_storage(path, text)?;
     let k = matrix(path, &nodes, "camera_matrix")?;
     if (k.rows, k.cols) != (3, 3) {
         return Err(format_err(
@@ -379,7 +391,19 @@ pub fn read_extrinsics(path: &Path) -> Result<Pose, OpenCvError> {
 /// # Errors
 /// Unreadable file, or a missing / malformed vector, naming the file.
 pub fn read_extrinsics_with(path: &Path, options: &ImportOptions) -> Result<(Pose, bool), OpenCvError> {
-    let nodes = parse_storage(path, &read_text(path)?)?;
+    parse_extrinsics(path, &read_text(path)?, options)
+}
+
+/// [`read_extrinsics_with`] on the text of a file; `path` names it in errors.
+///
+/// # Errors
+/// A missing / malformed vector, naming the file.
+pub fn parse_extrinsics(
+    path: &Path,
+    text: &str,
+    options: &ImportOptions,
+) -> Result<(Pose, bool), OpenCvError> {
+    let nodes = parse_storage(path, text)?;
     let pose = Pose::from_rvec_tvec(vector3(path, &nodes, "rvec")?, vector3(path, &nodes, "tvec")?);
     let mirror = match options.handedness {
         Handedness::AsIs => false,

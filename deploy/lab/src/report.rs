@@ -99,28 +99,27 @@ pub fn of_recording(
 /// the same warnings `report`, `export` and `replay` print.
 pub fn damage(loaded: &Loaded) -> Vec<String> {
     loaded
-        .tail
+        .skipped
         .iter()
-        .map(|t| {
+        .map(|s| {
             format!(
-                "the recording's last {} byte(s) from offset {} could not be read ({}); what precedes them was used",
-                t.skipped_bytes,
-                t.offset,
-                tail_problem(&t.problem)
+                "{} byte(s) from offset {} could not be read ({}); the records around them were used",
+                s.bytes,
+                s.offset,
+                damage_problem(&s.damage)
             )
         })
         .collect()
 }
 
-fn tail_problem(p: &node_server::recording::TailProblem) -> String {
-    use node_server::recording::TailProblem;
-    match p {
-        TailProblem::ShortHeader => "the file ends inside a record header".into(),
-        TailProblem::ShortPayload { len } => {
-            format!("the file ends inside a record of {len} bytes")
-        }
-        TailProblem::BadLength { len } => format!("impossible record length {len}"),
-        TailProblem::Checksum => "a record's checksum does not match".into(),
+fn damage_problem(d: &node_server::recording::Damage) -> String {
+    use node_server::recording::Damage;
+    match d {
+        Damage::ShortHeader => "the file ends inside a record header".into(),
+        Damage::ShortPayload { len } => format!("the file ends inside a record of {len} bytes"),
+        Damage::BadLength { len } => format!("impossible record length {len}"),
+        Damage::Checksum => "a record's checksum does not match".into(),
+        Damage::Undecodable => "an intact record this build cannot decode".into(),
     }
 }
 
@@ -133,7 +132,7 @@ mod tests {
         Loaded {
             scenario: Scenario::default_scenario(),
             records,
-            tail: None,
+            skipped: Vec::new(),
         }
     }
 

@@ -153,6 +153,7 @@ enum Event {
 }
 
 /// The inputs the runtime itself gives every role (sensor inputs go to cameras directly).
+#[allow(clippy::large_enum_variant)] // as `proto::node::Input`: messages move once, unboxed
 enum Control {
     Message(Envelope),
     Tick,

@@ -93,7 +93,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let loaded = Loaded {
         scenario: outcome.scenario,
         records: outcome.records,
-        tail: None,
+        skipped: Vec::new(),
     };
     let report = report::compute(&loaded, truth.as_ref().map(|t| t as &dyn report::Truth));
     let level = match outcome.level {

@@ -126,7 +126,7 @@ mod tests {
         let whole = Loaded {
             scenario: scenario.clone(),
             records,
-            tail: None,
+            skipped: Vec::new(),
         };
         let mut expected: BTreeMap<u32, TrackRow> = BTreeMap::new();
         for r in track_rows(&whole).into_iter().filter(|r| r.owner) {

@@ -394,7 +394,7 @@ pub fn run(args: &Options) -> Result<serde_json::Value> {
         "p99_of": "fixed_rate phase",
         "full_rate": "measurements offered back to back; droppable, so beyond the queues they are dropped and counted (sender queue + receiver inbox); latency of those delivered",
         "hops": {
-            "ipc": "sender task publishes (iceoryx2 thread-safe service) -> shared memory + event -> iceoryx2 rx thread (decode) -> receiver task",
+            "ipc": "sender task publishes (iceoryx2 thread-safe service) -> shared memory + event -> the receiver task, woken by the listener's descriptor in its own reactor, decodes",
             "tcp": "sender task -> link task (same runtime) -> loopback socket -> reader task (decode) -> receiver task (same runtime)"
         },
         "goals": {"ipc_p99_us": 20, "tcp_p99_us": 200},

@@ -194,7 +194,7 @@ pub fn run_once(
     let loaded = Loaded {
         scenario: m.scenario.clone(),
         records: outcome.records,
-        tail: None,
+        skipped: Vec::new(),
     };
     let truth = sim::WorldTruth::new(&m.scenario, ClusterTime(0))?;
     let report = report::compute_with(&loaded, Some(&truth), m.gate_m);

@@ -75,7 +75,7 @@ impl Rerun {
         Loaded {
             scenario: self.scenario.clone(),
             records: self.records.clone(),
-            tail: None,
+            skipped: Vec::new(),
         }
     }
 }
@@ -243,7 +243,7 @@ mod tests {
         let loaded = |records| Loaded {
             scenario: scenario.clone(),
             records,
-            tail: None,
+            skipped: Vec::new(),
         };
         let (from_zero, from_wall) = (loaded(at_zero), loaded(shifted));
         assert_eq!(recording_t0(&from_zero), ClusterTime(0));

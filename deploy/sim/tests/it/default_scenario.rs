@@ -34,7 +34,7 @@ fn run(activation: Activation) -> Report {
     let loaded = Loaded {
         scenario: outcome.scenario,
         records: outcome.records,
-        tail: None,
+        skipped: Vec::new(),
     };
     report::compute(&loaded, Some(&truth))
 }
@@ -101,7 +101,7 @@ fn replaying_a_sim_recording_gives_the_same_estimates() {
     let live = Loaded {
         scenario: scenario.clone(),
         records: outcome.records.clone(),
-        tail: None,
+        skipped: Vec::new(),
     };
     let (a, b) = (track_rows(&live), track_rows(&loaded));
     assert!(a.len() > 10, "only {} track rows in 8 s", a.len());

@@ -36,32 +36,6 @@ pub(crate) async fn push<T>(
     }
 }
 
-/// Blocking variant of [`push`] for transport threads outside the runtime.
-///
-/// # Errors
-/// [`SendError::Closed`] if the queue's receiver is gone.
-pub(crate) fn push_blocking<T>(
-    tx: &mpsc::Sender<T>,
-    item: T,
-    droppable: bool,
-    dropped: &std::sync::atomic::AtomicU64,
-) -> Result<Delivery, SendError> {
-    match tx.try_send(item) {
-        Ok(()) => Ok(Delivery::Queued),
-        Err(TrySendError::Full(item)) => {
-            if droppable {
-                bump(dropped);
-                Ok(Delivery::Dropped)
-            } else {
-                tx.blocking_send(item)
-                    .map(|()| Delivery::Queued)
-                    .map_err(|_| SendError::Closed)
-            }
-        }
-        Err(TrySendError::Closed(_)) => Err(SendError::Closed),
-    }
-}
-
 /// Decode one received frame. A rejection is counted by kind, logged with what was wrong,
 /// and yields `None`; the caller goes on with the next frame. When the link is bound to a
 /// node (`expected`), a frame claiming another source is rejected as invalid.

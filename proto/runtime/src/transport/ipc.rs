@@ -7,15 +7,17 @@
 //! never see each other's services and a test can check that nothing of its domain is left in
 //! `/dev/shm`.
 //!
-//! Receiving runs on a dedicated thread that blocks on the inbox listener, drains the
-//! subscriber, decodes and forwards to the tokio inbox (blocking only for messages that must
-//! not be dropped). Sending uses iceoryx2's thread-safe service flavour, so `Endpoint::send`
-//! publishes straight from the caller's task: a thread hop costs tens of microseconds on an
-//! idle machine. iceoryx2's own signal handling is disabled (tokio owns SIGINT/SIGTERM). Each
+//! Receiving happens in the node's own task: the inbox listener's file descriptor is registered
+//! with tokio's reactor, so a notification wakes the task that reads the inbox once — there is
+//! no receiver thread and no queue in between (a thread hop costs tens of microseconds, more
+//! than everything else on the path). The shared-memory buffer is the inbox's only queue; a
+//! full one makes publishers discard droppable frames and retry the others. Sending uses
+//! iceoryx2's thread-safe service flavour, so `Endpoint::send` publishes straight from the
+//! caller's task too. iceoryx2's own signal handling is disabled (tokio owns SIGINT/SIGTERM). Each
 //! iceoryx2 node is created with dead-node cleanup, so resources left by a crashed node of the
 //! domain are removed at start; dropping the nodes on shutdown removes this node's files.
 
-use super::common::{accept, push_blocking};
+use super::common::accept;
 use super::stats::{TransportStats, bump};
 use super::{Delivery, Event, Incoming, OutFrame, SendError, ShutdownHandle, TransportError};
 use iceoryx2::port::listener::Listener;
@@ -25,11 +27,13 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use proto::MAX_FRAME_BYTES;
 use proto::ids::{NodeId, Role};
+use std::collections::VecDeque;
 use std::collections::{HashMap, HashSet};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::os::fd::{FromRawFd, OwnedFd};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
-use tokio::sync::mpsc;
+use tokio::io::unix::AsyncFd;
+use tokio_util::sync::CancellationToken;
 
 /// iceoryx2's thread-safe flavour of its IPC service: its ports may be used from tokio tasks,
 /// so frames are published straight from `Endpoint::send` without a thread hop.
@@ -42,8 +46,6 @@ const SLOT_SLACK: usize = 64;
 /// buffer is full, before giving up on it (counted in `dropped_undelivered`): a crashed
 /// receiver's buffer never drains, and the sender thread serves every other link too.
 const MUST_DELIVER_PATIENCE: Duration = Duration::from_secs(2);
-/// How often the receiver thread looks at the stop flag when nothing arrives.
-const STOP_POLL: Duration = Duration::from_millis(50);
 
 /// Per-service iceoryx2 limits. The library's defaults (2 publishers, 8 subscribers, a
 /// buffer of 2 that silently overwrites) are far too small for a cluster.
@@ -361,35 +363,18 @@ impl Sender {
 
 pub(crate) fn start(
     cfg: IpcConfig,
-    events: mpsc::Sender<Event>,
     stats: Arc<TransportStats>,
     handle: &mut ShutdownHandle,
-) -> Result<Sender, TransportError> {
+) -> Result<(Sender, Receiver), TransportError> {
     check_domain(&cfg.domain)?;
-    let stop = Arc::new(AtomicBool::new(false));
-    let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<(), TransportError>>();
-
-    let rcfg = cfg.clone();
-    let (rstats, rstop) = (stats.clone(), stop.clone());
-    let receiver = std::thread::Builder::new()
-        .name(format!("iox2-rx-{}", cfg.me.0))
-        .spawn(move || receiver_thread(rcfg, events, rstats, rstop, ready_tx))
-        .map_err(TransportError::Io)?;
-    handle.threads.push(receiver);
-
+    let config = iox_config(&cfg.domain)?;
+    // Dead owners are cleaned up by this first node, then a live one refuses us.
+    drop(iox_node(&config)?);
+    refuse_second_owner(&config, &cfg.domain, cfg.me)?;
+    let node = iox_named_node(&config, Some(&owner_name(cfg.me)))?;
+    let receiver = Receiver::open(&node, &cfg, stats, handle.token())?;
     let domain = cfg.domain.clone();
     handle.after_join.push(Box::new(move || release_domain(&domain)));
-    match ready_rx.recv_timeout(Duration::from_secs(10)) {
-        Ok(Ok(())) => {}
-        Ok(Err(e)) => return Err(e),
-        Err(_) => {
-            return Err(TransportError::Ipc(
-                "iceoryx2 receiver thread did not start".into(),
-            ));
-        }
-    }
-
-    let node = iox_node(&iox_config(&cfg.domain)?)?;
     let sender = Sender {
         inner: Arc::new(SenderInner {
             cfg,
@@ -400,28 +385,50 @@ pub(crate) fn start(
     let on_stop = Sender {
         inner: sender.inner.clone(),
     };
+    let ports = receiver.ports.clone();
     handle.on_stop.push(Box::new(move || {
-        stop.store(true, Ordering::Release);
+        // The inbox's ports first, then the node: dropping them removes this node's files.
+        ports.lock().unwrap_or_else(|p| p.into_inner()).take();
         on_stop.stop();
     }));
-    Ok(sender)
+    Ok((sender, receiver))
 }
 
-fn receiver_thread(
-    cfg: IpcConfig,
-    events: mpsc::Sender<Event>,
+/// The inbox's ports. Shared with the shutdown handle, which drops them.
+struct RxPorts {
+    sub: Subscriber<Svc, [u8], ()>,
+    listener: Listener<Svc>,
+}
+
+/// The receiving half, read by the node's own task: the inbox's subscriber and listener, and
+/// the listener's descriptor in tokio's reactor.
+pub(crate) struct Receiver {
+    ports: Arc<Mutex<Option<RxPorts>>>,
+    /// A duplicate of the listener's descriptor: registered with the reactor for as long as
+    /// the receiver lives, independently of when shutdown drops the listener itself.
+    wake: AsyncFd<OwnedFd>,
+    pending: VecDeque<Event>,
+    known: HashSet<NodeId>,
     stats: Arc<TransportStats>,
-    stop: Arc<AtomicBool>,
-    ready: std::sync::mpsc::Sender<Result<(), TransportError>>,
-) {
-    type Ports = (Node<Svc>, Subscriber<Svc, [u8], ()>, Listener<Svc>);
-    let setup = || -> Result<Ports, TransportError> {
-        let config = iox_config(&cfg.domain)?;
-        // Dead owners are cleaned up by this first node, then a live one refuses us.
-        drop(iox_node(&config)?);
-        refuse_second_owner(&config, &cfg.domain, cfg.me)?;
-        let node = iox_named_node(&config, Some(&owner_name(cfg.me)))?;
-        let (data, wake) = open_inbox(&node, &inbox_name(&cfg.domain, cfg.me)?, &cfg.limits)?;
+    stop: CancellationToken,
+}
+
+impl std::fmt::Debug for Receiver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Receiver")
+            .field("pending", &self.pending.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Receiver {
+    fn open(
+        node: &Node<Svc>,
+        cfg: &IpcConfig,
+        stats: Arc<TransportStats>,
+        stop: CancellationToken,
+    ) -> Result<Receiver, TransportError> {
+        let (data, wake) = open_inbox(node, &inbox_name(&cfg.domain, cfg.me)?, &cfg.limits)?;
         let sub = data
             .subscriber_builder()
             .buffer_size(cfg.limits.buffer)
@@ -431,26 +438,63 @@ fn receiver_thread(
             .listener_builder()
             .create()
             .map_err(|e| ipc_err("listener", e))?;
-        Ok((node, sub, listener))
-    };
-    let (node, sub, listener) = match setup() {
-        Ok(v) => {
-            let _ = ready.send(Ok(()));
-            v
+        let wake = watch(duplicate(&listener)?)?;
+        Ok(Receiver {
+            ports: Arc::new(Mutex::new(Some(RxPorts { sub, listener }))),
+            wake,
+            pending: VecDeque::new(),
+            known: HashSet::new(),
+            stats,
+            stop,
+        })
+    }
+
+    /// The next event, or `None` once the transport has shut down.
+    pub(crate) async fn recv(&mut self) -> Option<Event> {
+        loop {
+            if let Some(ev) = self.pending.pop_front() {
+                return Some(ev);
+            }
+            if self.stop.is_cancelled() || !self.drain() {
+                return None;
+            }
+            if !self.pending.is_empty() {
+                continue;
+            }
+            tokio::select! {
+                () = self.stop.cancelled() => return None,
+                ready = self.wake.readable() => match ready {
+                    // Cleared before draining: a notification after this point wakes again.
+                    Ok(mut guard) => guard.clear_ready(),
+                    Err(e) => {
+                        tracing::warn!(error = %e, "iceoryx2 listener cannot be polled");
+                        return None;
+                    }
+                },
+            }
         }
-        Err(e) => {
-            let _ = ready.send(Err(e));
-            return;
+    }
+
+    /// The next event if one is ready.
+    pub(crate) fn try_recv(&mut self) -> Option<Event> {
+        if self.pending.is_empty() && !self.stop.is_cancelled() {
+            self.drain();
         }
-    };
-    let mut known: HashSet<NodeId> = HashSet::new();
-    while !stop.load(Ordering::Acquire) {
-        if let Err(e) = listener.timed_wait(|_| {}, STOP_POLL) {
+        self.pending.pop_front()
+    }
+
+    /// Consume the notifications, then every sample waiting in the inbox, into `pending`.
+    /// `false` once the ports are gone (shut down).
+    fn drain(&mut self) -> bool {
+        let ports = self.ports.lock().unwrap_or_else(|p| p.into_inner());
+        let Some(p) = ports.as_ref() else {
+            return false;
+        };
+        if let Err(e) = p.listener.try_wait(|_| {}) {
             tracing::warn!(error = ?e, "iceoryx2 listener wait failed");
-            std::thread::sleep(STOP_POLL);
         }
         loop {
-            let sample = match sub.receive() {
+            let sample = match p.sub.receive() {
                 Ok(Some(s)) => s,
                 Ok(None) => break,
                 Err(e) => {
@@ -458,27 +502,42 @@ fn receiver_thread(
                     break;
                 }
             };
-            let Some(env) = accept(sample.payload(), &stats, None, "ipc") else {
+            let Some(env) = accept(sample.payload(), &self.stats, None, "ipc") else {
                 continue;
             };
             drop(sample);
             let from = env.source;
-            if known.insert(from) {
-                bump(&stats.peers_up);
-                if events.blocking_send(Event::PeerUp(from)).is_err() {
-                    return;
-                }
+            if self.known.insert(from) {
+                bump(&self.stats.peers_up);
+                self.pending.push_back(Event::PeerUp(from));
             }
-            bump(&stats.received);
-            let droppable = env.body.droppable();
-            let ev = Event::Message(Incoming { from, env });
-            if push_blocking(&events, ev, droppable, &stats.dropped_inbox_full).is_err() {
-                return;
-            }
+            bump(&self.stats.received);
+            self.pending.push_back(Event::Message(Incoming { from, env }));
         }
+        true
     }
-    drop((sub, listener));
-    drop(node);
+}
+
+/// `fd` registered with the reactor for readability.
+#[allow(unsafe_code)]
+fn watch(fd: OwnedFd) -> Result<AsyncFd<OwnedFd>, TransportError> {
+    // SAFETY: the `OwnedFd` inside the `AsyncFd` keeps the descriptor open for exactly the
+    // `AsyncFd`'s lifetime, which is what registering requires.
+    unsafe { AsyncFd::register_with_interest(fd, tokio::io::Interest::READABLE) }
+        .map_err(|e| TransportError::Io(std::io::Error::from(e)))
+}
+
+/// A duplicate of `listener`'s descriptor, owned apart from it.
+#[allow(unsafe_code)]
+fn duplicate(listener: &Listener<Svc>) -> Result<OwnedFd, TransportError> {
+    // SAFETY: the listener's descriptor is open for the duration of this call (we hold the
+    // listener); `dup` makes a new descriptor for the same socket, which `OwnedFd` owns alone.
+    let fd = unsafe { libc::dup(listener.file_descriptor().native_handle()) };
+    if fd < 0 {
+        return Err(TransportError::Io(std::io::Error::last_os_error()));
+    }
+    // SAFETY: `fd` is a fresh descriptor no one else owns.
+    Ok(unsafe { OwnedFd::from_raw_fd(fd) })
 }
 
 struct Outlet {

@@ -78,19 +78,33 @@ pub enum Event {
     PeerDown(NodeId),
 }
 
-/// The receiving half: one channel of [`Event`]s for the runtime to `select!` on.
+/// The receiving half: [`Event`]s for the runtime to `select!` on.
 #[derive(Debug)]
-pub struct Inbox(pub(crate) mpsc::Receiver<Event>);
+pub struct Inbox(InboxKind);
+
+#[derive(Debug)]
+enum InboxKind {
+    /// Events queued by transport tasks (TCP, in-process).
+    Channel(mpsc::Receiver<Event>),
+    /// iceoryx2's inbox, read directly by the caller's task (one wake per delivery).
+    Ipc(ipc::Receiver),
+}
 
 impl Inbox {
     /// The next event, or `None` once the transport has shut down.
     pub async fn recv(&mut self) -> Option<Event> {
-        self.0.recv().await
+        match &mut self.0 {
+            InboxKind::Channel(rx) => rx.recv().await,
+            InboxKind::Ipc(rx) => rx.recv().await,
+        }
     }
 
     /// The next event if one is ready.
     pub fn try_recv(&mut self) -> Option<Event> {
-        self.0.try_recv().ok()
+        match &mut self.0 {
+            InboxKind::Channel(rx) => rx.try_recv().ok(),
+            InboxKind::Ipc(rx) => rx.try_recv(),
+        }
     }
 }
 
@@ -400,20 +414,19 @@ pub async fn open(cfg: TransportConfig) -> Result<Opened, TransportError> {
             hub.register(me, tx, stats.clone())?;
             let hub2 = hub.clone();
             handle.on_stop.push(Box::new(move || hub2.unregister(me)));
-            (me, Link::InProcess(hub), rx, None)
+            (me, Link::InProcess(hub), InboxKind::Channel(rx), None)
         }
         TransportConfig::Tcp(c) => {
             let me = c.me;
             let (tx, rx) = mpsc::channel(c.queue_len.max(1));
             let (router, addr) = tcp::start(c, tx, stats.clone(), seqs.clone(), &handle).await?;
-            (me, Link::Tcp(router), rx, addr)
+            (me, Link::Tcp(router), InboxKind::Channel(rx), addr)
         }
         TransportConfig::Ipc(mut c) => {
             heartbeat = c.heartbeat.take();
             let me = c.me;
-            let (tx, rx) = mpsc::channel(c.queue_len.max(1));
-            let sender = ipc::start(c, tx, stats.clone(), &mut handle)?;
-            (me, Link::Ipc(sender), rx, None)
+            let (sender, receiver) = ipc::start(c, stats.clone(), &mut handle)?;
+            (me, Link::Ipc(sender), InboxKind::Ipc(receiver), None)
         }
     };
     let endpoint = Endpoint {

@@ -1,0 +1,299 @@
+//! A head's track report against the global table: the binding state machine of one local
+//! track (unknown → pending → bound, and back), then the bound global's refresh. The rules are
+//! listed in the parent module's docs; each state has its own function here.
+
+use super::{Binding, LocalTrack, Tracks};
+use crate::decision::Decision;
+use crate::membership::{Membership, distance_to_region};
+use proto::msg::TrackReport;
+use proto::{ClusterTime, NodeId, TargetId};
+
+/// One report being taken, with what every state needs to know about it.
+struct Report<'a> {
+    now: ClusterTime,
+    head: NodeId,
+    r: &'a TrackReport,
+    members: &'a Membership,
+    /// Consecutive reports needed to merge or split (the hysteresis, at least 1).
+    n: u32,
+    /// The report lies outside its head's region, where another live head covers it: it may
+    /// not found a global.
+    foreign: bool,
+}
+
+impl Report<'_> {
+    fn key(&self) -> (NodeId, TargetId) {
+        (self.head, self.r.target)
+    }
+
+    fn merged(&self, global: TargetId) -> Decision {
+        Decision::Merged {
+            head: self.head,
+            local: self.r.target,
+            global,
+        }
+    }
+
+    fn new_global(&self, global: TargetId) -> Decision {
+        Decision::NewGlobal {
+            head: self.head,
+            local: self.r.target,
+            global,
+        }
+    }
+}
+
+impl Tracks {
+    /// Take one report from `head`; returns the decisions it caused.
+    pub fn observe(
+        &mut self,
+        now: ClusterTime,
+        head: NodeId,
+        r: &TrackReport,
+        members: &Membership,
+    ) -> Vec<Decision> {
+        let rep = Report {
+            now,
+            head,
+            r,
+            members,
+            n: self.params.hysteresis.max(1),
+            foreign: self.foreign(head, r, members),
+        };
+        let mut out = Vec::new();
+        // `None`: the track waits without a global id; nothing more to do for this report.
+        let binding = match self.locals.get(&rep.key()).map(|l| l.binding) {
+            None => self.bind_unknown(&rep, &mut out),
+            Some(Binding::Pending(g)) => self.update_pending(&rep, g, &mut out),
+            Some(Binding::Bound(g)) => self.update_bound(&rep, g, &mut out),
+        };
+        if let Some(Binding::Bound(g)) = binding {
+            self.refresh_global(&rep, g, &mut out);
+        }
+        out
+    }
+
+    /// A local track seen for the first time: claimed by the id it carries, pending on (or
+    /// merged into) the nearest global it does not feed yet, waiting, or founding a global.
+    fn bind_unknown(&mut self, rep: &Report, out: &mut Vec<Decision>) -> Option<Binding> {
+        let (now, head, r) = (rep.now, rep.head, rep.r);
+        if let Some(g) = r.global.filter(|g| self.globals.contains_key(g)) {
+            out.push(Decision::Claimed {
+                head,
+                local: r.target,
+                global: g,
+            });
+            self.locals
+                .insert(rep.key(), LocalTrack::new(Binding::Bound(g), now, r));
+            return Some(Binding::Bound(g));
+        }
+        match self.candidate(now, head, r) {
+            Some(g) if rep.n <= 1 => {
+                out.push(rep.merged(g));
+                self.locals
+                    .insert(rep.key(), LocalTrack::new(Binding::Bound(g), now, r));
+                Some(Binding::Bound(g))
+            }
+            Some(g) => {
+                let mut l = LocalTrack::new(Binding::Pending(g), now, r);
+                l.agree = 1;
+                self.locals.insert(rep.key(), l);
+                Some(Binding::Pending(g))
+            }
+            // A foreign track near no global waits unbound; its next report is looked at
+            // afresh.
+            None if rep.foreign => None,
+            // So does a track lying on a global its own head already feeds: the head's
+            // duplicate of that target (after a failover the survivor may briefly hold two),
+            // which the head merges away. Given an id at once, it was a second id for seconds;
+            // if it is another target, it founds one once it parts.
+            None if self.on_own_global(now, head, r) => None,
+            None => {
+                let g = self.new_global(now, head, r);
+                out.push(rep.new_global(g));
+                self.locals
+                    .insert(rep.key(), LocalTrack::new(Binding::Bound(g), now, r));
+                Some(Binding::Bound(g))
+            }
+        }
+    }
+
+    /// A pending track: bound after `n` agreeing reports (at once when it follows a global
+    /// whose owner is gone), or founding its own global after `n` disagreeing ones.
+    fn update_pending(&mut self, rep: &Report, g: TargetId, out: &mut Vec<Decision>) -> Option<Binding> {
+        let (now, head, r, n) = (rep.now, rep.head, rep.r, rep.n);
+        let local = r.target;
+        let agrees = self.agrees(g, r);
+        let owner = self.globals.get(&g).map(|gt| gt.owner);
+        let gone = self.owner_gone(now, g, rep.members);
+        // The head follows g: it was told this track is g, or it lies on g.
+        let follows = r.global == Some(g) || agrees;
+        let takes = follows
+            && match owner {
+                Some(o) if o == head => !self.feeds_other(head, local, g, now),
+                Some(_) => gone,
+                None => false,
+            };
+        let l = self.locals.get_mut(&rep.key()).expect("present");
+        l.last = now;
+        l.posterior = (r.time, r.mean, r.cov);
+        if agrees {
+            l.agree += 1;
+            l.disagree = 0;
+        } else if !gone {
+            l.disagree += 1;
+            l.agree = 0;
+        }
+        // While g's owner is gone, g's posterior is its last word and ages: missing it is no
+        // evidence, so disagreement is not counted (above), and a track that follows g is g's
+        // best estimate: it is bound and its head takes g over. The same when g was handed to
+        // this very head (failover). Without this the order of the survivor's reports and the
+        // failover tick decides whether g lives on.
+        if takes {
+            l.binding = Binding::Bound(g);
+            l.agree = 0;
+            l.disagree = 0;
+            out.push(rep.merged(g));
+            if let Some(o) = owner.filter(|o| *o != head)
+                && let Some(gt) = self.globals.get_mut(&g)
+            {
+                gt.owner = head;
+                gt.entered = false;
+                out.push(Decision::OwnerChanged {
+                    global: g,
+                    from: o,
+                    to: head,
+                });
+            }
+            Some(Binding::Bound(g))
+        } else if agrees && l.agree >= n {
+            l.binding = Binding::Bound(g);
+            out.push(rep.merged(g));
+            Some(Binding::Bound(g))
+        } else if rep.foreign && !self.globals.contains_key(&g) {
+            self.locals.remove(&rep.key());
+            None
+        } else if !rep.foreign && (!self.globals.contains_key(&g) || (!agrees && l.disagree >= n)) {
+            let g = self.new_global(now, head, r);
+            *self.locals.get_mut(&rep.key()).expect("present") = LocalTrack::new(Binding::Bound(g), now, r);
+            out.push(rep.new_global(g));
+            Some(Binding::Bound(g))
+        } else {
+            Some(Binding::Pending(g))
+        }
+    }
+
+    /// A bound track: its head keeps, takes over (owner gone, or the target is in its own
+    /// region) or, after `n` disagreeing reports, leaves the global for another one, back to
+    /// pending (foreign) or a global of its own (`Split`).
+    fn update_bound(&mut self, rep: &Report, g: TargetId, out: &mut Vec<Decision>) -> Option<Binding> {
+        let (now, head, r) = (rep.now, rep.head, rep.r);
+        let owner = self.globals.get(&g).map(|gt| gt.owner);
+        let agrees = self.agrees(g, r);
+        let stale = self.owner_gone(now, g, rep.members);
+        let home = agrees && self.in_my_region_not_owners(rep, g);
+        let l = self.locals.get_mut(&rep.key()).expect("present");
+        l.last = now;
+        l.posterior = (r.time, r.mean, r.cov);
+        match owner {
+            None => {
+                let g = self.new_global(now, head, r);
+                *self.locals.get_mut(&rep.key()).expect("present") =
+                    LocalTrack::new(Binding::Bound(g), now, r);
+                out.push(rep.new_global(g));
+                Some(Binding::Bound(g))
+            }
+            Some(o) if o == head => Some(Binding::Bound(g)),
+            Some(o) if stale || home => {
+                l.disagree = 0;
+                let gt = self.globals.get_mut(&g).expect("present");
+                gt.owner = head;
+                gt.entered = home;
+                out.push(Decision::OwnerChanged {
+                    global: g,
+                    from: o,
+                    to: head,
+                });
+                Some(Binding::Bound(g))
+            }
+            Some(_) if agrees => {
+                l.disagree = 0;
+                Some(Binding::Bound(g))
+            }
+            Some(_) => {
+                l.disagree += 1;
+                if l.disagree >= rep.n {
+                    self.leave_global(rep, g, out)
+                } else {
+                    Some(Binding::Bound(g))
+                }
+            }
+        }
+    }
+
+    /// A member head whose own region covers the target, while the owner's does not, takes
+    /// the track over: it is the cluster responsible for that area and already tracks it, so
+    /// no posterior needs to move.
+    fn in_my_region_not_owners(&self, rep: &Report, g: TargetId) -> bool {
+        self.globals.get(&g).is_some_and(|gt| {
+            let (x, y) = (gt.mean[0], gt.mean[1]);
+            let outside_owner = rep
+                .members
+                .region(gt.owner)
+                .is_some_and(|reg| distance_to_region(reg, x, y) > self.params.handover_margin_m);
+            let inside_me = rep
+                .members
+                .region(rep.head)
+                .is_some_and(|reg| distance_to_region(reg, x, y) == 0.0);
+            outside_owner && inside_me
+        })
+    }
+
+    /// A bound track that disagreed with `g` `n` times left it for good. If it now sits on
+    /// another global, it joins that one (hysteresis enough); a foreign track near nothing
+    /// goes back to pending (no id while it disagrees); only a track of its own region splits
+    /// off.
+    fn leave_global(&mut self, rep: &Report, g: TargetId, out: &mut Vec<Decision>) -> Option<Binding> {
+        let (now, head, r) = (rep.now, rep.head, rep.r);
+        if let Some(c) = self.candidate(now, head, r) {
+            *self.locals.get_mut(&rep.key()).expect("present") = LocalTrack::new(Binding::Bound(c), now, r);
+            out.push(rep.merged(c));
+            Some(Binding::Bound(c))
+        } else if rep.foreign {
+            *self.locals.get_mut(&rep.key()).expect("present") = LocalTrack::new(Binding::Pending(g), now, r);
+            None
+        } else {
+            let ng = self.new_global(now, head, r);
+            *self.locals.get_mut(&rep.key()).expect("present") = LocalTrack::new(Binding::Bound(ng), now, r);
+            out.push(Decision::Split {
+                head,
+                local: r.target,
+                from: g,
+                global: ng,
+            });
+            Some(Binding::Bound(ng))
+        }
+    }
+
+    /// A report bound to `g` refreshes it; the owner's report moves its posterior and may hand
+    /// it over or merge it with another global.
+    fn refresh_global(&mut self, rep: &Report, g: TargetId, out: &mut Vec<Decision>) {
+        let Some(gt) = self.globals.get_mut(&g) else {
+            return;
+        };
+        gt.last_report = rep.now;
+        if gt.owner != rep.head {
+            return;
+        }
+        gt.owner_report = rep.now;
+        if rep.r.time >= gt.time {
+            gt.time = rep.r.time;
+            gt.mean = rep.r.mean;
+            gt.cov = rep.r.cov;
+        }
+        if let Some(d) = self.region_handover(g, rep.members) {
+            out.push(d);
+        }
+        out.extend(self.merge_globals(rep.now, g));
+    }
+}
