@@ -61,6 +61,8 @@ pub enum Command {
     Completions(cmd::shell::CompletionArgs),
     /// Write the man pages (`ocelli.1` on standard output, or every page into a folder).
     Man(cmd::shell::ManArgs),
+    /// Run one acoustic node (`--id N`), or survey fingerprints / locate a sound (paper 001).
+    Acoustic(cmd::acoustic::Args),
     /// Run one transport endpoint as a process (for tests and probes).
     #[command(hide = true)]
     Peer(cmd::peer::Args),
@@ -70,7 +72,7 @@ pub enum Command {
 /// group is listed under "More".
 pub const GROUPS: &[(&str, &[&str])] = &[
     ("Run a cluster", &["launch", "deploy"]),
-    ("Run one node", &["camera", "head", "server"]),
+    ("Run one node", &["camera", "head", "server", "acoustic"]),
     (
         "Study",
         &["sim", "experiment", "replay", "fuse", "bench", "undistort"],
@@ -92,6 +94,8 @@ pub enum Bench {
     Transport(cmd::bench::TransportArgs),
     /// Fusing external detections: time against detections per time stamp.
     Fuse(cmd::bench::ScaleArgs),
+    /// The grid estimator's update on 200×200 cells and the ILD of one audio frame.
+    Grid(cmd::bench::ScaleArgs),
 }
 
 /// Run one parsed command.
@@ -111,6 +115,8 @@ fn dispatch(command: Command, log_json: bool) -> anyhow::Result<ExitCode> {
         Command::Bench(Bench::Server(args)) => cmd::bench::server(args),
         Command::Bench(Bench::Transport(args)) => cmd::bench::transport(args),
         Command::Bench(Bench::Fuse(args)) => cmd::bench::fuse(args),
+        Command::Bench(Bench::Grid(args)) => cmd::bench::grid(args),
+        Command::Acoustic(args) => cmd::acoustic::run_cmd(args),
         Command::Undistort(args) => cmd::undistort::run(args),
         Command::Report(args) => cmd::report::run(args),
         Command::Export(args) => cmd::export::run(args),

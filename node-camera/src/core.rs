@@ -5,7 +5,8 @@
 //! In distributed mode it answers every `Prior` with one `Contribution` built from the newest
 //! frame's detection gated to that target (all-zero Ω when it has none) and the fresh tag
 //! readings; detections gated to no prior go out as `Measurement { target: None }` so heads
-//! can start tracks. In centralized mode every detection goes out as a `Measurement`. Modes
+//! can start tracks. In centralized mode every detection goes out as a `Measurement`; in grid
+//! mode each processed frame is also reported (`FrameReport`), so the head knows it looked. Modes
 //! (Active, CameraOff, Inactive) follow the head's `Command`s; time in each, the runtime's
 //! sync estimate and what it could not deliver are reported in a `NodeStatus` every status
 //! period. In a logging run ([`crate::record_all`]) every frame is measured whatever the mode
@@ -478,6 +479,15 @@ impl CameraNode {
             self.counters.measurements += 1;
             self.send_to_head(body, out);
         }
+        // The grid estimator uses a camera's silence too (paper 001 eq. 6): say that it looked.
+        if self.cfg.fusion == proto::scenario::Fusion::Grid {
+            let report = proto::msg::FrameReport {
+                captured,
+                mode: self.mode,
+                detections: u32::try_from(self.measured.len()).unwrap_or(u32::MAX),
+            };
+            self.send_to_head(Message::FrameReport(report), out);
+        }
     }
 
     fn forget_stale(&mut self, now: ClusterTime) {
@@ -526,6 +536,7 @@ impl CameraNode {
             rejected: c.rejected,
             sync_offset_ns: self.sync.0,
             sync_error_ns: self.sync.1,
+            bytes_sent: 0,
         };
         self.send_to_head(Message::NodeStatus(status.clone()), &mut out);
         match self.cfg.server {

@@ -14,6 +14,8 @@ pub mod colour_difference;
 pub mod config;
 pub mod core;
 pub mod detect;
+#[cfg(feature = "gstreamer")]
+pub mod gst;
 pub mod measure;
 pub mod previous;
 pub mod process;
@@ -21,5 +23,7 @@ pub mod record_all;
 pub mod region;
 pub mod segment;
 pub mod source;
+pub mod source_spec;
+pub mod tracker;
 #[cfg(feature = "v4l2")]
 pub mod v4l2;

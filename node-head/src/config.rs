@@ -1,10 +1,12 @@
-//! What a head needs to know, built from the scenario: its id, the server, the method, and a
+//! What a head needs to know, built from the scenario: its id, the server, the method, a
 //! table of every camera node it may be given (camera model, position, power figures, cost
-//! factor), with the ones the scenario assigns to it marked as members.
+//! factor), with the ones the scenario assigns to it marked as members, and its acoustic nodes
+//! with their fingerprints (read here, checked against the room).
 
 use crate::fusion::ml::DepthHandling;
 use nalgebra::Vector3;
 use proto::NodeId;
+use proto::acoustic::{AcousticError, FingerprintDb};
 use proto::camera::CameraModel;
 use proto::scenario::{Method, NodeRole, PowerFigures, Scenario, ScenarioError, Wall};
 use thiserror::Error;
@@ -16,6 +18,30 @@ pub enum ConfigError {
     NotAHead(u32),
     #[error(transparent)]
     Scenario(#[from] ScenarioError),
+    #[error("acoustic node {node}: {source}")]
+    Fingerprints { node: u32, source: AcousticError },
+    #[error(
+        "acoustic node {node}: fingerprint file {path} was analysed with {found}, the node with {expected}"
+    )]
+    IldSettings {
+        node: u32,
+        path: String,
+        found: String,
+        expected: String,
+    },
+    #[error("grid fusion: {0}")]
+    Grid(#[from] crate::grid::GridError),
+}
+
+/// One acoustic node as the head sees it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AcousticInfo {
+    pub id: NodeId,
+    /// In this head's cluster.
+    pub member: bool,
+    /// The fingerprints its ILD vectors are compared with (`None`: the scenario names no file;
+    /// its observations are counted and not fused).
+    pub fingerprints: Option<FingerprintDb>,
 }
 
 /// One camera node as the head sees it.
@@ -51,6 +77,8 @@ pub struct HeadConfig {
     pub target_plane_z: f64,
     /// How ML gets depth.
     pub ml_depth: DepthHandling,
+    /// Acoustic nodes (paper 001), members or not.
+    pub acoustic: Vec<AcousticInfo>,
 }
 
 impl HeadConfig {
@@ -79,6 +107,11 @@ impl HeadConfig {
                 member: members.contains(&NodeId(spec.id)),
             });
         }
+        let acoustic = acoustic_nodes(scenario, id)?;
+        if scenario.method.fusion == proto::scenario::Fusion::Grid {
+            // Build the grid once here so that a head never starts with one it cannot build.
+            crate::grid::Grid::new(&scenario.world, scenario.method.grid.cell_m)?;
+        }
         let target_plane_z = scenario.method.target_plane_z();
         let member_count = nodes.iter().filter(|n| n.member).count();
         Ok(HeadConfig {
@@ -94,8 +127,59 @@ impl HeadConfig {
                 z: target_plane_z,
                 sigma: 0.05,
             },
+            acoustic,
         })
     }
+
+    /// The world's box and walls, as the grid estimator builds its cells on them.
+    pub fn world(&self) -> proto::scenario::World {
+        proto::scenario::World {
+            min: self.bounds.0,
+            max: self.bounds.1,
+            walls: self.walls.clone(),
+            radio: proto::scenario::RadioWorld::default(),
+        }
+    }
+}
+
+/// Every acoustic node of `scenario`, those reporting to head `id` marked, each with its
+/// fingerprints if the scenario names a file.
+///
+/// # Errors
+/// A fingerprint file that cannot be read, is of another format or version, was surveyed in
+/// another room, or was analysed with other ILD settings than the node's.
+fn acoustic_nodes(scenario: &Scenario, id: u32) -> Result<Vec<AcousticInfo>, ConfigError> {
+    let mut out = Vec::new();
+    for n in scenario.acoustic_nodes() {
+        let member = scenario.head_of(n.id) == Some(id);
+        let spec = n.acoustic.as_ref();
+        let fingerprints = match spec.and_then(|a| a.fingerprints.as_ref()) {
+            None => None,
+            Some(path) => {
+                let fail = |source| ConfigError::Fingerprints { node: n.id, source };
+                let db = FingerprintDb::load(path).map_err(fail)?;
+                db.check_room(&scenario.world, &path.display().to_string())
+                    .map_err(fail)?;
+                if let Some(a) = spec
+                    && db.settings() != &a.ild
+                {
+                    return Err(ConfigError::IldSettings {
+                        node: n.id,
+                        path: path.display().to_string(),
+                        found: format!("{:?}", db.settings()),
+                        expected: format!("{:?}", a.ild),
+                    });
+                }
+                Some(db)
+            }
+        };
+        out.push(AcousticInfo {
+            id: NodeId(n.id),
+            member,
+            fingerprints,
+        });
+    }
+    Ok(out)
 }
 
 #[cfg(test)]

@@ -45,6 +45,9 @@ struct NodeState {
 pub struct HeadNode {
     cfg: HeadConfig,
     fusion: Box<dyn Fusion>,
+    /// The step's sensor activity beyond detections: cameras that reported a frame, acoustic
+    /// nodes' ILD vectors (`head/sensed.rs`).
+    sensed: sensed::Sensed,
     nodes: Vec<NodeState>,
     slots: HashMap<NodeId, usize>,
     cameras: Vec<proto::camera::CameraModel>,
@@ -89,7 +92,8 @@ impl HeadNode {
             Planner::default()
         };
         HeadNode {
-            fusion: fusion::build(cfg.method.fusion),
+            fusion: fusion::build(&cfg),
+            sensed: sensed::Sensed::new(&cfg),
             cfg,
             nodes,
             slots,
@@ -137,6 +141,10 @@ impl HeadNode {
     }
     pub fn tracks(&self) -> &[Track] {
         &self.tracks
+    }
+    /// The fusion method (for its per-track state: the grid estimator's beliefs).
+    pub fn fusion(&self) -> &dyn Fusion {
+        self.fusion.as_ref()
     }
     /// The head's belief of a node's mode.
     pub fn mode_of(&self, node: NodeId) -> Option<Mode> {
@@ -198,6 +206,7 @@ impl HeadNode {
                 rejected: self.counters.rejected,
                 sync_offset_ns: self.sync.0,
                 sync_error_ns: self.sync.1,
+                bytes_sent: 0,
             }),
         ));
     }
@@ -207,6 +216,10 @@ impl HeadNode {
     pub fn on_message(&mut self, now: ClusterTime, env: Envelope) -> Vec<Outgoing> {
         let mut out = Vec::new();
         let src = env.source;
+        if let Some(slot) = self.sensed.acoustic_slot(src) {
+            self.on_acoustic(now, slot, env.body);
+            return out;
+        }
         let from_server = self.cfg.server == Some(src);
         let member = self.slots.get(&src).copied().filter(|&s| self.nodes[s].member);
         match env.body {
@@ -218,6 +231,10 @@ impl HeadNode {
                 Some(slot) => self.on_measurement(now, slot, m),
                 None => self.reject(src, "measurement"),
             },
+            Message::FrameReport(r) => match member {
+                Some(slot) => self.on_frame_report(slot, &r),
+                None => self.reject(src, "frame_report"),
+            },
             Message::NodeStatus(s) => match member {
                 Some(slot) => self.nodes[slot].mode = s.mode,
                 None => self.reject(src, "node_status"),
@@ -225,6 +242,7 @@ impl HeadNode {
             Message::Handover(h) if from_server => self.on_handover(now, h),
             Message::Liveness(l) if from_server => out = self.node_liveness(now, l.node, l.up),
             Message::Assignment(a) if from_server => {
+                self.sensed.assign(a.node, a.head == self.cfg.id);
                 if let Some(&slot) = self.slots.get(&a.node) {
                     let mine = a.head == self.cfg.id;
                     self.nodes[slot].member = mine;
@@ -578,5 +596,6 @@ impl Node for HeadNode {
 }
 
 mod close;
+mod sensed;
 #[cfg(test)]
 mod tests;

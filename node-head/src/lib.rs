@@ -16,6 +16,7 @@ pub mod config;
 pub mod eif;
 pub mod ekf;
 pub mod fusion;
+pub mod grid;
 pub mod head;
 pub mod init;
 pub mod observe;

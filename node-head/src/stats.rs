@@ -64,6 +64,12 @@ pub struct Counters {
     pub commands: u64,
     /// Filter updates that failed numerically and fell back to prediction only.
     pub numeric_failures: u64,
+    /// Frames cameras reported processing (grid fusion: each says whether they looked).
+    pub frame_reports: u64,
+    /// ILD vectors acoustic nodes delivered, and those refused (stale, malformed, beyond the
+    /// per-step limit).
+    pub ild_vectors: u64,
+    pub ild_refused: u64,
     /// Sums over steps, for averages.
     pub sum_active_cameras: u64,
     pub sum_rssi_nodes: u64,

@@ -61,6 +61,9 @@ pub struct Track {
     pub anchor: Option<Vector3<f64>>,
     /// Reported to the server (see [`CONFIRM_STEPS`]).
     pub confirmed: bool,
+    /// The colour histogram the ground-plane observations fused into it carried, blended
+    /// over time (empty until one came): its appearance for identity at the server.
+    pub appearance: Vec<f32>,
 }
 
 impl Track {
@@ -103,6 +106,7 @@ impl Track {
             camera_steps: 0,
             anchor: None,
             confirmed: global.is_some(),
+            appearance: Vec::new(),
         })
     }
 

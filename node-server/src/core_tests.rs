@@ -59,6 +59,8 @@ fn report(head: NodeId, local: u32, global: Option<u32>, t: ClusterTime, x: f64,
             contributors: vec![],
             power_mw: 100.0,
             late: 0,
+            appearance: Vec::new(),
+            grid: None,
         }),
     )
 }
@@ -435,6 +437,7 @@ fn restore_rebuilds_the_same_state_and_reproduces_decisions() {
                     rejected: 0,
                     sync_offset_ns: 0,
                     sync_error_ns: 1000,
+                    bytes_sent: 0,
                 }),
             ),
         );

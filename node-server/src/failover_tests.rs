@@ -59,6 +59,8 @@ fn report(head: NodeId, local: u32, global: Option<TargetId>, t: i64, x: f64) ->
             contributors: vec![],
             power_mw: 100.0,
             late: 0,
+            appearance: Vec::new(),
+            grid: None,
         }),
     )
 }

@@ -41,6 +41,7 @@ fn role_of(r: NodeRole) -> Role {
         NodeRole::Camera => Role::Camera,
         NodeRole::Head => Role::Head,
         NodeRole::Server => Role::Server,
+        NodeRole::Acoustic => Role::Acoustic,
     }
 }
 

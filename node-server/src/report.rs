@@ -23,6 +23,10 @@
 //! - **Sync error**: the `sync_error_ns` each node (camera or head) last reported: the RMS of
 //!   its clock's error at the recent sync beacons (`proto::sync`); negative (not synchronized
 //!   yet) is left out.
+//! - **Bandwidth per node**: `bytes_per_s` = the growth of `NodeStatus.bytes_sent` (the encoded
+//!   frames the node's runtime put on the wire, heartbeats included) between its first and last
+//!   status, over the time between them (`time_in_mode_ns` summed); a node with one status:
+//!   its count over its time so far.
 
 use crate::analysis::Loaded;
 use crate::core::{ServerConfig, ServerNode};
@@ -71,6 +75,19 @@ pub struct Messages {
     pub rejected: u64,
 }
 
+/// What one node put on the wire.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct NodeBandwidth {
+    pub node: u32,
+    /// `camera` or `head`.
+    pub role: &'static str,
+    /// Bytes its last status counted.
+    pub bytes_sent: u64,
+    pub bytes_per_s: f64,
+    /// The time the rate is taken over.
+    pub seconds: f64,
+}
+
 /// Sync error of one node.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct NodeSync {
@@ -105,6 +122,8 @@ pub struct Report {
     pub global_ids: u64,
     /// Damaged stretches of the recording that reading skipped.
     pub skipped: Vec<crate::recording::Skipped>,
+    /// Bytes per second each node put on the wire.
+    pub bandwidth: Vec<NodeBandwidth>,
 }
 
 fn mean_std(xs: &[f64]) -> (f64, f64, f64) {
@@ -200,6 +219,7 @@ pub fn compute_with(loaded: &Loaded, truth_of: Option<&dyn Truth>, gate_m: f64) 
     // Sensors per step, messages, statuses, power fallback.
     let (mut cams, mut rssi, mut steps) = (0u64, 0u64, 0u64);
     let mut status: BTreeMap<NodeId, NodeStatus> = BTreeMap::new();
+    let mut first_status: BTreeMap<NodeId, NodeStatus> = BTreeMap::new();
     let mut late: BTreeMap<NodeId, u64> = BTreeMap::new();
     let mut head_power: BTreeMap<NodeId, (f64, u64)> = BTreeMap::new();
     let mut last_seq: BTreeMap<NodeId, u64> = BTreeMap::new();
@@ -218,6 +238,7 @@ pub fn compute_with(loaded: &Loaded, truth_of: Option<&dyn Truth>, gate_m: f64) 
                 }
                 match &env.body {
                     Message::NodeStatus(st) => {
+                        first_status.entry(env.source).or_insert_with(|| st.clone());
                         status.insert(env.source, st.clone());
                     }
                     Message::TrackReport(r) => {
@@ -306,6 +327,7 @@ pub fn compute_with(loaded: &Loaded, truth_of: Option<&dyn Truth>, gate_m: f64) 
         _ => 0.0,
     };
     let per_step = |x: u64| if steps > 0 { x as f64 / steps as f64 } else { 0.0 };
+    let bandwidth = bandwidth(sc, &first_status, &status);
     Report {
         scenario: sc.name.clone(),
         duration_s,
@@ -329,7 +351,49 @@ pub fn compute_with(loaded: &Loaded, truth_of: Option<&dyn Truth>, gate_m: f64) 
         handovers,
         global_ids: globals,
         skipped: loaded.skipped.clone(),
+        bandwidth,
     }
+}
+
+/// Each node's bytes per second between its first and last status (see the module docs).
+fn bandwidth(
+    sc: &proto::scenario::Scenario,
+    first: &BTreeMap<NodeId, NodeStatus>,
+    last: &BTreeMap<NodeId, NodeStatus>,
+) -> Vec<NodeBandwidth> {
+    let secs = |s: &NodeStatus| s.time_in_mode_ns.iter().sum::<u64>() as f64 * 1e-9;
+    last.iter()
+        .filter_map(|(node, b)| {
+            let role = match sc.node(node.0)?.role {
+                NodeRole::Camera => "camera",
+                NodeRole::Head => "head",
+                NodeRole::Acoustic => "acoustic",
+                NodeRole::Server => return None,
+            };
+            let a = first
+                .get(node)
+                .filter(|a| secs(b) > secs(a))
+                .cloned()
+                .unwrap_or(NodeStatus {
+                    time_in_mode_ns: [0; 3],
+                    bytes_sent: 0,
+                    ..b.clone()
+                });
+            let seconds = secs(b) - secs(&a);
+            let bytes = b.bytes_sent.saturating_sub(a.bytes_sent);
+            Some(NodeBandwidth {
+                node: node.0,
+                role,
+                bytes_sent: b.bytes_sent,
+                bytes_per_s: if seconds > 0.0 {
+                    bytes as f64 / seconds
+                } else {
+                    0.0
+                },
+                seconds,
+            })
+        })
+        .collect()
 }
 
 impl Report {
@@ -399,6 +463,20 @@ impl Report {
                     s,
                     "{:>6} {:>8} {:>9.3} {:>9.3} {:>9.3}  {:?}",
                     t.target, t.samples, t.mean_error_m, t.error_std_m, t.rmse_m, t.globals
+                );
+            }
+        }
+        if !self.bandwidth.is_empty() {
+            let _ = writeln!(
+                s,
+                "\n{:>6} {:>7} {:>12} {:>12} {:>9}",
+                "node", "role", "bytes sent", "bytes/s", "seconds"
+            );
+            for b in &self.bandwidth {
+                let _ = writeln!(
+                    s,
+                    "{:>6} {:>7} {:>12} {:>12.0} {:>9.1}",
+                    b.node, b.role, b.bytes_sent, b.bytes_per_s, b.seconds
                 );
             }
         }

@@ -111,6 +111,8 @@ fn record_run(name: &str) -> PathBuf {
             contributors: vec![c(10, true), c(11, true), c(12, false)],
             power_mw: 1500.0,
             late: k as u64 / 10,
+            appearance: Vec::new(),
+            grid: None,
         };
         let out = send(&mut server, &mut rec, t, owner, Message::TrackReport(r), 0);
         for o in out {
@@ -139,6 +141,7 @@ fn record_run(name: &str) -> PathBuf {
         rejected: 0,
         sync_offset_ns: 5_000,
         sync_error_ns: 2_000_000,
+        bytes_sent: 20_000,
     };
     // Two camera frames were lost on the way: a sequence gap of 2.
     send(
@@ -159,6 +162,7 @@ fn record_run(name: &str) -> PathBuf {
         rejected: 0,
         sync_offset_ns: -3_000,
         sync_error_ns: 500_000,
+        bytes_sent: 0,
     };
     send(
         &mut server,
@@ -202,6 +206,13 @@ fn report_from_a_recorded_run() {
     assert_eq!(r.sync_error_ms_max, Some(2.0));
     assert_eq!(r.sync_error_ms_mean, Some(1.25), "camera 2 ms, head 3 0.5 ms");
     assert_eq!(r.sync.len(), 2);
+    // One status each: its count over its 10 s so far.
+    let bw: Vec<_> = r
+        .bandwidth
+        .iter()
+        .map(|b| (b.node, b.role, b.bytes_per_s))
+        .collect();
+    assert_eq!(bw, vec![(3, "head", 0.0), (10, "camera", 2000.0)]);
     let json = serde_json::to_value(&r).unwrap();
     for key in [
         "mean_error_m",
@@ -215,7 +226,9 @@ fn report_from_a_recorded_run() {
     for key in ["sent", "dropped", "late"] {
         assert!(json["messages"][key].is_number(), "messages.{key}");
     }
+    assert!(json["bandwidth"][0]["bytes_per_s"].is_number());
     assert!(r.to_table().contains("mean error      0.100 m"));
+    assert!(r.to_table().contains("bytes/s"));
 }
 
 #[test]

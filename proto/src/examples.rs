@@ -44,21 +44,24 @@ fn env(body: Message) -> Envelope {
 }
 
 /// The number of f64 and f32 slots of each sample, by tag (what the poison test must find).
-pub const FLOAT_SLOTS: [(usize, usize); 14] = [
+pub const FLOAT_SLOTS: [(usize, usize); 17] = [
     (0, 0),   // hello
     (0, 0),   // hello_ack
     (0, 0),   // heartbeat
-    (19, 19), // measurement: rvec 3, tvec 3, pin-hole 7, rssi 1, ground 5; box 4, colour 3, ground 3 + 3, ild 2 + 4
+    (19, 21), // measurement: rvec 3, tvec 3, pin-hole 7, rssi 1, ground 5; box 4, colour 3, ground 3 + 3 + 2, ild 2 + 4
     (43, 0),  // contribution: 36 + 6 + rssi 1
     (0, 0),   // node_status
     (42, 0),  // prior: mean 6 + cov 36
     (0, 0),   // command
-    (43, 0),  // track_report: mean 6 + cov 36 + power 1
+    (43, 7),  // track_report: mean 6 + cov 36 + power 1; appearance 3; grid origin 2, cell 1, peak 1
     (0, 0),   // assignment
     (42, 0),  // handover
     (0, 0),   // sync_beacon
     (0, 0),   // liveness
     (6, 11),  // measured_frame: rssi 1, point 2, cov 3; centre 2, foot 2, box 4, colour 3
+    (0, 0),   // sample_request
+    (0, 14),  // sample_set: two samples of state 6 + weight 1
+    (0, 0),   // frame_report
 ];
 
 /// One observation of each kind, in wire-tag order.
@@ -96,6 +99,7 @@ pub fn observations() -> Vec<Observation> {
             confidence: 0.85,
             histogram: vec![0.55, 0.3, 0.15],
             captured: ClusterTime(1_499_991_000),
+            ml_position: [3.3203125, -1.6953125],
         }),
         Observation::Acoustic(IldVector {
             first_hz: 187.3,
@@ -152,6 +156,7 @@ pub fn messages() -> Vec<Envelope> {
             rejected: 1,
             sync_offset_ns: -1500,
             sync_error_ns: 250,
+            bytes_sent: 123_456,
         })),
         env(Message::Prior(Prior {
             target: TargetId(5),
@@ -183,6 +188,15 @@ pub fn messages() -> Vec<Envelope> {
             ],
             power_mw: 1437.5,
             late: 3,
+            appearance: vec![0.625, 0.25, 0.125],
+            grid: Some(GridPosterior {
+                origin: [0.5, -1.25],
+                cell_m: 0.375,
+                nx: 3,
+                ny: 2,
+                peak_mass: 0.0625,
+                cells: vec![0, 17, 255, 3, 128, 9],
+            }),
         })),
         env(Message::Assignment(Assignment {
             node: NodeId(10),
@@ -230,6 +244,29 @@ pub fn messages() -> Vec<Envelope> {
                 point: [0.40625, -0.59375],
                 cov: [0.046875, 0.001953125, 0.0390625],
             }],
+        })),
+        env(Message::SampleRequest(SampleRequest {
+            node: NodeId(10),
+            local: Some(4),
+        })),
+        env(Message::SampleSet(SampleSet {
+            local: 4,
+            captured: ClusterTime(1_499_991_000),
+            samples: vec![
+                ImageSample {
+                    state: [120.5, 84.25, 1.5, -0.75, 30.5, 90.25],
+                    weight: 0.625,
+                },
+                ImageSample {
+                    state: [122.75, 85.5, 2.25, -1.25, 31.75, 88.5],
+                    weight: 0.375,
+                },
+            ],
+        })),
+        env(Message::FrameReport(FrameReport {
+            captured: ClusterTime(1_499_993_000),
+            mode: Mode::Active,
+            detections: 2,
         })),
     ]
 }

@@ -70,6 +70,8 @@ pub enum Role {
     Server,
     /// Benchmarks, probes and other tools that speak the protocol.
     Tool,
+    /// A two-microphone acoustic node (paper 001).
+    Acoustic,
 }
 
 impl fmt::Display for Role {
@@ -79,6 +81,7 @@ impl fmt::Display for Role {
             Role::Head => "head",
             Role::Server => "server",
             Role::Tool => "tool",
+            Role::Acoustic => "acoustic",
         })
     }
 }

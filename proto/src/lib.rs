@@ -9,6 +9,7 @@
 //! Units: metres, seconds (nanoseconds on the wire), radians, dBm, milliwatts. The world frame
 //! is right-handed with z up; camera frames follow OpenCV (x right, y down, z forward).
 
+pub mod acoustic;
 pub mod camera;
 pub mod examples;
 pub mod ids;

@@ -1,7 +1,8 @@
 //! Models shared by cameras and heads, so that the camera that linearizes and the head that
 //! sums agree to the bit: the state layout, constant-velocity motion (paper 000 eq. 11), the
 //! pin-hole measurement model and its Jacobian (paper 000 eq. 12–13, paper 002 eq. 1), the RSSI
-//! models (paper 002 eq. 2–5) and the information form of one measurement.
+//! models (paper 002 eq. 2–5), the ground-plane person model (paper 004 §3.2.3) and the
+//! information form of one measurement.
 
 use crate::camera::CameraModel;
 use crate::msg::{Mat6, Vec6};
@@ -379,4 +380,48 @@ pub fn rssi_contribution_aged(
 ) -> Option<(Info, State)> {
     let (h, jac) = rssi_aged(model, node, mean, age_s);
     rssi_information(dbm, h, &jac, model.variance(), mean)
+}
+
+/// The ground-plane person model (paper 004 §3.2.3): a camera's 2D → 3D unit measures the floor
+/// point under the target, the state's `(X, Y)`, as it was `age_s` seconds before the state's
+/// time — `h(x) = (X − age·Vx, Y − age·Vy)` — and its 2×6 Jacobian. Linear, so it needs no
+/// camera model: the camera already cast its rays. A non-finite age counts as 0.
+pub fn ground_aged(x: &State, age_s: f64) -> (Vector2<f64>, SMatrix<f64, 2, 6>) {
+    let age_s = if age_s.is_finite() { age_s } else { 0.0 };
+    let then = back_in_time(x, age_s);
+    let mut jac = SMatrix::<f64, 2, 6>::zeros();
+    jac[(0, POS)] = 1.0;
+    jac[(1, POS + 1)] = 1.0;
+    (Vector2::new(then[POS], then[POS + 1]), aged_jacobian(jac, age_s))
+}
+
+/// Squared Mahalanobis distance `νᵀ (H Σ Hᵀ + R)⁻¹ ν` of a floor position (covariance `R`) seen
+/// `age_s` seconds before the time of a track's (`mean`, `cov`), in the ground plane; `None`
+/// when the innovation covariance is singular. The ground-plane gate of cameras (against
+/// priors) and heads (against tracks).
+pub fn ground_gate_distance2(
+    mean: &State,
+    cov: &Matrix6<f64>,
+    position: &Vector2<f64>,
+    position_cov: &Matrix2<f64>,
+    age_s: f64,
+) -> Option<f64> {
+    let (h, jac) = ground_aged(mean, age_s);
+    let s = jac * cov * jac.transpose() + position_cov;
+    let nu = position - h;
+    let d2 = nu.dot(&s.cholesky()?.solve(&nu));
+    d2.is_finite().then_some(d2)
+}
+
+/// The information Ω_i, ξ_i of a floor position (covariance `cov`) seen `age_s` seconds before
+/// the mean's time (see [`camera_contribution_aged`]); `None` when `cov` is not positive
+/// definite.
+pub fn ground_contribution_aged(
+    position: &Vector2<f64>,
+    cov: &Matrix2<f64>,
+    mean: &State,
+    age_s: f64,
+) -> Option<(Info, State)> {
+    let (h, jac) = ground_aged(mean, age_s);
+    information_contribution(position, &h, &jac, cov, mean)
 }

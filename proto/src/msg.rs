@@ -162,6 +162,22 @@ pub struct NodeStatus {
     /// Estimated offset to the leader's clock, ns, and the residual of the fit, ns.
     pub sync_offset_ns: i64,
     pub sync_error_ns: i64,
+    /// Bytes this node put on the wire so far: the encoded frames its transport took. Only
+    /// the runtime knows it, so the runtime fills it in as the status goes out (a core
+    /// leaves 0).
+    pub bytes_sent: u64,
+}
+
+/// What a camera in grid mode (`[method] fusion = "grid"`) says after every frame it
+/// processed, detections or not: that it looked, so the head can use its silence (paper 001's
+/// no-detection likelihood). Its detections travel as `Measurement`s before it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FrameReport {
+    /// When the frame was captured, the camera's cluster time.
+    pub captured: ClusterTime,
+    pub mode: Mode,
+    /// Detections the frame had (each sent as a `Measurement`).
+    pub detections: u32,
 }
 
 // ---------------------------------------------------------------- head → camera
@@ -222,6 +238,42 @@ pub struct TrackReport {
     pub power_mw: f64,
     /// Contributions that arrived after the deadline of their step, cumulative.
     pub late: u64,
+    /// The track's colour histogram (paper 004's HS 10×10 then V 10 bins, summing to 1), from
+    /// the ground-plane observations fused into it, for identity at the server; empty when no
+    /// camera sent one.
+    pub appearance: Vec<f32>,
+    /// The grid estimator's posterior, down-sampled (`[method] fusion = "grid"` only).
+    pub grid: Option<GridPosterior>,
+}
+
+/// Most cells per side of a [`GridPosterior`] (a report carries at most 64 × 64 bytes of it).
+pub const MAX_GRID_POSTERIOR_SIDE: u16 = 64;
+
+/// A grid estimator's belief in a compact form (paper 001): the floor's cells summed into at
+/// most [`MAX_GRID_POSTERIOR_SIDE`] per side, each cell's probability mass quantized to a byte
+/// relative to the largest (`255` = `peak_mass`), row-major with x fastest.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GridPosterior {
+    /// World `[x, y]` of the first cell's corner, m.
+    pub origin: [f32; 2],
+    /// Side of one (down-sampled) cell, m.
+    pub cell_m: f32,
+    pub nx: u16,
+    pub ny: u16,
+    /// Probability mass of the fullest cell.
+    pub peak_mass: f32,
+    /// `nx × ny` values, `round(255 · mass / peak_mass)`.
+    pub cells: Vec<u8>,
+}
+
+impl GridPosterior {
+    /// Probability mass of cell `(i, j)` (to the quantization's precision).
+    pub fn mass(&self, i: usize, j: usize) -> f32 {
+        let k = j * usize::from(self.nx) + i;
+        self.cells
+            .get(k)
+            .map_or(0.0, |v| f32::from(*v) / 255.0 * self.peak_mass)
+    }
 }
 
 // ---------------------------------------------------------------- server → nodes
@@ -291,6 +343,41 @@ pub struct MeasuredFrame {
     pub detections: Vec<MeasuredDetection>,
 }
 
+// ---------------------------------------------------------------- particle filter samples
+
+/// Most samples one [`SampleSet`] carries.
+pub const MAX_SAMPLES: usize = 512;
+
+/// Ask a camera for the sample sets of its per-person particle filters (paper 004 §2.5.1 (i):
+/// the pdf itself, sent only on request). Answered once, from the newest frame, with one
+/// [`SampleSet`] per person to the node that asked.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SampleRequest {
+    /// The camera asked.
+    pub node: NodeId,
+    /// The camera's id of the person, or `None` for everyone it tracks.
+    pub local: Option<u32>,
+}
+
+/// One weighted sample of a camera's particle filter, in the camera's pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImageSample {
+    /// `[x, y, vx, vy, w, h]`: box centre, velocity (pixels per frame) and size, pixels.
+    pub state: [f32; 6],
+    /// Normalized weight π.
+    pub weight: f32,
+}
+
+/// One person's sample set of a camera's newest frame, the answer to a [`SampleRequest`]. A
+/// filter with more than [`MAX_SAMPLES`] samples sends its heaviest.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SampleSet {
+    /// The camera's id of the person.
+    pub local: u32,
+    pub captured: ClusterTime,
+    pub samples: Vec<ImageSample>,
+}
+
 // ---------------------------------------------------------------- every link
 
 /// First frame on every link.
@@ -325,6 +412,9 @@ pub enum Message {
     SyncBeacon(SyncBeacon),
     Liveness(Liveness),
     MeasuredFrame(MeasuredFrame),
+    SampleRequest(SampleRequest),
+    SampleSet(SampleSet),
+    FrameReport(FrameReport),
 }
 
 impl Message {
@@ -345,6 +435,9 @@ impl Message {
             Message::SyncBeacon(_) => "sync_beacon",
             Message::Liveness(_) => "liveness",
             Message::MeasuredFrame(_) => "measured_frame",
+            Message::SampleRequest(_) => "sample_request",
+            Message::SampleSet(_) => "sample_set",
+            Message::FrameReport(_) => "frame_report",
         }
     }
 
@@ -360,6 +453,8 @@ impl Message {
                 | Message::TrackReport(_)
                 | Message::Heartbeat
                 | Message::MeasuredFrame(_)
+                | Message::SampleSet(_)
+                | Message::FrameReport(_)
         )
     }
 }

@@ -152,7 +152,10 @@ pub struct RssiReading {
 
 /// A person on the ground plane, as a camera's per-person tracker converts its box (paper 004
 /// §3.2.3): where the rays of the box's lower corners meet the floor, with the covariance the
-/// tracker's spread gives, the width and height, and the colour histogram.
+/// tracker's spread gives, the width and height, and the colour histogram. Paper 004 §2.5.1's
+/// output: the mean state (`position`, `width_m`, `height_m`), the maximum-likelihood state
+/// with its confidence (`ml_position`, `confidence`); the sample set goes only on request
+/// ([`crate::msg::SampleSet`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GroundPoint {
     /// The camera's own id for the person (its tracker's).
@@ -168,6 +171,10 @@ pub struct GroundPoint {
     /// Colour histogram (HS 10×10 then V 10 bins, normalized to sum 1; empty when not sent).
     pub histogram: Vec<f32>,
     pub captured: ClusterTime,
+    /// Where the tracker's maximum-likelihood state puts the person on the floor, metres
+    /// (`position` comes from its mean state; `confidence` is the ML state's). f32: a
+    /// millimetre is plenty, and every byte a person costs goes out every frame.
+    pub ml_position: [f32; 2],
 }
 
 /// A two-microphone node's weighted interaural level differences over frequency (paper 001

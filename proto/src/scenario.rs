@@ -15,7 +15,11 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 
+mod acoustic_spec;
 mod check;
+pub mod particle;
+
+pub use particle::ParticleParams;
 
 /// The embedded default scenario, modelled on paper 002's 21-camera testbed.
 pub const DEFAULT_SCENARIO_TOML: &str = include_str!("../scenarios/default.toml");
@@ -182,6 +186,10 @@ pub enum Fusion {
     CentralizedEif,
     /// Maximum likelihood per step (paper 000 §3).
     Ml,
+    /// Paper 001's grid-based recursive Bayesian estimator: cameras' detections *and*
+    /// non-detections, acoustic nodes' ILD fingerprints and tag RSSI as likelihoods over a grid
+    /// of the floor (`[method.grid]`).
+    Grid,
 }
 
 impl Fusion {
@@ -191,6 +199,7 @@ impl Fusion {
             Fusion::DistributedEif => "distributed-eif",
             Fusion::CentralizedEif => "centralized-eif",
             Fusion::Ml => "ml",
+            Fusion::Grid => "grid",
         }
     }
 
@@ -243,6 +252,20 @@ pub enum Segmentation {
     AdaptiveBackground,
 }
 
+/// What a camera makes of its frames.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CameraTracker {
+    /// Segmented regions, each sent as a pin-hole point (papers 000 and 002).
+    #[default]
+    Segmentation,
+    /// One colour particle filter per person on the adaptive background's regions, each
+    /// person sent as a ground-plane position with size and colour histogram (paper 004 §2,
+    /// §3.2). Needs frames: the measurement-level simulation has none, and converts its
+    /// projected boxes to the ground plane instead.
+    Particle,
+}
+
 /// Method parameters.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case")]
@@ -293,7 +316,19 @@ pub struct Method {
     /// target's colour is known). Empty: in the simulation, its targets' colours.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub target_colours: Vec<[u8; 3]>,
+    /// What cameras make of their frames: segmented regions (the default) or paper 004's
+    /// per-person particle filters.
+    #[serde(default)]
+    pub camera_tracker: CameraTracker,
+    /// The particle filter tracker's parameters (paper 004's values by default).
+    #[serde(default)]
+    pub particle: ParticleParams,
+    /// The grid estimator's parameters (`fusion = "grid"`).
+    #[serde(default)]
+    pub grid: GridMethod,
 }
+
+pub use acoustic_spec::{AcousticSpec, GridMethod, low_band};
 
 impl Method {
     /// How far from a node's time a capture may be stamped and still be fused, ms: two filter
@@ -331,6 +366,9 @@ impl Default for Method {
             drop_lost_cameras: false,
             target_plane_z: None,
             target_colours: Vec::new(),
+            camera_tracker: CameraTracker::Segmentation,
+            particle: ParticleParams::default(),
+            grid: GridMethod::default(),
         }
     }
 }
@@ -372,6 +410,8 @@ pub enum NodeRole {
     Camera,
     Head,
     Server,
+    /// A two-microphone acoustic node (paper 001): ILD vectors to its head.
+    Acoustic,
 }
 
 /// One node of the deployment.
@@ -404,6 +444,9 @@ pub struct NodeSpec {
     /// Whether this node measures RSSI of the target's tag.
     #[serde(default = "yes")]
     pub rssi: bool,
+    /// Microphones, analysis and fingerprints (acoustic nodes only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub acoustic: Option<AcousticSpec>,
 }
 
 fn default_host() -> String {
@@ -518,6 +561,11 @@ impl Scenario {
         })?;
         let base = path.parent().unwrap_or(Path::new("."));
         for node in &mut scenario.nodes {
+            if let Some(path) = node.acoustic.as_mut().and_then(|a| a.fingerprints.as_mut())
+                && path.is_relative()
+            {
+                *path = base.join(&*path);
+            }
             if let Some(cam) = &mut node.camera {
                 for p in [&mut cam.opencv_intrinsic, &mut cam.opencv_extrinsic]
                     .into_iter()
@@ -547,6 +595,18 @@ impl Scenario {
 
     pub fn heads(&self) -> impl Iterator<Item = &NodeSpec> {
         self.nodes.iter().filter(|n| n.role == NodeRole::Head)
+    }
+
+    /// The acoustic nodes.
+    pub fn acoustic_nodes(&self) -> impl Iterator<Item = &NodeSpec> {
+        self.nodes.iter().filter(|n| n.role == NodeRole::Acoustic)
+    }
+
+    /// The head a camera or acoustic node reports to: its own, else the first head.
+    pub fn head_of(&self, id: u32) -> Option<u32> {
+        self.node(id)
+            .and_then(|n| n.head)
+            .or_else(|| self.heads().next().map(|h| h.id))
     }
 
     pub fn server(&self) -> Option<&NodeSpec> {

@@ -94,6 +94,39 @@ fn check_cov2(field: &'static str, c: &[f64; 3]) -> Result<(), ValidationError> 
     Ok(())
 }
 
+fn check_grid(g: &GridPosterior) -> Result<(), ValidationError> {
+    finite32(
+        "track_report.grid",
+        &[g.origin[0], g.origin[1], g.cell_m, g.peak_mass],
+    )?;
+    if !(g.cell_m > 0.0 && (0.0..=1.0).contains(&g.peak_mass)) {
+        return Err(err(
+            "track_report.grid",
+            format!(
+                "cell {} m and peak mass {} (expected a positive cell, a mass in [0, 1])",
+                g.cell_m, g.peak_mass
+            ),
+        ));
+    }
+    let side = 1..=MAX_GRID_POSTERIOR_SIDE;
+    if !(side.contains(&g.nx) && side.contains(&g.ny)) {
+        return Err(err(
+            "track_report.grid",
+            format!(
+                "{}x{} cells (expected 1..={MAX_GRID_POSTERIOR_SIDE} per side)",
+                g.nx, g.ny
+            ),
+        ));
+    }
+    if g.cells.len() != usize::from(g.nx) * usize::from(g.ny) {
+        return Err(err(
+            "track_report.grid",
+            format!("{} values for {}x{} cells", g.cells.len(), g.nx, g.ny),
+        ));
+    }
+    Ok(())
+}
+
 impl Validate for Envelope {
     fn validate(&self) -> Result<(), ValidationError> {
         self.body.validate()
@@ -148,6 +181,10 @@ impl Validate for Message {
                         format!("negative power {} mW", r.power_mw),
                     ));
                 }
+                check_bins("track_report.appearance", &r.appearance)?;
+                if let Some(g) = &r.grid {
+                    check_grid(g)?;
+                }
                 if r.contributors.len() > MAX_CONTRIBUTORS {
                     return Err(err(
                         "track_report.contributors",
@@ -166,6 +203,7 @@ impl Validate for Message {
             }
             Message::SyncBeacon(_) => Ok(()),
             Message::Liveness(_) => Ok(()),
+            Message::FrameReport(_) => Ok(()),
             Message::MeasuredFrame(f) => {
                 if f.detections.len() > MAX_MEASURED_DETECTIONS {
                     return Err(err(
@@ -199,6 +237,23 @@ impl Validate for Message {
                     )?;
                     finite("measured_frame.detections.point", &d.point)?;
                     check_cov2("measured_frame.detections.cov", &d.cov)?;
+                }
+                Ok(())
+            }
+            Message::SampleRequest(_) => Ok(()),
+            Message::SampleSet(s) => {
+                if s.samples.len() > MAX_SAMPLES {
+                    return Err(err(
+                        "sample_set.samples",
+                        format!("{} entries exceed the maximum of {MAX_SAMPLES}", s.samples.len()),
+                    ));
+                }
+                for x in &s.samples {
+                    finite32("sample_set.samples", &x.state)?;
+                    finite32("sample_set.samples", &[x.weight])?;
+                    if x.weight < 0.0 {
+                        return Err(err("sample_set.samples", format!("negative weight {}", x.weight)));
+                    }
                 }
                 Ok(())
             }
@@ -240,6 +295,7 @@ impl Validate for Observation {
                 finite("ground.position", &g.position)?;
                 check_cov2("ground.cov", &g.cov)?;
                 finite32("ground.size", &[g.width_m, g.height_m, g.confidence])?;
+                finite32("ground.ml_position", &g.ml_position)?;
                 if g.width_m < 0.0 || g.height_m < 0.0 {
                     return Err(err("ground.size", "negative width or height"));
                 }

@@ -81,7 +81,7 @@ pub fn decode(frame: &[u8]) -> Result<Envelope, WireError> {
 
 /// Kind names of [`crate::Message`] by wire tag (variant index). A test pins it to
 /// [`crate::Message::kind`].
-pub const MESSAGE_KINDS: [&str; 14] = [
+pub const MESSAGE_KINDS: [&str; 17] = [
     "hello",
     "hello_ack",
     "heartbeat",
@@ -96,6 +96,9 @@ pub const MESSAGE_KINDS: [&str; 14] = [
     "sync_beacon",
     "liveness",
     "measured_frame",
+    "sample_request",
+    "sample_set",
+    "frame_report",
 ];
 
 /// Turn a postcard failure into an error that names the message kind and the problem

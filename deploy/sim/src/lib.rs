@@ -2,9 +2,11 @@
 //! talking through a simulated network ([`net`]: latency, jitter, loss, partitions, clock
 //! skew), sensing the simulated world (crate `world`), deterministic for a seed. [`runtime`]
 //! drives the cores through `proto::node::Node` as the process runtime does; [`camera`]
-//! senses for each camera; [`faults`] injects sensor faults into the world; [`logged`] feeds
+//! senses for each camera; [`acoustic`] listens for each acoustic node and surveys the room's
+//! fingerprints; [`faults`] injects sensor faults into the world; [`logged`] feeds
 //! a logging run's recording back instead of sensing; [`truth`] scores a run against the world.
 
+pub mod acoustic;
 mod camera;
 pub mod faults;
 pub mod logged;

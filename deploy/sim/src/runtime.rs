@@ -16,6 +16,7 @@
 //! skewed and corrected by the server's beacons with the same estimator processes use.
 
 use crate::SimError;
+use crate::acoustic::AcousticSlot;
 use crate::camera::{CameraSlot, Senses};
 use crate::faults::{self, Faults};
 use crate::logged::Recorded;
@@ -147,9 +148,14 @@ impl SimOutcome {
 
 #[derive(Debug)]
 enum Event {
-    Deliver { to: NodeId, frame: Vec<u8> },
+    Deliver {
+        to: NodeId,
+        frame: Vec<u8>,
+    },
     Tick(NodeId),
     Frame(NodeId),
+    /// An acoustic node's frame is complete.
+    Audio(NodeId),
 }
 
 /// The inputs the runtime itself gives every role (sensor inputs go to cameras directly).
@@ -181,6 +187,9 @@ struct Timebase {
     /// Latest delivery time scheduled on each outgoing link: links are FIFO (TCP and iceoryx2
     /// both keep order), so jitter delays but never reorders.
     link_tail: BTreeMap<NodeId, i64>,
+    /// Bytes of the encoded frames this node sent, as a transport counts them (a status it
+    /// sends carries the count, as the process runtime fills it in).
+    bytes_sent: u64,
 }
 
 impl Timebase {
@@ -198,6 +207,7 @@ pub struct Sim {
     net: SimNetwork,
     time: BTreeMap<NodeId, Timebase>,
     cameras: BTreeMap<NodeId, CameraSlot>,
+    acoustics: BTreeMap<NodeId, AcousticSlot>,
     heads: BTreeMap<NodeId, HeadNode>,
     server: Option<ServerNode>,
     counters: NetCounters,
@@ -229,6 +239,7 @@ impl Sim {
             queue: EventQueue::default(),
             time: BTreeMap::new(),
             cameras: BTreeMap::new(),
+            acoustics: BTreeMap::new(),
             heads: BTreeMap::new(),
             server: None,
             counters: NetCounters::default(),
@@ -260,6 +271,7 @@ impl Sim {
                     seq: BTreeMap::new(),
                     last_heartbeat: None,
                     link_tail: BTreeMap::new(),
+                    bytes_sent: 0,
                 },
             );
             let now = sim.time[&id].now(0);
@@ -282,10 +294,20 @@ impl Sim {
                     if let Some(d) = sim.opts.ml_depth {
                         cfg.ml_depth = d;
                     }
+                    if cfg.method.fusion == proto::scenario::Fusion::Grid {
+                        crate::acoustic::fill_fingerprints(&scenario, &mut cfg)
+                            .map_err(|(node, problem)| SimError::Node { node, problem })?;
+                    }
                     sim.heads.insert(id, HeadNode::new(cfg));
                 }
                 NodeRole::Server => {
                     sim.server = Some(ServerNode::new(ServerConfig::from_scenario(scenario.clone(), id)));
+                }
+                NodeRole::Acoustic => {
+                    let slot = AcousticSlot::new(&scenario, node.id, sim.opts.seed, now)
+                        .map_err(|problem| SimError::Node { node: id, problem })?;
+                    sim.queue.push(slot.period_ns, Event::Audio(id));
+                    sim.acoustics.insert(id, slot);
                 }
             }
             sim.queue.push(0, Event::Tick(id));
@@ -368,6 +390,7 @@ impl Sim {
             match event {
                 Event::Tick(id) => self.tick(t, id),
                 Event::Frame(id) => self.frame(t, id),
+                Event::Audio(id) => self.audio(t, id),
                 Event::Deliver { to, frame } => self.deliver(t, to, &frame),
             }
             self.drain_server_records();
@@ -396,6 +419,8 @@ impl Sim {
     fn handle(&mut self, id: NodeId, now: ClusterTime, input: Control) -> Option<Vec<Outgoing>> {
         if let Some(c) = self.cameras.get_mut(&id) {
             Some(c.core.handle(now, input.into()))
+        } else if let Some(a) = self.acoustics.get_mut(&id) {
+            Some(a.core.handle(now, input.into()))
         } else if let Some(h) = self.heads.get_mut(&id) {
             Some(h.handle(now, input.into()))
         } else {
@@ -453,6 +478,17 @@ impl Sim {
         self.queue.push(t + period, Event::Frame(id));
     }
 
+    fn audio(&mut self, t: i64, id: NodeId) {
+        let now = self.now_of(id, t);
+        let Some(slot) = self.acoustics.get_mut(&id) else {
+            return;
+        };
+        let period = slot.period_ns;
+        let out = slot.listen(t, now);
+        self.send_all(t, id, out);
+        self.queue.push(t + period, Event::Audio(id));
+    }
+
     fn send_all(&mut self, t: i64, from: NodeId, out: Vec<Outgoing>) {
         for o in out {
             // A logging run's measurements go straight into the recording at the frame's time.
@@ -469,12 +505,15 @@ impl Sim {
         }
     }
 
-    fn send(&mut self, t: i64, from: NodeId, o: Outgoing) {
+    fn send(&mut self, t: i64, from: NodeId, mut o: Outgoing) {
         self.counters.sent += 1;
         let now = self.now_of(from, t);
         let Some(tb) = self.time.get_mut(&from) else {
             return;
         };
+        if let Message::NodeStatus(s) = &mut o.body {
+            s.bytes_sent = tb.bytes_sent;
+        }
         let seq = tb.seq.entry(o.to).or_insert(0);
         *seq += 1;
         let env = Envelope {
@@ -495,6 +534,9 @@ impl Sim {
                 return;
             }
         };
+        if let Some(tb) = self.time.get_mut(&from) {
+            tb.bytes_sent += frame.len() as u64;
+        }
         match self.net.fate(t, from, o.to) {
             Fate::Deliver(lat) => {
                 let tail = self

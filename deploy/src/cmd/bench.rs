@@ -1,4 +1,4 @@
-//! `ocelli bench camera|head|server|transport`: the lab's benchmarks (`lab::bench`), printed as
+//! `ocelli bench camera|head|server|transport|grid`: the lab's benchmarks (`lab::bench`), printed as
 //! JSON on standard output.
 
 use anyhow::Result;
@@ -87,4 +87,8 @@ pub fn transport(a: TransportArgs) -> Result<ExitCode> {
 
 pub fn fuse(a: ScaleArgs) -> Result<ExitCode> {
     print(&bench::fuse::run(&bench::fuse::Options { scale: a.scale })?)
+}
+
+pub fn grid(a: ScaleArgs) -> Result<ExitCode> {
+    print(&bench::grid::run(a.scale))
 }

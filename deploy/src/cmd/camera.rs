@@ -8,13 +8,12 @@
 use super::common::{ScenarioArg, TransportArg, node_of_role, run_node, transport_or_scenario};
 use anyhow::{Result, bail};
 use node_camera::process::{OpenFrames, ProcessConfig, run};
-use node_camera::source::ImageSequence;
+use node_camera::source_spec::{Count, SharedStats, SourceSpec, SourceStats, SpecError, open_source};
 use proto::scenario::Scenario;
-use proto::sensor::{FrameSource, RadioSource, ReferencePoint};
+use proto::sensor::{Frame, FrameSource, RadioSource, ReferencePoint, SourceError};
 use proto::{ClusterTime, NodeId};
 use runtime::HostClock;
 use runtime::config::transport_config;
-use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
@@ -32,7 +31,9 @@ pub struct Args {
     /// Transport (default: the scenario's `network.transport`).
     #[arg(long, value_enum)]
     pub transport: Option<TransportArg>,
-    /// Frame source: `synthetic`, `images:DIR`, `images:DIR:MANIFEST` or `v4l2:DEVICE`.
+    /// Frame source (see `node_camera::source_spec`): `synthetic`, `images:DIR[?manifest=FILE][&loop]`, `v4l2:/dev/videoN`,
+    /// `file:PATH[?loop]`, `rtsp://…`, `http://…` (MJPEG) or `libcamera[:NAME]` (the last four
+    /// need the `gstreamer` feature).
     #[arg(long, default_value = "synthetic")]
     pub source: String,
     /// Seed of the synthetic world (noise, multipath).
@@ -56,89 +57,99 @@ pub enum Reference {
     Foot,
 }
 
-/// Where a camera's frames come from.
-#[derive(Clone, Debug)]
-enum SourceSpec {
-    /// The scenario's simulated world (frames and radio).
-    Synthetic,
-    /// A directory of PNG/JPEG frames, at the camera's rate or with a manifest; loops.
-    Images { dir: PathBuf, manifest: Option<PathBuf> },
-    /// A V4L2 device.
-    #[cfg(feature = "v4l2")]
-    V4l2 { device: String },
-}
+/// A camera's frames, its radio (synthetic only) and its source's counters (real sources).
+type Sources = (
+    OpenFrames,
+    Option<Box<dyn RadioSource + Send>>,
+    Option<SharedStats>,
+);
 
-fn parse_source(s: &str) -> Result<SourceSpec> {
-    if s == "synthetic" {
-        return Ok(SourceSpec::Synthetic);
+/// The camera's sources: a real camera is given its device, files or stream (opened through
+/// [`open_source`], whose counters are returned); `synthetic` injects the simulated world's
+/// frames and radio (what `ocelli launch` runs).
+fn sources(spec: SourceSpec, scenario: &Scenario, id: u32, seed: u64, epoch: ClusterTime) -> Result<Sources> {
+    if spec == SourceSpec::Synthetic {
+        let frames = world::sources::SyntheticFrames::new(scenario, id, seed, epoch)?;
+        let radio = world::sources::SyntheticRadio::new(scenario, id, seed, epoch)?;
+        let open: OpenFrames = Box::new(move || Ok(Box::new(frames) as Box<dyn FrameSource>));
+        return Ok((open, Some(Box::new(radio)), None));
     }
-    if let Some(rest) = s.strip_prefix("images:") {
-        let mut parts = rest.splitn(2, ':');
-        let dir = PathBuf::from(parts.next().unwrap_or_default());
-        let manifest = parts.next().map(PathBuf::from);
-        return Ok(SourceSpec::Images { dir, manifest });
+    if let Some(feature) = spec.missing_feature() {
+        bail!(SpecError::NotBuilt {
+            spec: spec.to_string(),
+            feature
+        });
     }
-    if let Some(dev) = s.strip_prefix("v4l2:") {
-        #[cfg(feature = "v4l2")]
-        return Ok(SourceSpec::V4l2 { device: dev.into() });
-        #[cfg(not(feature = "v4l2"))]
-        bail!("{dev}: this build has no V4L2 support (build with --features node-camera/v4l2)");
-    }
-    bail!("unknown --source {s:?}: expected synthetic, images:DIR[:MANIFEST] or v4l2:DEVICE")
-}
-
-/// The camera's sources: a real camera is given its device or files; `synthetic` injects the
-/// simulated world's frames and radio (what `ocelli launch` runs).
-fn sources(
-    spec: SourceSpec,
-    scenario: &Scenario,
-    id: u32,
-    seed: u64,
-    epoch: ClusterTime,
-) -> Result<(OpenFrames, Option<Box<dyn RadioSource + Send>>)> {
     let fps = scenario
         .node(id)
         .and_then(|n| n.camera.as_ref())
         .map_or(5.0, |c| c.fps);
-    Ok(match spec {
-        SourceSpec::Synthetic => {
-            let frames = world::sources::SyntheticFrames::new(scenario, id, seed, epoch)?;
-            let radio = world::sources::SyntheticRadio::new(scenario, id, seed, epoch)?;
-            let open: OpenFrames = Box::new(move || Ok(Box::new(frames) as Box<dyn FrameSource>));
-            (open, Some(Box::new(radio)))
+    let k = scenario.camera_model(id)?.intrinsics;
+    let shared = SharedStats::default();
+    let counted = shared.clone();
+    let open: OpenFrames = Box::new(move || {
+        let opened = open_source(&spec, k.width, k.height, fps).map_err(|e| match e {
+            SpecError::Open(e) => e,
+            other => SourceError::Device(other.to_string()),
+        })?;
+        // The opened source counts into its own stats; the summary reads them through a
+        // forwarding handle.
+        Ok(Box::new(Forward {
+            inner: opened.source,
+            from: opened.stats,
+            to: counted,
+            seen: SourceStats::default(),
+        }) as Box<dyn FrameSource>)
+    });
+    Ok((open, None, Some(shared)))
+}
+
+/// Copies a source's counters into the handle the CLI keeps after each capture.
+struct Forward {
+    inner: Box<dyn FrameSource>,
+    from: SharedStats,
+    to: SharedStats,
+    seen: SourceStats,
+}
+
+impl FrameSource for Forward {
+    fn size(&self) -> (u32, u32) {
+        self.inner.size()
+    }
+
+    fn capture(&mut self, now: ClusterTime, frame: &mut Frame) -> Result<bool, SourceError> {
+        let got = self.inner.capture(now, frame);
+        let s = self.from.snapshot();
+        let d = |new: u64, old: u64| new.saturating_sub(old);
+        for (what, new, old) in [
+            (Count::Frame, s.frames, self.seen.frames),
+            (Count::Error, s.errors, self.seen.errors),
+            (Count::End, s.ends, self.seen.ends),
+            (Count::Stall, s.stalls, self.seen.stalls),
+            (Count::Reconnect, s.reconnects, self.seen.reconnects),
+            (Count::CapsChange, s.caps_changes, self.seen.caps_changes),
+            (Count::DecodeError, s.decode_errors, self.seen.decode_errors),
+            (Count::StreamError, s.stream_errors, self.seen.stream_errors),
+            (Count::CorruptFrame, s.corrupt_frames, self.seen.corrupt_frames),
+        ] {
+            if new > old {
+                self.to.add(what, d(new, old));
+            }
         }
-        SourceSpec::Images { dir, manifest } => {
-            let open: OpenFrames = Box::new(move || {
-                let seq = match manifest {
-                    Some(m) => ImageSequence::with_manifest(&dir, &m)?,
-                    None => ImageSequence::with_rate(&dir, fps)?,
-                };
-                Ok(Box::new(seq.looping(true)) as Box<dyn FrameSource>)
-            });
-            (open, None)
-        }
-        #[cfg(feature = "v4l2")]
-        SourceSpec::V4l2 { device } => {
-            let k = scenario.camera_model(id)?.intrinsics;
-            let open: OpenFrames = Box::new(move || {
-                Ok(Box::new(node_camera::v4l2::V4l2Source::open(
-                    &device, k.width, k.height, fps,
-                )?) as Box<dyn FrameSource>)
-            });
-            (open, None)
-        }
-    })
+        self.seen = s;
+        got
+    }
 }
 
 pub fn run_cmd(args: Args) -> Result<ExitCode> {
     let scenario = args.scenario.load()?;
     node_of_role(&scenario, args.id, proto::scenario::NodeRole::Camera)?;
     let kind = transport_or_scenario(args.transport, &scenario);
-    let source = parse_source(&args.source)?;
+    let source = SourceSpec::parse(&args.source)?;
     let clock = HostClock::follower();
     let transport = transport_config(&scenario, NodeId(args.id), kind, &clock, None)?;
     let epoch = args.epoch_ns.map_or_else(|| clock.now(), ClusterTime);
-    let (frames, radio) = sources(source, &scenario, args.id, args.seed, epoch)?;
+    let (frames, radio, source_stats) = sources(source, &scenario, args.id, args.seed, epoch)?;
     let leader = scenario.server().map(|s| NodeId(s.id));
     let cfg = ProcessConfig {
         id: args.id,
@@ -169,6 +180,7 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
             "measured_frames": summary.logged.frames,
             "measured_dropped": summary.measured_dropped(),
             "transport": summary.run.transport,
+            "source": source_stats.map(|s| s.snapshot()),
         })
     );
     Ok(ExitCode::SUCCESS)

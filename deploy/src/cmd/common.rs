@@ -183,6 +183,7 @@ pub fn node_of_role(scenario: &Scenario, id: u32, role: proto::scenario::NodeRol
         NodeRole::Camera => "camera",
         NodeRole::Head => "head",
         NodeRole::Server => "server",
+        NodeRole::Acoustic => "acoustic",
     };
     match scenario.node(id) {
         None => anyhow::bail!(

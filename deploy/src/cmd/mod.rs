@@ -1,5 +1,6 @@
 //! One module per `ocelli` subcommand.
 
+pub mod acoustic;
 pub mod bar;
 pub mod bench;
 pub mod camera;

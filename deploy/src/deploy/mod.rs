@@ -89,6 +89,7 @@ pub(crate) fn role_name(role: NodeRole) -> &'static str {
         NodeRole::Camera => "camera",
         NodeRole::Head => "head",
         NodeRole::Server => "server",
+        NodeRole::Acoustic => "acoustic",
     }
 }
 

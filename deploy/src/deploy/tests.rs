@@ -16,7 +16,7 @@ fn multi_host(server_listen: &str) -> (Scenario, String) {
                 n.host = "hub".into();
                 n.listen = Some(format!("192.168.1.20:{}", 7400 + n.id));
             }
-            NodeRole::Camera => n.host = format!("pi-{}", n.id),
+            NodeRole::Camera | NodeRole::Acoustic => n.host = format!("pi-{}", n.id),
         }
     }
     let text = s.to_toml();

@@ -9,6 +9,7 @@
 //! the domain's iceoryx2 files from `/dev/shm` and reports on the recording exactly as
 //! `ocelli report` does.
 
+mod acoustic;
 pub mod progress;
 pub mod run_dir;
 
@@ -115,6 +116,9 @@ impl Spawn {
                         .arg(how.epoch.0.to_string())
                         .arg("--simulated");
                 }
+                "acoustic" => {
+                    cmd.arg("--epoch-ns").arg(how.epoch.0.to_string());
+                }
                 // Scenario time 0 for the synthetic world, the same for every camera.
                 "camera" => {
                     cmd.arg("--epoch-ns").arg(how.epoch.0.to_string());
@@ -152,12 +156,13 @@ fn write_pids(sup: &mut Supervisor, path: &Path) -> Result<()> {
     std::fs::write(path, pids).with_context(|| format!("writing {}", path.display()))
 }
 
-/// Start every node: the server, then heads, then cameras.
+/// Start every node: the server, then heads, then cameras, then acoustic nodes.
 fn spawn_all(sup: &mut Supervisor, scenario: &Scenario, how: &Spawn, run: &RunDir) -> Result<()> {
     for (role, name) in [
         (NodeRole::Server, "server"),
         (NodeRole::Head, "head"),
         (NodeRole::Camera, "camera"),
+        (NodeRole::Acoustic, "acoustic"),
     ] {
         for n in scenario.nodes.iter().filter(|n| n.role == role) {
             let node = format!("{name}-{}", n.id);
@@ -299,6 +304,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<Launched> {
         opts.force,
         epoch.0.div_euclid(1_000_000_000),
     )?;
+    let scenario = acoustic::with_fingerprints(scenario, &run.dir)?;
     let scenario_path = run.dir.join("scenario.toml");
     std::fs::write(&scenario_path, scenario.to_toml())
         .with_context(|| format!("writing {}", scenario_path.display()))?;

@@ -11,6 +11,7 @@
 //! launcher (which injects these sources into real node processes) and the lab read it, so no
 //! node can learn where a target truly is.
 
+pub mod acoustics;
 pub mod prepare;
 pub mod project;
 pub mod radio;

@@ -17,11 +17,11 @@ impl Fusion for CentralizedEif {
         false
     }
 
-    fn absorb(&self, track: &mut Track, det: &Detection, node: &NodeInfo, cfg: &HeadConfig) {
+    fn absorb(&mut self, track: &mut Track, det: &Detection, node: &NodeInfo, cfg: &HeadConfig) {
         observe::pinhole(track, det, node, cfg.method.previous_point);
     }
 
-    fn update(&self, track: &mut Track, _: ClusterTime) -> Updated {
+    fn update(&mut self, track: &mut Track, _: ClusterTime) -> Updated {
         eif_update(track)
     }
 }

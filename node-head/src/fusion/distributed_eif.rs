@@ -16,9 +16,9 @@ impl Fusion for DistributedEif {
         true
     }
 
-    fn absorb(&self, _: &mut Track, _: &Detection, _: &NodeInfo, _: &HeadConfig) {}
+    fn absorb(&mut self, _: &mut Track, _: &Detection, _: &NodeInfo, _: &HeadConfig) {}
 
-    fn update(&self, track: &mut Track, _: ClusterTime) -> Updated {
+    fn update(&mut self, track: &mut Track, _: ClusterTime) -> Updated {
         eif_update(track)
     }
 }

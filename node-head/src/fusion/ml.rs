@@ -29,13 +29,13 @@ impl Fusion for Ml {
         false
     }
 
-    fn absorb(&self, track: &mut Track, det: &Detection, node: &NodeInfo, cfg: &HeadConfig) {
+    fn absorb(&mut self, track: &mut Track, det: &Detection, node: &NodeInfo, cfg: &HeadConfig) {
         if let Some(p) = lift(&node.camera, &det.point, &det.cov, cfg.ml_depth) {
             track.ml_points.push(p);
         }
     }
 
-    fn update(&self, track: &mut Track, now: ClusterTime) -> Updated {
+    fn update(&mut self, track: &mut Track, now: ClusterTime) -> Updated {
         let points = std::mem::take(&mut track.ml_points);
         let Some((p, c)) = fuse(&points) else {
             return Updated::default();

@@ -51,11 +51,14 @@ impl HeadNode {
             ..StepStats::default()
         };
         let mut rssi_nodes = vec![false; self.nodes.len()];
+        self.hand_sensed_to_fusion();
         for t in 0..self.tracks.len() {
             self.fuse_track(t, now, &mut stats, &mut rssi_nodes);
         }
         stats.rssi_nodes = rssi_nodes.iter().filter(|&&b| b).count();
         self.merge_duplicates();
+        let live: Vec<_> = self.tracks.iter().map(|t| t.local).collect();
+        self.fusion.retain(&live);
         stats.tracks = self.tracks.len();
         for t in self.tracks.iter().filter(|t| t.confirmed) {
             if let Some(server) = self.cfg.server {
@@ -71,6 +74,8 @@ impl HeadNode {
                         contributors: t.contributors.clone(),
                         power_mw: self.power_mw(),
                         late: self.counters.late,
+                        appearance: t.appearance.clone(),
+                        grid: self.fusion.posterior(t.local),
                     }),
                 ));
             }

@@ -76,6 +76,8 @@ fn previous_point_improves_velocity() {
                     contributors: Vec::new(),
                     power_mw: 0.0,
                     late: 0,
+                    appearance: Vec::new(),
+                    grid: None,
                 };
                 ev += velocity_error(&sim, &r);
                 ep += error(&sim, &r, 0);

@@ -71,6 +71,8 @@ fn report(local: u32, x: f64, step: u64) -> Message {
         contributors: vec![],
         power_mw: 100.0,
         late: 0,
+        appearance: Vec::new(),
+        grid: None,
     })
 }
 

@@ -3,7 +3,8 @@
 //! - iceoryx2 (one host): the scenario's domain, limits sized for its nodes, heartbeats to
 //!   every peer at `network.heartbeat-ms` (liveness on one host rests on them).
 //! - TCP (between hosts): a node listens at its `listen` address if it has one (heads, the
-//!   server); a camera dials its head and the server, a head dials the server. Addresses are
+//!   server); a camera or an acoustic node dials its head and the server, a head dials the
+//!   server. Addresses are
 //!   `host:port` and may name hosts (resolved once, here); every limit is clamped to at least
 //!   1 (ms, frames).
 
@@ -35,6 +36,7 @@ pub fn wire_role(role: NodeRole) -> Role {
         NodeRole::Camera => Role::Camera,
         NodeRole::Head => Role::Head,
         NodeRole::Server => Role::Server,
+        NodeRole::Acoustic => Role::Acoustic,
     }
 }
 
@@ -55,14 +57,15 @@ pub fn resolve(node: NodeId, peer: NodeId, addr: &str) -> Result<SocketAddr, Con
         .ok_or_else(|| bad("resolves to no address".into()))
 }
 
-/// The nodes `id` dials over TCP: a camera its head and the server, a head the server.
+/// The nodes `id` dials over TCP: a camera or an acoustic node its head and the server, a head
+/// the server.
 pub fn dials(scenario: &Scenario, id: NodeId) -> Vec<NodeId> {
     let Some(me) = scenario.node(id.0) else {
         return Vec::new();
     };
     let server = scenario.server().map(|s| NodeId(s.id));
     match me.role {
-        NodeRole::Camera => {
+        NodeRole::Camera | NodeRole::Acoustic => {
             let head = me
                 .head
                 .or_else(|| scenario.heads().next().map(|h| h.id))

@@ -6,8 +6,10 @@
 //! clock corrected by the leader's beacons, which the loop consumes and hands the core as
 //! [`Input::Sync`]); what the core returns is sent with a bounded wait
 //! ([`ProcessConfig::send_timeout`]), so a vanished peer never stalls the node, and what could
-//! not be delivered is counted and told to the core ([`Input::Undelivered`]). A role adds its
-//! own work after each step through [`Hooks`] (the server records; a camera switches capture).
+//! not be delivered is counted and told to the core ([`Input::Undelivered`]). A `NodeStatus`
+//! leaving the node carries the bytes its transport has sent (`bytes_sent`, which only the
+//! runtime knows). A role adds its own work after each step through [`Hooks`] (the server
+//! records; a camera switches capture).
 
 use crate::clock::HostClock;
 use crate::transport::{Delivery, Event, StatsSnapshot, TransportConfig, TransportError, open};
@@ -174,7 +176,11 @@ where
         let out = node.handle(now, input);
         sent.clear();
         let mut undelivered = 0;
-        for o in out {
+        for mut o in out {
+            // Only the runtime knows what went on the wire: a status carries it.
+            if let Message::NodeStatus(s) = &mut o.body {
+                s.bytes_sent = stats.bytes_sent.load(std::sync::atomic::Ordering::Relaxed);
+            }
             let to = o.to;
             let kind = o.body.kind();
             let keep = H::KEEP_SENT.then(|| o.clone());
@@ -219,4 +225,90 @@ where
 /// A node without sensors (heads, the server).
 pub fn no_sensors<T>() -> futures_util::stream::Pending<T> {
     futures_util::stream::pending()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::transport::{InProcessHub, TransportConfig};
+    use proto::Role;
+    use proto::msg::{Mode, NodeStatus};
+
+    /// Sends a status to node 2 on every tick, its `bytes_sent` left at 0 as a core leaves it.
+    struct Reporter;
+
+    impl Node for Reporter {
+        type Sensor = std::convert::Infallible;
+
+        fn id(&self) -> NodeId {
+            NodeId(1)
+        }
+
+        fn handle(&mut self, _: ClusterTime, input: Input<Self::Sensor>) -> Vec<Outgoing> {
+            if !matches!(input, Input::Tick) {
+                return Vec::new();
+            }
+            let status = NodeStatus {
+                mode: Mode::Active,
+                time_in_mode_ns: [0; 3],
+                frames: 0,
+                detections: 0,
+                dropped: 0,
+                rejected: 0,
+                sync_offset_ns: 0,
+                sync_error_ns: -1,
+                bytes_sent: 0,
+            };
+            vec![Outgoing::new(NodeId(2), Message::NodeStatus(status))]
+        }
+    }
+
+    fn config(hub: &InProcessHub, me: u32) -> TransportConfig {
+        TransportConfig::InProcess {
+            hub: hub.clone(),
+            me: NodeId(me),
+            role: Role::Camera,
+            queue_len: 16,
+        }
+    }
+
+    /// Each status carries the bytes its node put on the wire before it: every frame so far.
+    #[tokio::test]
+    async fn a_status_carries_the_bytes_sent_before_it() {
+        let hub = InProcessHub::new();
+        let (_ep, mut inbox, _stats, receiver) = open(config(&hub, 2)).await.unwrap();
+        let shutdown = CancellationToken::new();
+        let cfg = ProcessConfig::new(config(&hub, 1), None, Duration::from_millis(5));
+        let stop = shutdown.clone();
+        let clock = HostClock::follower();
+        let mut node = Reporter;
+        let mut hooks = NoHooks;
+        let sender = run(&mut node, cfg, clock, no_sensors(), &mut hooks, stop);
+        let listen = async {
+            let (mut seen, mut sizes) = (Vec::new(), Vec::new());
+            while seen.len() < 4 {
+                let ev = tokio::time::timeout(Duration::from_secs(10), inbox.recv())
+                    .await
+                    .unwrap();
+                if let Some(Event::Message(m)) = ev
+                    && let Message::NodeStatus(s) = &m.env.body
+                {
+                    sizes.push(proto::encode(&m.env).unwrap().len() as u64);
+                    seen.push(s.bytes_sent);
+                }
+            }
+            shutdown.cancel();
+            (seen, sizes)
+        };
+        let (summary, (seen, sizes)) = tokio::join!(sender, listen);
+        let summary = summary.unwrap();
+        assert!(summary.transport.bytes_sent >= sizes.iter().sum::<u64>());
+        // The first status went out before anything else; each later one counts the ones
+        // before it.
+        assert_eq!(seen[0], 0);
+        for k in 1..seen.len() {
+            assert_eq!(seen[k], sizes[..k].iter().sum::<u64>(), "{seen:?} {sizes:?}");
+        }
+        receiver.shutdown().await;
+    }
 }

@@ -154,6 +154,12 @@ impl Checker<'_> {
                 format!("expected non-negative numbers, got {q}"),
             );
         }
+        if let Err(e) = m.particle.validate() {
+            return self.fail(
+                format!("method.particle.{}", e.field),
+                format!("expected {}, got {}", e.expected, e.value),
+            );
+        }
         self.power("power".into(), &s.power)
     }
 
@@ -182,6 +188,7 @@ impl Checker<'_> {
         for n in &s.nodes {
             self.node(n, &heads)?;
         }
+        s.check_acoustic(self.origin)?;
         self.listen_addresses(s)
     }
 
@@ -191,8 +198,8 @@ impl Checker<'_> {
             if n.camera.is_some() {
                 return self.fail(field("camera"), "only camera nodes have camera geometry");
             }
-            if n.head.is_some() {
-                return self.fail(field("head"), "only camera nodes report to a head");
+            if n.head.is_some() && n.role != NodeRole::Acoustic {
+                return self.fail(field("head"), "only camera and acoustic nodes report to a head");
             }
         }
         if let Some(region) = n.region {

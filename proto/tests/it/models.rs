@@ -111,6 +111,44 @@ proptest! {
         prop_assert!((jac - fd).abs().max() <= 1e-6 * (1.0 + fd.abs().max()), "analytic {jac} fd {fd}");
     }
 
+    #[test]
+    fn ground_model_is_where_the_target_stood_and_its_jacobian_matches(x in state(), age in -0.5..0.5f64) {
+        let (h, jac) = models::ground_aged(&x, age);
+        assert_relative_eq!(h[0], x[0] - age * x[3], epsilon = 1e-12);
+        assert_relative_eq!(h[1], x[1] - age * x[4], epsilon = 1e-12);
+        let fd = numeric_jacobian(|s| models::ground_aged(s, age).0, &x);
+        prop_assert!((jac - fd).abs().max() <= 1e-6, "analytic {jac} fd {fd}");
+        // The height is not observed.
+        prop_assert!(jac.column(2).iter().chain(jac.column(5).iter()).all(|v| *v == 0.0));
+    }
+
+    /// A ground observation folded in information form moves the mean by the Kalman gain and
+    /// the gate is the innovation's Mahalanobis distance.
+    #[test]
+    fn ground_information_is_the_kalman_update(
+        sigma in spd(6),
+        r in spd(2),
+        x in state(),
+        z in prop::array::uniform2(-5.0..5.0f64),
+        age in 0.0..0.3f64,
+    ) {
+        let p = Matrix6::from_iterator(sigma.iter().copied());
+        let r = nalgebra::Matrix2::from_iterator(r.iter().copied());
+        let z = nalgebra::Vector2::from(z);
+        let (omega, xi) = models::ground_contribution_aged(&z, &r, &x, age).unwrap();
+        let info = p.try_inverse().unwrap();
+        let post_cov = (info + omega).try_inverse().unwrap();
+        let post_mean = post_cov * (info * x + xi);
+        let (h, jac) = models::ground_aged(&x, age);
+        let s = jac * p * jac.transpose() + r;
+        let k = p * jac.transpose() * s.try_inverse().unwrap();
+        let want = x + k * (z - h);
+        prop_assert!((post_mean - want).abs().max() <= 1e-6 * (1.0 + want.abs().max()), "{post_mean} vs {want}");
+        let d2 = models::ground_gate_distance2(&x, &p, &z, &r, age).unwrap();
+        let nu = z - h;
+        assert_relative_eq!(d2, nu.dot(&(s.try_inverse().unwrap() * nu)), max_relative = 1e-6);
+    }
+
     /// Folding one measurement in information form (Ω̄ + Hᵀ Q⁻¹ H, ξ̄ + ξ_i) gives the same
     /// posterior as the covariance-form (Kalman) update with the same linearization.
     #[test]

@@ -31,7 +31,7 @@ fn node_crates_never_depend_on_the_simulated_world_or_each_other() {
         "node-acoustic",
         "view",
     ];
-    for krate in ["node-camera", "node-head", "node-server"] {
+    for krate in ["node-camera", "node-camera/acoustic", "node-head", "node-server"] {
         let deps = dependencies(&format!("{krate}/Cargo.toml"));
         assert!(
             deps.iter().any(|d| d == "proto"),

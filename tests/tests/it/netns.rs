@@ -156,6 +156,7 @@ fn scenario() -> Scenario {
         NodeRole::Server => true,
         NodeRole::Head => n.id == HEAD,
         NodeRole::Camera => CAMERAS.contains(&n.id),
+        NodeRole::Acoustic => false,
     });
     for n in &mut s.nodes {
         match n.role {
@@ -167,7 +168,7 @@ fn scenario() -> Scenario {
                 n.host = "hub".into();
                 n.listen = Some(format!("{HUB_IP}:7402"));
             }
-            NodeRole::Camera => n.host = "pis".into(),
+            NodeRole::Camera | NodeRole::Acoustic => n.host = "pis".into(),
         }
     }
     s

@@ -5,7 +5,8 @@
 //! targets walking, the intrinsics scaled for 640×480); rendering is timed apart. Each frame
 //! goes through `CameraNode::on_frame` (segmentation, undistortion, gating) and one
 //! `on_message(Prior)` per target (linearization into Ω_i, ξ_i). The process pins itself to
-//! one CPU and runs single-threaded. Prints JSON.
+//! one CPU and runs single-threaded. Prints JSON, with paper 004's particle-filter and
+//! background-model figures ([`super::particle`]).
 
 use crate::Result;
 use crate::error::OrFailed as _;
@@ -233,7 +234,7 @@ pub fn run(args: &Options) -> Result<serde_json::Value> {
     let (rss, hwm) = memory_kib();
     let (best_ms, best_name, best_step) = best_recommended.or_failed("no 640x480 result")?;
     let (full_ms, full_name) = best_full.or_failed("no full-resolution result")?;
-    let out = json!({
+    let mut out = json!({
         "bench": "camera",
         "what": "segmentation + undistortion + gating + contribution per frame (CameraNode::on_frame + one Prior per target), rendering excluded",
         "pinned_cpu": if pinned { Some(args.cpu) } else { None },
@@ -249,5 +250,13 @@ pub fn run(args: &Options) -> Result<serde_json::Value> {
         "vm_rss_kib": rss,
         "vm_hwm_kib": hwm,
     });
+    // Paper 004's path: the colour particle filters and the background model alone.
+    if let Some(map) = out.as_object_mut() {
+        map.extend(super::particle::particle_filter_keys(frames));
+        map.insert(
+            "background_fps_320x240".into(),
+            json!(super::particle::background_fps(320, 240, frames)),
+        );
+    }
     Ok(out)
 }

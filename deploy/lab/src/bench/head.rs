@@ -251,6 +251,7 @@ fn head_step_us(n: usize, scale: f64, rssi: bool) -> Result<f64> {
         birth_min_cameras: 2,
         target_plane_z: 0.3,
         ml_depth: node_head::fusion::ml::DepthHandling::default(),
+        acoustic: Vec::new(),
     };
     let mut head = HeadNode::new(cfg);
     let truth = State::new(6.2, 3.9, 0.3, 0.0, 0.0, 0.0);

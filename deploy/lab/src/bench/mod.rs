@@ -2,6 +2,8 @@
 
 pub mod camera;
 pub mod fuse;
+pub mod grid;
 pub mod head;
+pub mod particle;
 pub mod server;
 pub mod transport;

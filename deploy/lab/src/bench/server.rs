@@ -70,6 +70,8 @@ fn report(head: u32, k: u32, step: u64) -> Envelope {
                 .collect(),
             power_mw: 2000.0,
             late: 0,
+            appearance: Vec::new(),
+            grid: None,
         }),
     }
 }

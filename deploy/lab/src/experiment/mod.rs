@@ -12,6 +12,7 @@
 
 pub mod ble_rssi;
 pub mod paper000_table1;
+pub mod paper001;
 pub mod paper002_occlusion;
 pub mod paper002_robustness;
 pub mod paper002_rssi_only;
@@ -25,8 +26,9 @@ use serde::Serialize;
 use sim::Level;
 
 /// Every simulated experiment, in priority order: what `ocelli experiment all` runs.
-pub const NAMES: [&str; 5] = [
+pub const NAMES: [&str; 6] = [
     "paper000-table1",
+    "paper001",
     "paper002-table1",
     "paper002-occlusion",
     "paper002-rssi-only",
@@ -188,6 +190,7 @@ impl Outcome {
 pub fn run(name: &str, opts: &Options) -> crate::Result<Outcome> {
     match name {
         "paper000-table1" => paper000_table1::run(opts),
+        paper001::NAME => paper001::run(opts),
         "paper002-table1" => paper002_table1::run(opts),
         "paper002-occlusion" => paper002_occlusion::run(opts),
         "paper002-rssi-only" => paper002_rssi_only::run(opts),

@@ -57,6 +57,11 @@ fn the_default_scenario_is_tracked_with_one_id_and_three_mode_saves_cameras() {
     assert_eq!(all_on.global_ids, 1);
     // The loop crosses x = 6 m once in the first 20 s (at 8.75 s).
     assert_eq!(all_on.handovers, 1);
+    // Every node's runtime counts what it put on the wire; each camera sends something.
+    let cameras: Vec<_> = all_on.bandwidth.iter().filter(|b| b.role == "camera").collect();
+    assert_eq!(cameras.len(), 21, "{:?}", all_on.bandwidth);
+    assert!(cameras.iter().all(|b| b.bytes_per_s > 0.0), "{cameras:?}");
+    eprintln!("bandwidth (all-on): {:?}", all_on.bandwidth);
 
     let three = run(Activation::ThreeMode);
     let err_three = three.mean_error_m.expect("the scenario has ground truth");

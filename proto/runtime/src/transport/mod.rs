@@ -293,13 +293,17 @@ impl Endpoint {
     async fn send_frame(&self, frame: OutFrame) -> Result<Delivery, SendError> {
         let i = &self.inner;
         let to = frame.to;
+        let len = frame.bytes.len();
         let r = match &i.link {
             Link::InProcess(hub) => hub.deliver(i.me, frame, &i.stats).await,
             Link::Tcp(router) => router.send(frame, &i.stats).await,
             Link::Ipc(tx) => tx.send(frame, &i.stats).await,
         };
         match &r {
-            Ok(Delivery::Queued) => stats::bump(&i.stats.sent),
+            Ok(Delivery::Queued) => {
+                stats::bump(&i.stats.sent);
+                stats::add(&i.stats.bytes_sent, len);
+            }
             Ok(Delivery::Dropped) => {}
             Err(SendError::UnknownPeer(_)) => {
                 stats::bump(&i.stats.unroutable);

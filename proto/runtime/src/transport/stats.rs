@@ -33,6 +33,9 @@ pub struct TransportStats {
     pub peers_lost: AtomicU64,
     pub heartbeats_sent: AtomicU64,
     pub heartbeats_received: AtomicU64,
+    /// Bytes of the encoded frames this endpoint put on its links: every message it queued
+    /// and the transport's own heartbeats (framing and TCP/IP headers not counted).
+    pub bytes_sent: AtomicU64,
 }
 
 /// A point-in-time copy of [`TransportStats`].
@@ -55,11 +58,18 @@ pub struct StatsSnapshot {
     pub peers_lost: u64,
     pub heartbeats_sent: u64,
     pub heartbeats_received: u64,
+    #[serde(default)]
+    pub bytes_sent: u64,
 }
 
 /// Add one to a counter.
 pub(crate) fn bump(c: &AtomicU64) {
     c.fetch_add(1, Ordering::Relaxed);
+}
+
+/// Add `n` to a counter.
+pub(crate) fn add(c: &AtomicU64, n: usize) {
+    c.fetch_add(n as u64, Ordering::Relaxed);
 }
 
 impl TransportStats {
@@ -83,6 +93,7 @@ impl TransportStats {
             peers_lost: g(&self.peers_lost),
             heartbeats_sent: g(&self.heartbeats_sent),
             heartbeats_received: g(&self.heartbeats_received),
+            bytes_sent: g(&self.bytes_sent),
         }
     }
 }

@@ -486,7 +486,9 @@ async fn run_link(
                 }
             },
             _ = heartbeat.tick() => {
-                sink.send(ctx.frame(peer, Message::Heartbeat)?).await?;
+                let frame = ctx.frame(peer, Message::Heartbeat)?;
+                super::stats::add(&ctx.stats.bytes_sent, frame.len());
+                sink.send(frame).await?;
                 bump(&ctx.stats.heartbeats_sent);
             }
             _ = &mut silence => return Err(LinkError::Silent(ctx.liveness_timeout)),

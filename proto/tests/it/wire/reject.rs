@@ -185,7 +185,12 @@ fn observation_f32s(o: &Observation) -> Vec<f32> {
             ]
         }
         Observation::Rssi(_) => Vec::new(),
-        Observation::Ground(g) => [vec![g.width_m, g.height_m, g.confidence], g.histogram.clone()].concat(),
+        Observation::Ground(g) => [
+            vec![g.width_m, g.height_m, g.confidence],
+            g.histogram.clone(),
+            g.ml_position.to_vec(),
+        ]
+        .concat(),
         Observation::Acoustic(a) => [vec![a.first_hz, a.step_hz], a.ild_db.clone()].concat(),
     }
 }
@@ -242,6 +247,21 @@ fn sample_f32s(m: &Message) -> Vec<f32> {
                     d.colour.intensity,
                 ]
             })
+            .collect(),
+        Message::TrackReport(r) => r
+            .appearance
+            .iter()
+            .copied()
+            .chain(
+                r.grid
+                    .iter()
+                    .flat_map(|g| [g.origin[0], g.origin[1], g.cell_m, g.peak_mass]),
+            )
+            .collect(),
+        Message::SampleSet(s) => s
+            .samples
+            .iter()
+            .flat_map(|x| [x.state.to_vec(), vec![x.weight]].concat())
             .collect(),
         _ => Vec::new(),
     }
@@ -360,9 +380,10 @@ fn measured_frame_checks_name_the_field() {
 fn unknown_enum_tags() {
     // Top-level message tag: `MESSAGE_KINDS.len()` is one past the last kind.
     let mut frame = encode(&samples()[2]).unwrap();
-    *frame.last_mut().unwrap() = 14;
+    let past = u8::try_from(proto::wire::MESSAGE_KINDS.len()).unwrap();
+    *frame.last_mut().unwrap() = past;
     let e = malformed(&frame);
-    assert!(e.contains("unknown message kind tag 14"), "{e}");
+    assert!(e.contains(&format!("unknown message kind tag {past}")), "{e}");
     // A nested enum: the mode of a command (last byte), tag 3 of 3 modes.
     let mut frame = encode(&samples()[7]).unwrap();
     *frame.last_mut().unwrap() = 3;

@@ -105,9 +105,10 @@ fn ground() -> impl Strategy<Value = Observation> {
         (0.0..5.0f32, 0.0..3.0f32, 0.0..=1.0f32),
         prop::collection::vec(0.0..1.0f32, 0..=MAX_BINS),
         time(),
+        prop::array::uniform2(finite32()),
     )
         .prop_map(
-            |(local, position, cov, (width_m, height_m, confidence), histogram, captured)| {
+            |(local, position, cov, (width_m, height_m, confidence), histogram, captured, ml_position)| {
                 Observation::Ground(GroundPoint {
                     local,
                     position,
@@ -117,6 +118,7 @@ fn ground() -> impl Strategy<Value = Observation> {
                     confidence,
                     histogram,
                     captured,
+                    ml_position,
                 })
             },
         )
@@ -280,20 +282,24 @@ fn message() -> impl Strategy<Value = Message> {
             any::<[u64; 3]>(),
             any::<[u64; 4]>(),
             any::<i64>(),
-            any::<i64>()
+            any::<i64>(),
+            any::<u64>()
         )
-            .prop_map(|(mode, time_in_mode_ns, c, sync_offset_ns, sync_error_ns)| {
-                Message::NodeStatus(NodeStatus {
-                    mode,
-                    time_in_mode_ns,
-                    frames: c[0],
-                    detections: c[1],
-                    dropped: c[2],
-                    rejected: c[3],
-                    sync_offset_ns,
-                    sync_error_ns,
-                })
-            }),
+            .prop_map(
+                |(mode, time_in_mode_ns, c, sync_offset_ns, sync_error_ns, bytes_sent)| {
+                    Message::NodeStatus(NodeStatus {
+                        mode,
+                        time_in_mode_ns,
+                        frames: c[0],
+                        detections: c[1],
+                        dropped: c[2],
+                        rejected: c[3],
+                        sync_offset_ns,
+                        sync_error_ns,
+                        bytes_sent,
+                    })
+                }
+            ),
         (any::<u32>(), any::<u64>(), vec6(), psd(), time()).prop_map(|(t, step, mean, cov, deadline)| {
             Message::Prior(Prior {
                 target: TargetId(t),
@@ -310,10 +316,15 @@ fn message() -> impl Strategy<Value = Message> {
         (
             (any::<u32>(), prop::option::of(any::<u32>()), any::<u64>(), time()),
             (vec6(), psd(), contributors()),
-            (0.0..1e6f64, any::<u64>())
+            (
+                0.0..1e6f64,
+                any::<u64>(),
+                prop::collection::vec(0.0..1.0f32, 0..=MAX_BINS),
+                prop::option::of(grid_posterior())
+            )
         )
             .prop_map(
-                |((t, g, step, time), (mean, cov, contributors), (power_mw, late))| {
+                |((t, g, step, time), (mean, cov, contributors), (power_mw, late, appearance, grid))| {
                     Message::TrackReport(TrackReport {
                         target: TargetId(t),
                         global: g.map(TargetId),
@@ -324,6 +335,8 @@ fn message() -> impl Strategy<Value = Message> {
                         contributors,
                         power_mw,
                         late,
+                        appearance,
+                        grid,
                     })
                 }
             ),
@@ -356,7 +369,61 @@ fn message() -> impl Strategy<Value = Message> {
         )),
         (any::<u32>(), any::<bool>()).prop_map(|(n, up)| Message::Liveness(Liveness { node: NodeId(n), up })),
         measured_frame(),
+        (any::<u32>(), prop::option::of(any::<u32>())).prop_map(|(n, local)| Message::SampleRequest(
+            SampleRequest {
+                node: NodeId(n),
+                local
+            }
+        )),
+        sample_set(),
+        (time(), mode(), any::<u32>()).prop_map(|(captured, mode, detections)| Message::FrameReport(
+            FrameReport {
+                captured,
+                mode,
+                detections
+            }
+        )),
     ]
+}
+
+fn sample_set() -> impl Strategy<Value = Message> {
+    let sample = (prop::array::uniform6(finite32()), 0.0..=1.0f32)
+        .prop_map(|(state, weight)| ImageSample { state, weight });
+    (
+        any::<u32>(),
+        time(),
+        prop::collection::vec(sample, 0..=MAX_SAMPLES),
+    )
+        .prop_map(|(local, captured, samples)| {
+            Message::SampleSet(SampleSet {
+                local,
+                captured,
+                samples,
+            })
+        })
+}
+
+fn grid_posterior() -> impl Strategy<Value = GridPosterior> {
+    (
+        1u16..=8,
+        1u16..=8,
+        -50.0f32..50.0,
+        -50.0f32..50.0,
+        0.01f32..2.0,
+        0.0f32..=1.0,
+    )
+        .prop_flat_map(|(nx, ny, x, y, cell_m, peak_mass)| {
+            prop::collection::vec(any::<u8>(), usize::from(nx) * usize::from(ny)).prop_map(move |cells| {
+                GridPosterior {
+                    origin: [x, y],
+                    cell_m,
+                    nx,
+                    ny,
+                    peak_mass,
+                    cells,
+                }
+            })
+        })
 }
 
 fn envelope() -> impl Strategy<Value = Envelope> {

@@ -1,0 +1,55 @@
+//! Overlap of pixel boxes (continuous coordinates, `xmin ≤ xmax`): what the tracker uses to
+//! relate samples, filters and foreground regions.
+
+use proto::msg::PixelBox;
+
+pub fn area(b: &PixelBox) -> f32 {
+    (b.xmax - b.xmin).max(0.0) * (b.ymax - b.ymin).max(0.0)
+}
+
+pub fn intersection(a: &PixelBox, b: &PixelBox) -> f32 {
+    let w = a.xmax.min(b.xmax) - a.xmin.max(b.xmin);
+    let h = a.ymax.min(b.ymax) - a.ymin.max(b.ymin);
+    w.max(0.0) * h.max(0.0)
+}
+
+/// Intersection over union, 0 for boxes without area.
+pub fn iou(a: &PixelBox, b: &PixelBox) -> f32 {
+    let i = intersection(a, b);
+    let u = area(a) + area(b) - i;
+    if u > 0.0 { i / u } else { 0.0 }
+}
+
+pub fn contains(b: &PixelBox, p: [f32; 2]) -> bool {
+    (b.xmin..=b.xmax).contains(&p[0]) && (b.ymin..=b.ymax).contains(&p[1])
+}
+
+pub fn is_finite(b: &PixelBox) -> bool {
+    [b.xmin, b.ymin, b.xmax, b.ymax].iter().all(|v| v.is_finite())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn b(xmin: f32, ymin: f32, xmax: f32, ymax: f32) -> PixelBox {
+        PixelBox {
+            xmin,
+            ymin,
+            xmax,
+            ymax,
+        }
+    }
+
+    #[test]
+    fn overlap_by_hand() {
+        let a = b(0.0, 0.0, 10.0, 10.0);
+        assert_eq!(iou(&a, &a), 1.0);
+        // Half overlap: 50 / 150.
+        assert!((iou(&a, &b(5.0, 0.0, 15.0, 10.0)) - 1.0 / 3.0).abs() < 1e-6);
+        assert_eq!(iou(&a, &b(20.0, 0.0, 30.0, 10.0)), 0.0);
+        assert_eq!(iou(&b(1.0, 1.0, 1.0, 1.0), &b(1.0, 1.0, 1.0, 1.0)), 0.0);
+        assert!(contains(&a, [10.0, 0.0]) && !contains(&a, [10.1, 5.0]));
+        assert!(!is_finite(&b(0.0, f32::NAN, 1.0, 1.0)));
+    }
+}

@@ -1,0 +1,502 @@
+//! The multi-person tracker of paper 004 §3.2.1–3.2.2: one colour particle filter per person.
+//! A foreground region (from the background model, `adaptive_background`) that no filter explains for
+//! `init-frames` frames starts a filter with its current appearance as target; a filter with no
+//! supporting region for `destroy-frames` frames is destroyed; of two filters that share a
+//! region (and overlap) for `duplicate-frames` frames one is eliminated (the younger, unless
+//! the older's colours matched clearly worse: it drifted there). Each filter
+//! keeps its local id for life. The region assigned to a filter shapes its weights; the
+//! foreground share under its best box gates its adaptation.
+//!
+//! Per frame: the RGB frame, the regions and (optionally) the foreground mask in; per person
+//! out: id, mean state, maximum-likelihood state and confidence, box, sample spread, target
+//! histogram, and on request the sample set.
+
+use crate::adaptive_background::AdaptiveBackground;
+use crate::region::Grid;
+use crate::tracker::boxes::{area, contains, iou, is_finite};
+use crate::tracker::filter::{ParticleFilter, Sample, adaptation_rate};
+use crate::tracker::histogram::{BinImage, ColourHistogram};
+use crate::tracker::motion::State;
+use crate::tracker::params::{ParamsError, ParticleParams};
+use proto::msg::PixelBox;
+use proto::sensor::Detection;
+use proto::sensor::{Frame, FrameError};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use thiserror::Error;
+
+/// A person's id on this camera, unique for the tracker's life.
+pub type LocalId = u32;
+
+/// IoU a region needs with a waiting candidate to count as the same new object.
+const CANDIDATE_IOU: f32 = 0.3;
+
+/// Input the tracker rejects; it changes no state.
+#[derive(Debug, Error, PartialEq)]
+pub enum TrackerError {
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+    #[error("region {index} has a box that is not finite or not ordered: {bbox:?}")]
+    Region { index: usize, bbox: PixelBox },
+    #[error("foreground mask has {got} bytes, its {width}x{height} grid needs {want}")]
+    Mask {
+        got: usize,
+        want: usize,
+        width: usize,
+        height: usize,
+    },
+    #[error("foreground grid covers a {grid_width}-pixel-wide frame, the frame is {frame_width} wide")]
+    MaskGrid { grid_width: usize, frame_width: u32 },
+    #[error("box {0:?} has no pixels in the frame")]
+    EmptyBox(PixelBox),
+    #[error("already tracking {0} people (max-people)")]
+    Full(usize),
+}
+
+/// The background model's per-pixel foreground, on its processing grid.
+#[derive(Clone, Copy, Debug)]
+pub struct Foreground<'a> {
+    mask: &'a [u8],
+    grid: Grid,
+}
+
+impl<'a> Foreground<'a> {
+    /// A mask of one byte per grid pixel, non-zero = foreground.
+    ///
+    /// # Errors
+    /// [`TrackerError::Mask`] when the mask does not fit the grid.
+    pub fn new(mask: &'a [u8], grid: Grid) -> Result<Foreground<'a>, TrackerError> {
+        if mask.len() != grid.len() {
+            return Err(TrackerError::Mask {
+                got: mask.len(),
+                want: grid.len(),
+                width: grid.width,
+                height: grid.height,
+            });
+        }
+        Ok(Foreground { mask, grid })
+    }
+
+    /// The moving-pixel mask of a paper 004 background model's last frame; `None` before its
+    /// first frame.
+    pub fn of(seg: &'a AdaptiveBackground) -> Option<Foreground<'a>> {
+        let grid = seg.grid()?;
+        Foreground::new(seg.mask(), grid).ok()
+    }
+
+    /// Share of the grid pixels under `b` (frame pixels) that are foreground; 0 for a box
+    /// outside the grid.
+    pub fn fraction(&self, b: &PixelBox) -> f32 {
+        let g = &self.grid;
+        let s = g.step as f32;
+        let x0 = (b.xmin / s).ceil().max(0.0);
+        let y0 = (b.ymin / s).ceil().max(0.0);
+        let x1 = (b.xmax / s).floor().min(g.width as f32 - 1.0);
+        let y1 = (b.ymax / s).floor().min(g.height as f32 - 1.0);
+        if !(x0 <= x1 && y0 <= y1) {
+            return 0.0;
+        }
+        let (x0, x1, y0, y1) = (x0 as usize, x1 as usize, y0 as usize, y1 as usize);
+        let set: usize = (y0..=y1)
+            .map(|y| {
+                self.mask[y * g.width + x0..=y * g.width + x1]
+                    .iter()
+                    .filter(|&&v| v != 0)
+                    .count()
+            })
+            .sum();
+        set as f32 / ((x1 - x0 + 1) * (y1 - y0 + 1)) as f32
+    }
+}
+
+/// One frame's input.
+#[derive(Clone, Copy, Debug)]
+pub struct TrackerInput<'a> {
+    pub frame: &'a Frame,
+    /// Foreground regions of this frame (pixel boxes, inclusive pixel indices as `adaptive_background`
+    /// reports them).
+    pub regions: &'a [Detection],
+    pub foreground: Option<Foreground<'a>>,
+    /// Put each filter's sample set in the output.
+    pub with_samples: bool,
+}
+
+/// What the camera reports of one person per frame (§2.5.1).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PersonEstimate {
+    pub id: LocalId,
+    /// The mean state.
+    pub mean: State,
+    /// The maximum-likelihood state and its confidence: its weight before normalization (eq. 8
+    /// times the region term) relative to a perfect match, in [0, 1].
+    pub ml: State,
+    pub ml_confidence: f32,
+    /// The maximum-likelihood sample's colour similarity to the target.
+    pub ml_similarity: f32,
+    /// The largest normalized weight.
+    pub peak_weight: f32,
+    /// Foreground share under the maximum-likelihood box (with a background model).
+    pub foreground: Option<f32>,
+    /// The mean state's box.
+    pub bbox: PixelBox,
+    /// Weighted covariance of the samples' (x, y, w, h), pixels².
+    pub box_covariance: [[f64; 4]; 4],
+    /// The target histogram after this frame's adaptation.
+    pub histogram: ColourHistogram,
+    /// The sample set when asked for, else empty.
+    pub samples: Vec<Sample>,
+    pub frames_tracked: u64,
+    /// Consecutive frames without a supporting region.
+    pub unsupported_frames: u32,
+}
+
+/// What the tracker did since it started.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TrackerCounters {
+    pub frames: u64,
+    pub started: u64,
+    pub destroyed: u64,
+    pub duplicates_eliminated: u64,
+    /// Regions that would have started a filter with `max-people` already tracked.
+    pub refused_full: u64,
+}
+
+#[derive(Clone, Debug)]
+struct Person {
+    id: LocalId,
+    filter: ParticleFilter,
+    unsupported: u32,
+    /// This frame's region, index into the input.
+    region: Option<usize>,
+    foreground: Option<f32>,
+}
+
+#[derive(Clone, Debug)]
+struct Candidate {
+    bbox: PixelBox,
+    seen: u32,
+}
+
+/// Two filters sharing a region, and for how many consecutive frames.
+#[derive(Clone, Debug)]
+struct Shared {
+    older: LocalId,
+    younger: LocalId,
+    frames: u32,
+    /// Sum over those frames of the older's colour similarity minus the younger's.
+    older_lead: f32,
+}
+
+/// How much worse (mean colour similarity over the shared frames) the older of two duplicates
+/// must match for it, not the younger, to be eliminated: a filter that drifted onto someone
+/// else's region gives way to the one that matches them, while two filters on the same person
+/// keep the older id.
+const DRIFTED_MARGIN: f32 = 0.05;
+
+/// The multi-person tracker of one camera.
+#[derive(Debug)]
+pub struct MultiTracker {
+    params: ParticleParams,
+    rng: ChaCha8Rng,
+    image: BinImage,
+    frame_size: Option<(u32, u32)>,
+    people: Vec<Person>,
+    candidates: Vec<Candidate>,
+    shared: Vec<Shared>,
+    next_id: LocalId,
+    counters: TrackerCounters,
+}
+
+/// A region's box in continuous pixel coordinates (pixel `i` spans `[i − ½, i + ½]`).
+pub fn region_box(d: &Detection) -> PixelBox {
+    PixelBox {
+        xmin: d.bbox.xmin - 0.5,
+        ymin: d.bbox.ymin - 0.5,
+        xmax: d.bbox.xmax + 0.5,
+        ymax: d.bbox.ymax + 0.5,
+    }
+}
+
+/// Whether a region supports a filter's box: the box centre inside it, or enough overlap.
+fn supports(region: &PixelBox, b: &PixelBox, min_iou: f32) -> bool {
+    let c = [0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax)];
+    contains(region, c) || iou(region, b) >= min_iou.max(f32::MIN_POSITIVE)
+}
+
+/// The supporting region with the largest overlap.
+fn best_region(b: &PixelBox, regions: &[PixelBox], min_iou: f32) -> Option<usize> {
+    regions
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| supports(r, b, min_iou))
+        .max_by(|(_, a), (_, c)| iou(a, b).total_cmp(&iou(c, b)))
+        .map(|(i, _)| i)
+}
+
+impl MultiTracker {
+    /// A tracker with no one tracked, its randomness seeded with `seed`.
+    ///
+    /// # Errors
+    /// A parameter out of range.
+    pub fn new(params: ParticleParams, seed: u64) -> Result<MultiTracker, ParamsError> {
+        params.validate()?;
+        Ok(MultiTracker {
+            params,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            image: BinImage::new(),
+            frame_size: None,
+            people: Vec::new(),
+            candidates: Vec::new(),
+            shared: Vec::new(),
+            next_id: 0,
+            counters: TrackerCounters::default(),
+        })
+    }
+
+    pub fn params(&self) -> &ParticleParams {
+        &self.params
+    }
+
+    pub fn counters(&self) -> TrackerCounters {
+        self.counters
+    }
+
+    /// Ids of the people tracked now, oldest first.
+    pub fn ids(&self) -> Vec<LocalId> {
+        self.people.iter().map(|p| p.id).collect()
+    }
+
+    pub fn filter(&self, id: LocalId) -> Option<&ParticleFilter> {
+        self.people.iter().find(|p| p.id == id).map(|p| &p.filter)
+    }
+
+    /// Drop every filter and candidate and forget the frame size (a source that changed
+    /// resolution, a stream that came back). Ids keep counting, so none is reused.
+    pub fn reset(&mut self) {
+        self.people.clear();
+        self.candidates.clear();
+        self.shared.clear();
+        self.frame_size = None;
+    }
+
+    fn check_frame(&self, frame: &Frame) -> Result<(), TrackerError> {
+        frame.check()?;
+        match self.frame_size {
+            Some((w, h)) if (w, h) != (frame.width, frame.height) => Err(FrameError::Mismatch {
+                got_w: frame.width,
+                got_h: frame.height,
+                want_w: w,
+                want_h: h,
+            }
+            .into()),
+            _ => Ok(()),
+        }
+    }
+
+    /// Start a filter on `bbox` (continuous pixel coordinates) of `frame` by hand — the
+    /// paper's §2 training by presenting the object. The frame must be the one the next
+    /// [`MultiTracker::step`] continues from.
+    ///
+    /// # Errors
+    /// A malformed frame or one of another size, a box without pixels in it, or `max-people`
+    /// reached; nothing changes then.
+    pub fn start(&mut self, frame: &Frame, bbox: &PixelBox) -> Result<LocalId, TrackerError> {
+        self.check_frame(frame)?;
+        if self.people.len() >= self.params.max_people {
+            return Err(TrackerError::Full(self.people.len()));
+        }
+        let mut bins = self.image.bind(frame)?;
+        let filter = ParticleFilter::new(&mut bins, bbox, &self.params, &mut self.rng)
+            .ok_or(TrackerError::EmptyBox(*bbox))?;
+        self.frame_size = Some((frame.width, frame.height));
+        Ok(self.add(filter))
+    }
+
+    fn add(&mut self, filter: ParticleFilter) -> LocalId {
+        let id = self.next_id;
+        self.next_id = self.next_id.wrapping_add(1);
+        self.people.push(Person {
+            id,
+            filter,
+            unsupported: 0,
+            region: None,
+            foreground: None,
+        });
+        self.counters.started += 1;
+        id
+    }
+
+    /// Track one frame.
+    ///
+    /// # Errors
+    /// A malformed frame or one of another size than the first, a region box that is not
+    /// finite, a foreground grid that does not fit the frame; nothing changes then.
+    pub fn step(&mut self, input: &TrackerInput<'_>) -> Result<Vec<PersonEstimate>, TrackerError> {
+        self.check_frame(input.frame)?;
+        if let Some((index, d)) = input
+            .regions
+            .iter()
+            .enumerate()
+            .find(|(_, d)| !is_finite(&d.bbox) || d.bbox.xmin > d.bbox.xmax || d.bbox.ymin > d.bbox.ymax)
+        {
+            return Err(TrackerError::Region { index, bbox: d.bbox });
+        }
+        if let Some(fg) = &input.foreground
+            && fg.grid.frame_width != input.frame.width as usize
+        {
+            return Err(TrackerError::MaskGrid {
+                grid_width: fg.grid.frame_width,
+                frame_width: input.frame.width,
+            });
+        }
+        self.frame_size = Some((input.frame.width, input.frame.height));
+        self.counters.frames += 1;
+        let regions: Vec<PixelBox> = input.regions.iter().map(region_box).collect();
+        let mut bins = self.image.bind(input.frame)?;
+        let p = &self.params;
+        for person in &mut self.people {
+            let mean = person.filter.mean();
+            let predicted = State {
+                x: mean.x + mean.vx,
+                y: mean.y + mean.vy,
+                ..mean
+            };
+            let roi = best_region(&predicted.bbox(), &regions, p.support_iou).map(|i| &regions[i]);
+            person.filter.step(&mut bins, roi, p, &mut self.rng);
+            let b = person.filter.mean().bbox();
+            person.region = best_region(&b, &regions, p.support_iou);
+            person.unsupported = if person.region.is_some() {
+                0
+            } else {
+                person.unsupported + 1
+            };
+            let ml_box = person.filter.ml_state().bbox();
+            person.foreground = input.foreground.map(|f| f.fraction(&ml_box));
+            let rate = adaptation_rate(p, person.filter.ml_similarity(), person.foreground);
+            person.filter.adapt(rate);
+        }
+        let before = self.people.len();
+        self.people.retain(|q| q.unsupported < p.destroy_frames);
+        self.counters.destroyed += (before - self.people.len()) as u64;
+        self.eliminate_duplicates();
+        let births = self.candidates_ready(input.regions, &regions);
+        if !births.is_empty() {
+            // Re-bound after the filters ran: only the new boxes' tiles are looked up again.
+            let mut bins = self.image.bind(input.frame)?;
+            let started: Vec<ParticleFilter> = births
+                .iter()
+                .filter_map(|b| ParticleFilter::new(&mut bins, b, &self.params, &mut self.rng))
+                .collect();
+            for filter in started {
+                self.add(filter);
+            }
+        }
+        Ok(self.estimates(input.with_samples))
+    }
+
+    /// Count how long each pair of overlapping filters has shared a region; of a pair that has
+    /// for `duplicate-frames` frames, eliminate the younger — or the older, if its colours
+    /// matched clearly worse over those frames (it drifted onto the other's person). A pair
+    /// that splits starts over.
+    fn eliminate_duplicates(&mut self) {
+        let p = &self.params;
+        let mut shared = Vec::new();
+        // `people` is in id order: `a` is the older of each pair.
+        for (i, a) in self.people.iter().enumerate() {
+            for b in &self.people[i + 1..] {
+                let same = a.region.is_some() && a.region == b.region;
+                if same && iou(&a.filter.mean().bbox(), &b.filter.mean().bbox()) >= p.duplicate_iou {
+                    let (frames, lead) = self
+                        .shared
+                        .iter()
+                        .find(|s| (s.older, s.younger) == (a.id, b.id))
+                        .map_or((0, 0.0), |s| (s.frames, s.older_lead));
+                    shared.push(Shared {
+                        older: a.id,
+                        younger: b.id,
+                        frames: frames + 1,
+                        older_lead: lead + a.filter.ml_similarity() - b.filter.ml_similarity(),
+                    });
+                }
+            }
+        }
+        let mut doomed: Vec<LocalId> = Vec::new();
+        for s in shared.iter().filter(|s| s.frames >= p.duplicate_frames) {
+            if doomed.contains(&s.older) || doomed.contains(&s.younger) {
+                continue;
+            }
+            let drifted = s.older_lead / (s.frames as f32) < -DRIFTED_MARGIN;
+            doomed.push(if drifted { s.older } else { s.younger });
+        }
+        shared.retain(|s| !doomed.contains(&s.younger) && !doomed.contains(&s.older));
+        self.shared = shared;
+        let before = self.people.len();
+        self.people.retain(|q| !doomed.contains(&q.id));
+        self.counters.duplicates_eliminated += (before - self.people.len()) as u64;
+    }
+
+    /// Regions no filter explains become (or advance) candidates; returns the boxes of those
+    /// seen for `init-frames` consecutive frames, for which a filter starts (up to
+    /// `max-people`).
+    fn candidates_ready(&mut self, detections: &[Detection], regions: &[PixelBox]) -> Vec<PixelBox> {
+        let p = &self.params;
+        let mut next = Vec::new();
+        for (r, d) in regions.iter().zip(detections) {
+            let explained = self
+                .people
+                .iter()
+                .any(|q| supports(r, &q.filter.mean().bbox(), p.support_iou));
+            if explained || d.area < p.min_init_area || area(r) <= 0.0 {
+                continue;
+            }
+            let seen = self
+                .candidates
+                .iter()
+                .filter(|c| iou(&c.bbox, r) >= CANDIDATE_IOU)
+                .map(|c| c.seen)
+                .max()
+                .unwrap_or(0);
+            next.push(Candidate {
+                bbox: *r,
+                seen: seen + 1,
+            });
+        }
+        let (ready, waiting): (Vec<Candidate>, Vec<Candidate>) =
+            next.into_iter().partition(|c| c.seen >= p.init_frames);
+        self.candidates = waiting;
+        let room = p.max_people.saturating_sub(self.people.len());
+        self.counters.refused_full += ready.len().saturating_sub(room) as u64;
+        ready.into_iter().take(room).map(|c| c.bbox).collect()
+    }
+
+    fn estimates(&self, with_samples: bool) -> Vec<PersonEstimate> {
+        self.people
+            .iter()
+            .map(|q| {
+                let f = &q.filter;
+                PersonEstimate {
+                    id: q.id,
+                    mean: f.mean(),
+                    ml: f.ml_state(),
+                    ml_confidence: f.ml_likelihood(),
+                    ml_similarity: f.ml_similarity(),
+                    peak_weight: f.peak_weight(),
+                    foreground: q.foreground,
+                    bbox: f.mean().bbox(),
+                    box_covariance: f.box_covariance(),
+                    histogram: f.target().clone(),
+                    samples: if with_samples {
+                        f.samples().collect()
+                    } else {
+                        Vec::new()
+                    },
+                    frames_tracked: f.iterations(),
+                    unsupported_frames: q.unsupported,
+                }
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,440 @@
+use super::*;
+use crate::adaptive_background::AdaptiveBackgroundParams;
+use crate::tracker::scene::{Person as Drawn, Scene};
+use proto::ClusterTime;
+use proto::sensor::rgb_to_hsi;
+
+fn red() -> Drawn {
+    Drawn {
+        shirt: [210, 40, 50],
+        trousers: [40, 60, 160],
+        size: [20.0, 40.0],
+        start: [20.0, 60.0],
+        velocity: [1.5, 0.3],
+    }
+}
+
+fn green() -> Drawn {
+    Drawn {
+        shirt: [40, 200, 60],
+        trousers: [150, 120, 20],
+        size: [18.0, 36.0],
+        start: [150.0, 30.0],
+        velocity: [-1.0, 0.5],
+    }
+}
+
+fn scene(people: Vec<Drawn>) -> Scene {
+    Scene {
+        width: 220,
+        height: 160,
+        people,
+        noise: 6,
+        fps: 15.0,
+    }
+}
+
+/// A region as the background model reports it: inclusive pixel indices.
+fn detection(b: &PixelBox) -> Detection {
+    let bbox = PixelBox {
+        xmin: b.xmin.ceil(),
+        ymin: b.ymin.ceil(),
+        xmax: b.xmax.floor(),
+        ymax: b.ymax.floor(),
+    };
+    let (w, h) = (bbox.xmax - bbox.xmin + 1.0, bbox.ymax - bbox.ymin + 1.0);
+    let cx = 0.5 * (bbox.xmin + bbox.xmax);
+    Detection {
+        centre: [cx, 0.5 * (bbox.ymin + bbox.ymax)],
+        foot: [cx, bbox.ymax],
+        bbox,
+        area: (w * h) as u32,
+        colour: rgb_to_hsi(0.0, 0.0, 0.0),
+    }
+}
+
+fn centre(b: &PixelBox) -> [f32; 2] {
+    [0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax)]
+}
+
+fn distance(e: &PersonEstimate, b: &PixelBox) -> f32 {
+    let c = centre(b);
+    (e.mean.x - c[0]).hypot(e.mean.y - c[1])
+}
+
+fn input<'a>(frame: &'a Frame, regions: &'a [Detection]) -> TrackerInput<'a> {
+    TrackerInput {
+        frame,
+        regions,
+        foreground: None,
+        with_samples: false,
+    }
+}
+
+#[test]
+fn people_who_enter_get_a_filter_and_one_who_leaves_loses_it_after_n_frames() {
+    let params = ParticleParams {
+        init_frames: 2,
+        destroy_frames: 10,
+        ..ParticleParams::default()
+    };
+    let mut tracker = MultiTracker::new(params, 1).unwrap();
+    let (both, only_red) = (scene(vec![red(), green()]), scene(vec![red()]));
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    let mut ids_at = Vec::new();
+    for t in 0..70u32 {
+        // Green walks in at frame 10 and out at frame 40.
+        let s = if (10..40).contains(&t) { &both } else { &only_red };
+        s.render(t, &mut frame);
+        let regions: Vec<Detection> = (0..s.people.len()).map(|i| detection(&s.box_at(i, t))).collect();
+        let out = tracker.step(&input(&frame, &regions)).unwrap();
+        ids_at.push(tracker.ids());
+        // Identities stay on their people.
+        if let Some(e) = out.iter().find(|e| e.id == 0) {
+            assert!(
+                distance(e, &both.box_at(0, t)) < 4.0,
+                "frame {t}: red's filter off: {e:?}"
+            );
+        }
+        if (13..40).contains(&t) {
+            let e = out.iter().find(|e| e.id == 1).expect("green's filter");
+            assert!(
+                distance(e, &both.box_at(1, t)) < 4.0,
+                "frame {t}: green's filter off"
+            );
+        }
+    }
+    assert!(
+        ids_at[0].is_empty(),
+        "a region must be seen init-frames = 2 frames"
+    );
+    assert_eq!(ids_at[1], vec![0]);
+    assert_eq!(ids_at[10], vec![0]);
+    assert_eq!(ids_at[11], vec![0, 1], "two people, two filters");
+    assert_eq!(
+        ids_at[48],
+        vec![0, 1],
+        "green left at 40: 9 frames without a region"
+    );
+    assert_eq!(
+        ids_at[49],
+        vec![0],
+        "destroyed on the 10th frame without a region"
+    );
+    assert_eq!(ids_at[69], vec![0]);
+    let c = tracker.counters();
+    assert_eq!((c.started, c.destroyed, c.duplicates_eliminated), (2, 1, 0));
+}
+
+#[test]
+fn a_duplicate_filter_on_one_region_is_eliminated_and_the_older_id_stays() {
+    let params = ParticleParams {
+        duplicate_frames: 10,
+        ..ParticleParams::default()
+    };
+    let mut tracker = MultiTracker::new(params, 2).unwrap();
+    let s = scene(vec![red()]);
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    for t in 0..30u32 {
+        s.render(t, &mut frame);
+        let regions = [detection(&s.box_at(0, t))];
+        let out = tracker.step(&input(&frame, &regions)).unwrap();
+        if t == 5 {
+            assert_eq!(tracker.ids(), vec![0]);
+            let second = tracker.start(&frame, &s.box_at(0, t)).unwrap();
+            assert_eq!(second, 1);
+        }
+        match t {
+            6..=14 => assert_eq!(tracker.ids(), vec![0, 1], "frame {t}"),
+            15.. => {
+                assert_eq!(tracker.ids(), vec![0], "frame {t}: the younger is eliminated");
+                assert!(distance(&out[0], &s.box_at(0, t)) < 4.0);
+            }
+            _ => {}
+        }
+    }
+    let c = tracker.counters();
+    assert_eq!((c.started, c.duplicates_eliminated, c.destroyed), (2, 1, 0));
+}
+
+#[test]
+fn two_people_in_one_merged_region_keep_their_filters_unless_the_rule_is_literal() {
+    // Red and green walk side by side; the background model sees one region around both.
+    let mut a = red();
+    let mut b = green();
+    a.start = [40.0, 60.0];
+    b.start = [61.0, 62.0];
+    a.velocity = [1.0, 0.0];
+    b.velocity = [1.0, 0.0];
+    let s = scene(vec![a, b]);
+    let run = |duplicate_iou: f32| {
+        let params = ParticleParams {
+            duplicate_iou,
+            duplicate_frames: 10,
+            ..ParticleParams::default()
+        };
+        let mut tracker = MultiTracker::new(params, 3).unwrap();
+        let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+        s.render(0, &mut frame);
+        tracker.start(&frame, &s.box_at(0, 0)).unwrap();
+        tracker.start(&frame, &s.box_at(1, 0)).unwrap();
+        for t in 1..25u32 {
+            s.render(t, &mut frame);
+            let (p, q) = (s.box_at(0, t), s.box_at(1, t));
+            let merged = PixelBox {
+                xmin: p.xmin.min(q.xmin),
+                ymin: p.ymin.min(q.ymin),
+                xmax: p.xmax.max(q.xmax),
+                ymax: p.ymax.max(q.ymax),
+            };
+            tracker.step(&input(&frame, &[detection(&merged)])).unwrap();
+        }
+        tracker.ids()
+    };
+    assert_eq!(run(0.4), vec![0, 1], "their boxes do not overlap: two people");
+    assert_eq!(
+        run(0.0),
+        vec![0],
+        "the paper's literal rule keeps one filter per region"
+    );
+}
+
+#[test]
+fn with_the_background_model_it_tracks_two_people_and_reports_their_foreground() {
+    let s = scene(vec![red(), green()]);
+    let empty = scene(vec![]);
+    let mut seg = AdaptiveBackground::new(AdaptiveBackgroundParams::default());
+    let mut tracker = MultiTracker::new(ParticleParams::default(), 4).unwrap();
+    let (mut frame, mut regions) = (Frame::new(1, 1, ClusterTime::ZERO), Vec::new());
+    empty.render(0, &mut frame);
+    seg.process(&frame, &mut regions).unwrap();
+    let mut last = Vec::new();
+    for t in 1..40u32 {
+        s.render(t, &mut frame);
+        seg.process(&frame, &mut regions).unwrap();
+        let inp = TrackerInput {
+            frame: &frame,
+            regions: &regions,
+            foreground: Foreground::of(&seg),
+            with_samples: false,
+        };
+        last = tracker.step(&inp).unwrap();
+    }
+    assert_eq!(tracker.ids(), vec![0, 1], "{last:?}");
+    // Each person has one filter on them (ids in the order the regions were found).
+    for i in 0..2 {
+        let truth = s.box_at(i, 39);
+        let e = last
+            .iter()
+            .min_by(|a, b| distance(a, &truth).total_cmp(&distance(b, &truth)))
+            .unwrap();
+        let d = distance(e, &truth);
+        assert!(d < 4.0, "person {i}: {d:.1} px off");
+        let fg = e.foreground.unwrap();
+        assert!(fg > 0.6, "person {i}: foreground under the box {fg}");
+        let h = truth.ymax - truth.ymin;
+        assert!(
+            (e.mean.h - h).abs() < 0.2 * h,
+            "person {i}: height {} of {h}",
+            e.mean.h
+        );
+    }
+}
+
+#[test]
+fn samples_only_on_request() {
+    let s = scene(vec![red()]);
+    let mut tracker = MultiTracker::new(ParticleParams::default(), 5).unwrap();
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    for t in 0..3u32 {
+        s.render(t, &mut frame);
+        let regions = [detection(&s.box_at(0, t))];
+        let out = tracker
+            .step(&TrackerInput {
+                with_samples: t == 2,
+                ..input(&frame, &regions)
+            })
+            .unwrap();
+        if t == 1 {
+            assert!(out[0].samples.is_empty());
+        }
+        if t == 2 {
+            assert_eq!(out[0].samples.len(), 100);
+            let total: f32 = out[0].samples.iter().map(|x| x.weight).sum();
+            assert!((total - 1.0).abs() < 1e-4);
+        }
+    }
+}
+
+#[test]
+fn bad_input_is_rejected_and_changes_nothing() {
+    let s = scene(vec![red(), green()]);
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    let mut clean = MultiTracker::new(ParticleParams::default(), 6).unwrap();
+    let mut poked = MultiTracker::new(ParticleParams::default(), 6).unwrap();
+    for t in 0..12u32 {
+        s.render(t, &mut frame);
+        let regions: Vec<Detection> = (0..2).map(|i| detection(&s.box_at(i, t))).collect();
+        if t == 6 {
+            let mut bad = regions.clone();
+            bad[1].bbox.xmax = f32::NAN;
+            let err = poked.step(&input(&frame, &bad)).unwrap_err();
+            assert!(matches!(err, TrackerError::Region { index: 1, .. }), "{err}");
+            let small = Frame::new(100, 80, frame.captured);
+            let err = poked.step(&input(&small, &regions)).unwrap_err();
+            assert!(
+                matches!(err, TrackerError::Frame(FrameError::Mismatch { .. })),
+                "{err}"
+            );
+            let mask = vec![0u8; 50 * 40];
+            let grid = Grid::new(100, 80, 2);
+            let fg = Foreground::new(&mask, grid).unwrap();
+            let err = poked
+                .step(&TrackerInput {
+                    foreground: Some(fg),
+                    ..input(&frame, &regions)
+                })
+                .unwrap_err();
+            assert!(matches!(err, TrackerError::MaskGrid { .. }), "{err}");
+            let err = poked.start(
+                &frame,
+                &PixelBox {
+                    xmin: -50.0,
+                    ymin: -50.0,
+                    xmax: -10.0,
+                    ymax: -10.0,
+                },
+            );
+            assert!(matches!(err, Err(TrackerError::EmptyBox(_))));
+        }
+        let a = clean.step(&input(&frame, &regions)).unwrap();
+        let b = poked.step(&input(&frame, &regions)).unwrap();
+        assert_eq!(a, b, "frame {t}");
+    }
+    assert_eq!(clean.counters(), poked.counters());
+}
+
+#[test]
+fn foreground_share_under_a_box() {
+    // A 20×20 frame on a step-2 grid (10×10); a 2×2 grid block set.
+    let grid = Grid::new(20, 20, 2);
+    let mut mask = vec![0u8; 100];
+    for (x, y) in [(2, 2), (3, 2), (2, 3), (3, 3)] {
+        mask[y * 10 + x] = 1;
+    }
+    let fg = Foreground::new(&mask, grid).unwrap();
+    // Frame pixels 4..=10 cover grid columns and rows 2..=5: 4 of 16 set.
+    let b = PixelBox {
+        xmin: 4.0,
+        ymin: 4.0,
+        xmax: 10.0,
+        ymax: 10.0,
+    };
+    assert!((fg.fraction(&b) - 0.25).abs() < 1e-6);
+    let outside = PixelBox {
+        xmin: 30.0,
+        ymin: 0.0,
+        xmax: 40.0,
+        ymax: 5.0,
+    };
+    assert_eq!(fg.fraction(&outside), 0.0);
+    assert!(matches!(
+        Foreground::new(&mask[..99], grid),
+        Err(TrackerError::Mask {
+            got: 99,
+            want: 100,
+            ..
+        })
+    ));
+}
+
+#[test]
+fn max_people_refuses_and_counts_the_rest() {
+    let params = ParticleParams {
+        max_people: 1,
+        init_frames: 1,
+        ..ParticleParams::default()
+    };
+    let mut tracker = MultiTracker::new(params, 7).unwrap();
+    let s = scene(vec![red(), green()]);
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    s.render(0, &mut frame);
+    let regions: Vec<Detection> = (0..2).map(|i| detection(&s.box_at(i, 0))).collect();
+    tracker.step(&input(&frame, &regions)).unwrap();
+    assert_eq!(tracker.ids().len(), 1);
+    assert_eq!(tracker.counters().refused_full, 1);
+    assert!(matches!(
+        tracker.start(&frame, &s.box_at(1, 0)),
+        Err(TrackerError::Full(1))
+    ));
+    let bad = ParticleParams {
+        particles: 0,
+        ..ParticleParams::default()
+    };
+    assert_eq!(MultiTracker::new(bad, 0).unwrap_err().field, "particles");
+}
+
+#[test]
+fn reset_accepts_a_new_resolution_and_never_reuses_an_id() {
+    let mut tracker = MultiTracker::new(ParticleParams::default(), 8).unwrap();
+    let s = scene(vec![red()]);
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    for t in 0..3u32 {
+        s.render(t, &mut frame);
+        tracker
+            .step(&input(&frame, &[detection(&s.box_at(0, t))]))
+            .unwrap();
+    }
+    assert_eq!(tracker.ids(), vec![0]);
+    let smaller = Scene {
+        width: 160,
+        height: 120,
+        ..s.clone()
+    };
+    smaller.render(3, &mut frame);
+    let regions = [detection(&smaller.box_at(0, 3))];
+    assert!(tracker.step(&input(&frame, &regions)).is_err());
+    tracker.reset();
+    assert!(tracker.ids().is_empty());
+    for t in 3..6u32 {
+        smaller.render(t, &mut frame);
+        tracker
+            .step(&input(&frame, &[detection(&smaller.box_at(0, t))]))
+            .unwrap();
+    }
+    assert_eq!(tracker.ids(), vec![1]);
+}
+
+#[test]
+fn of_two_duplicates_the_one_that_drifted_onto_someone_else_gives_way() {
+    // Filter 0 learned a green person; it sits on the red person's region, where filter 1
+    // (red's own) also is. Filter 0 matches clearly worse there, so it goes, though older.
+    let params = ParticleParams {
+        duplicate_frames: 8,
+        ..ParticleParams::default()
+    };
+    let mut tracker = MultiTracker::new(params, 9).unwrap();
+    let still = Drawn {
+        velocity: [0.0, 0.0],
+        ..red()
+    };
+    let s = scene(vec![still.clone()]);
+    let in_green = scene(vec![Drawn {
+        shirt: [40, 200, 60],
+        trousers: [150, 120, 20],
+        ..still
+    }]);
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    let b = s.box_at(0, 0);
+    in_green.render(0, &mut frame);
+    assert_eq!(tracker.start(&frame, &b).unwrap(), 0);
+    s.render(1, &mut frame);
+    tracker.step(&input(&frame, &[detection(&b)])).unwrap();
+    assert_eq!(tracker.start(&frame, &b).unwrap(), 1);
+    for t in 2..20u32 {
+        s.render(t, &mut frame);
+        tracker.step(&input(&frame, &[detection(&b)])).unwrap();
+    }
+    assert_eq!(tracker.ids(), vec![1]);
+    assert_eq!(tracker.counters().duplicates_eliminated, 1);
+}
