@@ -63,6 +63,11 @@ pub enum Command {
     Man(cmd::shell::ManArgs),
     /// Run one acoustic node (`--id N`), or survey fingerprints / locate a sound (paper 001).
     Acoustic(cmd::acoustic::Args),
+    /// Run the visualization node: a client of the server serving the live map, the 3D view,
+    /// `/api/state`, `/metrics` and KML over HTTP.
+    Viewer(cmd::viewer::Args),
+    /// Play a server's recording back in the viewer's pages (play, pause, time slider).
+    View(cmd::view::Args),
     /// Run one transport endpoint as a process (for tests and probes).
     #[command(hide = true)]
     Peer(cmd::peer::Args),
@@ -72,12 +77,15 @@ pub enum Command {
 /// group is listed under "More".
 pub const GROUPS: &[(&str, &[&str])] = &[
     ("Run a cluster", &["launch", "deploy"]),
-    ("Run one node", &["camera", "head", "server", "acoustic"]),
+    (
+        "Run one node",
+        &["camera", "head", "server", "acoustic", "viewer"],
+    ),
     (
         "Study",
         &["sim", "experiment", "replay", "fuse", "bench", "undistort"],
     ),
-    ("Inspect recordings", &["report", "export"]),
+    ("Inspect recordings", &["report", "export", "view"]),
     ("Set up", &["scenario", "completions", "man"]),
 ];
 
@@ -117,6 +125,8 @@ fn dispatch(command: Command, log_json: bool) -> anyhow::Result<ExitCode> {
         Command::Bench(Bench::Fuse(args)) => cmd::bench::fuse(args),
         Command::Bench(Bench::Grid(args)) => cmd::bench::grid(args),
         Command::Acoustic(args) => cmd::acoustic::run_cmd(args),
+        Command::Viewer(args) => cmd::viewer::run(args),
+        Command::View(args) => cmd::view::run(args),
         Command::Undistort(args) => cmd::undistort::run(args),
         Command::Report(args) => cmd::report::run(args),
         Command::Export(args) => cmd::export::run(args),

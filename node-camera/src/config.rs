@@ -4,7 +4,8 @@ use crate::segment::SegmentParams;
 use proto::NodeId;
 use proto::camera::CameraModel;
 use proto::msg::Mode;
-use proto::scenario::{Fusion, NodeRole, Scenario, ScenarioError};
+use proto::scenario::particle::ParticleParams;
+use proto::scenario::{CameraTracker, Fusion, NodeRole, Scenario, ScenarioError};
 use proto::sensor::ReferencePoint;
 use thiserror::Error;
 
@@ -47,6 +48,15 @@ pub struct CameraConfig {
     /// A logging run: measure every frame whatever the mode and send its measurements to the
     /// server's recording ([`crate::record_all`]).
     pub record_all: bool,
+    /// What the camera makes of its frames: pin-hole points of segmented regions, or paper
+    /// 004's per-person particle filters sending ground-plane people
+    /// ([`crate::ground_people`]).
+    pub tracker: CameraTracker,
+    /// The particle filters' parameters (`[method.particle]`).
+    pub particle: ParticleParams,
+    /// A radio-only node (no camera geometry in the scenario): `camera` is a blind placeholder
+    /// at the radio's place, it gets no frames and starts in CameraOff, its working mode.
+    pub radio_only: bool,
 }
 
 impl CameraConfig {
@@ -59,7 +69,8 @@ impl CameraConfig {
             .node(id)
             .filter(|n| n.role == NodeRole::Camera)
             .ok_or(ConfigError::NotACamera(id))?;
-        let camera = scenario.camera_model(id)?;
+        let camera = scenario.camera_or_blind(id)?;
+        let radio_only = node.radio_only();
         let head = node.head.or_else(|| scenario.heads().next().map(|h| h.id));
         let m = &scenario.method;
         let fps = node.camera.as_ref().map_or(5.0, |c| c.fps);
@@ -80,9 +91,12 @@ impl CameraConfig {
             max_age_ms: m.capture_max_age_ms(),
             rssi: node.rssi,
             previous_point: m.previous_point,
-            initial_mode: Mode::Active,
+            initial_mode: if radio_only { Mode::CameraOff } else { Mode::Active },
             fps,
             record_all: false,
+            tracker: m.camera_tracker,
+            particle: m.particle.clone(),
+            radio_only,
         })
     }
 }

@@ -10,9 +10,12 @@
 //! (Active, CameraOff, Inactive) follow the head's `Command`s; time in each, the runtime's
 //! sync estimate and what it could not deliver are reported in a `NodeStatus` every status
 //! period. In a logging run ([`crate::record_all`]) every frame is measured whatever the mode
-//! and its measurements go to the server's recording.
+//! and its measurements go to the server's recording. With `camera-tracker = "particle"` the
+//! frames go through paper 004's particle filters and people leave as ground-plane
+//! observations ([`ground`]).
 
 use crate::config::CameraConfig;
+use crate::ground_people::GroundPeople;
 use crate::measure::{self, Measured};
 use crate::previous::{Offer, previous_point};
 use crate::record_all::RecordAll;
@@ -91,6 +94,8 @@ pub struct CameraNode {
     tags: BTreeMap<TagId, RssiReading>,
     /// A logging run's measuring of every frame, whatever the mode.
     record_all: Option<RecordAll>,
+    /// Paper 004's particle filters, when the scenario selects them.
+    people: Option<GroundPeople>,
     mode: Mode,
     mode_since: ClusterTime,
     time_in_mode_ns: [u64; 3],
@@ -99,12 +104,22 @@ pub struct CameraNode {
     /// not synchronized yet).
     sync: (i64, i64),
     counters: Counters,
+    /// Which rejections are logged (all are counted), and the time of the input being handled.
+    log: proto::log_limit::LogLimiter,
+    now: ClusterTime,
 }
 
 impl CameraNode {
     pub fn new(cfg: CameraConfig, now: ClusterTime) -> CameraNode {
         let segmenter = Segmenter::new(&cfg.segment);
         let record_all = cfg.record_all.then(|| RecordAll::new(&cfg));
+        let people = (cfg.tracker == proto::scenario::CameraTracker::Particle)
+            .then(|| GroundPeople::new(&cfg.particle, u64::from(cfg.id.0)))
+            .and_then(|r| {
+                // The scenario's check refuses bad parameters; a hand-made config falls back.
+                r.map_err(|e| warn!(node = %cfg.id, error = %e, "particle tracker refused; segmentation"))
+                    .ok()
+            });
         CameraNode {
             mode: cfg.initial_mode,
             cfg,
@@ -116,11 +131,14 @@ impl CameraNode {
             priors: BTreeMap::new(),
             tags: BTreeMap::new(),
             record_all,
+            people,
             mode_since: now,
             time_in_mode_ns: [0; 3],
             last_status: None,
             sync: (0, -1),
             counters: Counters::default(),
+            log: proto::log_limit::LogLimiter::default(),
+            now,
         }
     }
 
@@ -159,6 +177,12 @@ impl CameraNode {
     }
 
     fn switch_mode(&mut self, now: ClusterTime, mode: Mode) {
+        // A radio-only node has no camera to switch on: Active is CameraOff for it.
+        let mode = if self.cfg.radio_only && mode == Mode::Active {
+            Mode::CameraOff
+        } else {
+            mode
+        };
         if mode == self.mode {
             return;
         }
@@ -170,6 +194,9 @@ impl CameraNode {
             self.measured.clear();
             self.previous.clear();
             self.captured = None;
+            if let Some(p) = self.people.as_mut() {
+                p.clear();
+            }
         }
         if !mode.radio_on() {
             self.tags.clear();
@@ -184,7 +211,9 @@ impl CameraNode {
 
     fn reject(&mut self, what: &'static str, problem: String) {
         self.counters.rejected += 1;
-        warn!(node = %self.cfg.id, what, %problem, "rejected input");
+        if let Some(more) = self.log.admit(self.now.0, what) {
+            warn!(node = %self.cfg.id, what, %problem, more, "rejected input");
+        }
     }
 
     pub(crate) fn server(&self) -> Option<NodeId> {
@@ -213,7 +242,9 @@ impl CameraNode {
                 }
                 self.counters.priors += 1;
                 if self.cfg.fusion.distributed() {
-                    let c = self.answer(now, &p);
+                    let c = self
+                        .ground_answer(now, &p)
+                        .unwrap_or_else(|| self.answer(now, &p));
                     self.counters.contributions += 1;
                     self.counters.camera_contributions += u64::from(c.folded.camera());
                     out.push(Outgoing::new(env.source, Message::Contribution(c)));
@@ -234,6 +265,7 @@ impl CameraNode {
                     self.cfg.head = Some(a.head);
                 }
             }
+            Message::SampleRequest(r) => return self.on_sample_request(env.source, &r),
             Message::Heartbeat
             | Message::Hello(_)
             | Message::HelloAck(_)
@@ -309,6 +341,12 @@ impl CameraNode {
             self.reject("frame", e.to_string());
             return out;
         }
+        if self.people.is_some() {
+            let regions = std::mem::take(&mut self.scratch);
+            let out = self.ground_frame(now, frame, &regions);
+            self.scratch = regions;
+            return out;
+        }
         self.counters.frames += 1;
         let detections = std::mem::take(&mut self.scratch);
         let offer = self.offer(frame.captured);
@@ -334,6 +372,9 @@ impl CameraNode {
         if !self.mode.camera_on() {
             self.counters.frames_skipped += 1;
             return out;
+        }
+        if self.people.is_some() {
+            return self.ground_boxes(now, captured, detections);
         }
         self.counters.frames += 1;
         self.apply_detections(now, captured, detections, Offer::All, &mut out);
@@ -556,6 +597,7 @@ impl Node for CameraNode {
     }
 
     fn handle(&mut self, now: ClusterTime, input: Input<CameraInput>) -> Vec<Outgoing> {
+        self.now = now;
         match input {
             Input::Message(env) => self.on_message(now, env),
             Input::Tick => self.tick(now),
@@ -586,5 +628,8 @@ impl Node for CameraNode {
     }
 }
 
+mod ground;
+#[cfg(test)]
+mod ground_tests;
 #[cfg(test)]
 mod tests;

@@ -6,19 +6,25 @@
 //! and [`adaptive_background`] segment them ([`segment`] selects), [`measure`] undistorts, gates and
 //! linearizes, [`core`] is the node's state machine, [`record_all`] makes its logging runs
 //! (every frame measured and sent to the server's recording), [`process`] runs a camera as an
-//! OS process on the sources it is given. The camera never sees the simulated world: `ocelli
-//! launch` injects it as sources.
+//! OS process on the sources it is given. [`radio`] holds what real radio sources share,
+//! [`radio_file`] replays recorded BLE readings and `ble` (feature) hears real tags through
+//! BlueZ. The camera never sees the simulated world: `ocelli launch` injects it as sources.
 
 pub mod adaptive_background;
+#[cfg(feature = "ble")]
+pub mod ble;
 pub mod colour_difference;
 pub mod config;
 pub mod core;
 pub mod detect;
+pub mod ground_people;
 #[cfg(feature = "gstreamer")]
 pub mod gst;
 pub mod measure;
 pub mod previous;
 pub mod process;
+pub mod radio;
+pub mod radio_file;
 pub mod record_all;
 pub mod region;
 pub mod segment;

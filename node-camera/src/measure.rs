@@ -96,11 +96,24 @@ pub fn contribution(
     let mean: State = models::vec6_from_wire(&prior.mean);
     let info =
         measured.and_then(|m| models::camera_contribution_aged(camera, &m.point, &m.cov, &mean, age_s));
+    folded_contribution(prior, info, ObservationKind::Pinhole, captured, mode, rssi)
+}
+
+/// The answer to `prior` carrying `info` (Ω_i, ξ_i of one observation of `kind`, folded at the
+/// camera), or the all-zero contribution with nothing folded; tag readings go along raw.
+pub(crate) fn folded_contribution(
+    prior: &Prior,
+    info: Option<(nalgebra::Matrix6<f64>, nalgebra::Vector6<f64>)>,
+    kind: ObservationKind,
+    captured: ClusterTime,
+    mode: Mode,
+    rssi: &[RssiReading],
+) -> Contribution {
     let (info_matrix, info_vector, folded) = match info {
         Some((omega, xi)) => (
             models::mat6_to_wire(&omega),
             models::vec6_to_wire(&xi),
-            Kinds::of(ObservationKind::Pinhole),
+            Kinds::of(kind),
         ),
         None => ([[0.0; 6]; 6], [0.0; 6], Kinds::NONE),
     };

@@ -13,10 +13,10 @@ use crate::core::{CameraInput, CameraNode, Counters};
 use crate::record_all::LogCounters;
 use futures_util::StreamExt;
 use futures_util::stream::{self, BoxStream};
+use proto::NodeId;
 use proto::scenario::Scenario;
 use proto::sensor::{Frame, FrameSource, RadioSource, ReferencePoint, SourceError};
-use proto::{ClusterTime, NodeId};
-use runtime::{Hooks, HostClock, RunError, RunSummary};
+use runtime::{HostClock, RunError, RunSummary};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
@@ -154,23 +154,6 @@ fn radio_loop(
     }
 }
 
-/// After each step: tell the capture thread whether the core wants frames.
-struct CaptureSwitch(Arc<AtomicBool>);
-
-impl Hooks<CameraNode> for CaptureSwitch {
-    type Error = std::convert::Infallible;
-
-    fn after(
-        &mut self,
-        node: &mut CameraNode,
-        _: ClusterTime,
-        _: &[proto::node::Outgoing],
-    ) -> Result<(), Self::Error> {
-        self.0.store(node.capturing(), Ordering::Relaxed);
-        Ok(())
-    }
-}
-
 /// Run camera `cfg.id` until `shutdown` is cancelled.
 ///
 /// # Errors
@@ -240,7 +223,7 @@ pub async fn run(
         None => frames,
     };
 
-    let mut hooks = CaptureSwitch(capturing);
+    let mut hooks = runtime::process::SensorSwitch::new(capturing, CameraNode::capturing);
     let result = runtime::run(&mut node, cfg.process, clock, sensors, &mut hooks, shutdown).await;
     stop.store(true, Ordering::Relaxed);
     for t in [Some(capture), radio_thread].into_iter().flatten() {

@@ -5,12 +5,17 @@
 //! covariance S = H Σ̄ Hᵀ + C give d² = νᵀ S⁻¹ ν; pairs inside the χ² gate are taken greedily
 //! from the smallest d², each detection to one track and each track to one detection per
 //! camera. Birth: the largest group of leftover detections from distinct cameras whose
-//! triangulated point reprojects inside the gate for every member.
+//! triangulated point reprojects inside the gate for every member. Ground-plane people (paper
+//! 004's cameras) gate in the floor plane (`models::ground_gate_distance2`) and are born from
+//! groups of agreeing floor positions ([`ground_births`]).
+
+mod ground;
 
 use crate::init::{RayObservation, single_camera_prior, state_from_position, triangulate};
+pub use ground::{GROUND_BIRTH_Z_SIGMA, ground_births};
 use nalgebra::{Matrix2, Matrix6, Vector2};
 use proto::camera::CameraModel;
-use proto::models::{State, gate_distance2, pinhole};
+use proto::models::{State, gate_distance2, ground_gate_distance2, pinhole};
 use proto::observation::RssiReading;
 use proto::{ClusterTime, NodeId, TargetId};
 
@@ -30,6 +35,9 @@ pub struct Detection {
     pub hint: Option<TargetId>,
     /// When the camera captured the frame.
     pub captured: ClusterTime,
+    /// A ground-plane person's measured height, m: then `point` and `cov` are a floor position
+    /// `[x, y]`, metres, and its covariance, not a normalized pin-hole point.
+    pub ground: Option<f64>,
 }
 
 impl Detection {
@@ -50,6 +58,9 @@ pub fn distance2(
     cov: &Matrix6<f64>,
     at: ClusterTime,
 ) -> Option<f64> {
+    if det.ground.is_some() {
+        return ground_gate_distance2(mean, cov, &det.point, &det.cov, det.age_s(at));
+    }
     gate_distance2(camera, mean, cov, &det.point, &det.cov, det.age_s(at))
 }
 
@@ -130,9 +141,9 @@ pub fn births(
 ) -> Vec<Birth> {
     let inside = |p: &nalgebra::Vector3<f64>| within(p, bounds, BIRTH_BOUNDS_MARGIN, 3);
     let mut left: Vec<usize> = (0..dets.len())
-        .filter(|&i| cameras.get(dets[i].slot).is_some())
+        .filter(|&i| cameras.get(dets[i].slot).is_some() && dets[i].ground.is_none())
         .collect();
-    let mut out = Vec::new();
+    let mut out = ground_births(dets, gate, min_cameras, plane_z, bounds);
     let obs = |i: usize| RayObservation {
         camera: &cameras[dets[i].slot],
         point: dets[i].point,
@@ -224,6 +235,7 @@ mod tests {
             rssi: Vec::new(),
             hint: None,
             captured: ClusterTime::ZERO,
+            ground: None,
         }
     }
 

@@ -49,7 +49,8 @@ pub struct AcousticInfo {
 pub struct NodeInfo {
     pub id: NodeId,
     pub camera: CameraModel,
-    /// Camera centre, world frame: where RSSI distances are measured from.
+    /// Where the node's radio sits (its `position`, else the camera centre), world frame:
+    /// where RSSI distances are measured from.
     pub position: Vector3<f64>,
     pub rssi: bool,
     pub power: PowerFigures,
@@ -58,6 +59,21 @@ pub struct NodeInfo {
     pub fps: f64,
     /// In this head's cluster at start.
     pub member: bool,
+    /// A radio-only node: `camera` is a blind placeholder at `position`; it is never Active
+    /// (CameraOff is its working mode) and only its RSSI is weighed.
+    pub radio_only: bool,
+}
+
+impl NodeInfo {
+    /// The mode the node is put in when `mode` is asked for: a radio-only node has no camera,
+    /// so Active is CameraOff for it.
+    pub fn working_mode(&self, mode: proto::Mode) -> proto::Mode {
+        if self.radio_only && mode == proto::Mode::Active {
+            proto::Mode::CameraOff
+        } else {
+            mode
+        }
+    }
 }
 
 /// Everything the core needs.
@@ -95,11 +111,12 @@ impl HeadConfig {
         let members = clusters.get(&NodeId(id)).cloned().unwrap_or_default();
         let mut nodes = Vec::new();
         for spec in scenario.cameras() {
-            let camera = scenario.camera_model(spec.id)?;
+            let camera = scenario.camera_or_blind(spec.id)?;
             nodes.push(NodeInfo {
                 id: NodeId(spec.id),
-                position: camera.pose.centre(),
+                position: scenario.sensor_position(spec.id)?,
                 camera,
+                radio_only: spec.radio_only(),
                 rssi: spec.rssi,
                 power: scenario.power_of(spec.id),
                 cost_factor: spec.cost_factor,
@@ -138,6 +155,7 @@ impl HeadConfig {
             max: self.bounds.1,
             walls: self.walls.clone(),
             radio: proto::scenario::RadioWorld::default(),
+            geo: None,
         }
     }
 }

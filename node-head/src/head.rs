@@ -61,6 +61,8 @@ pub struct HeadNode {
     planner: Planner,
     expected: Vec<bool>,
     counters: Counters,
+    /// Which rejections are logged (all are counted).
+    log: proto::log_limit::LogLimiter,
     last: StepStats,
     history: Vec<StepStats>,
     keep_history: bool,
@@ -108,6 +110,7 @@ impl HeadNode {
             planner,
             expected: Vec::new(),
             counters: Counters::default(),
+            log: proto::log_limit::LogLimiter::default(),
             last: StepStats::default(),
             history: Vec::new(),
             keep_history: false,
@@ -225,19 +228,19 @@ impl HeadNode {
         match env.body {
             Message::Contribution(c) => match member {
                 Some(slot) => self.on_contribution(now, slot, c, &mut out),
-                None => self.reject(src, "contribution"),
+                None => self.reject(now, src, "contribution"),
             },
             Message::Measurement(m) => match member {
                 Some(slot) => self.on_measurement(now, slot, m),
-                None => self.reject(src, "measurement"),
+                None => self.reject(now, src, "measurement"),
             },
             Message::FrameReport(r) => match member {
                 Some(slot) => self.on_frame_report(slot, &r),
-                None => self.reject(src, "frame_report"),
+                None => self.reject(now, src, "frame_report"),
             },
             Message::NodeStatus(s) => match member {
                 Some(slot) => self.nodes[slot].mode = s.mode,
-                None => self.reject(src, "node_status"),
+                None => self.reject(now, src, "node_status"),
             },
             Message::Handover(h) if from_server => self.on_handover(now, h),
             Message::Liveness(l) if from_server => out = self.node_liveness(now, l.node, l.up),
@@ -245,6 +248,14 @@ impl HeadNode {
                 self.sensed.assign(a.node, a.head == self.cfg.id);
                 if let Some(&slot) = self.slots.get(&a.node) {
                     let mine = a.head == self.cfg.id;
+                    // A node coming (back) into the cluster: what this head last heard of its
+                    // liveness is stale — the server told its other head since (a "down" seen
+                    // here and the "up" sent there left it down here for good, and a returning
+                    // track lost its radio-only nodes). Up, unless the server's Liveness that
+                    // follows the assignment says otherwise.
+                    if mine && !self.nodes[slot].member {
+                        self.nodes[slot].up = true;
+                    }
                     self.nodes[slot].member = mine;
                     if !mine {
                         self.window.release(slot);
@@ -255,7 +266,7 @@ impl HeadNode {
                 }
             }
             Message::Handover(_) | Message::Liveness(_) | Message::Assignment(_) => {
-                self.reject(src, env.body.kind());
+                self.reject(now, src, env.body.kind());
             }
             _ => {}
         }
@@ -281,9 +292,11 @@ impl HeadNode {
         out
     }
 
-    fn reject(&mut self, src: NodeId, kind: &'static str) {
+    fn reject(&mut self, now: ClusterTime, src: NodeId, kind: &'static str) {
         self.counters.rejected += 1;
-        warn!(node = %src, kind, "message from a node not allowed to send it; ignored");
+        if let Some(more) = self.log.admit(now.0, "not allowed") {
+            warn!(node = %src, kind, more, "message from a node not allowed to send it; ignored");
+        }
     }
 
     fn on_contribution(&mut self, now: ClusterTime, slot: usize, c: Contribution, out: &mut Vec<Outgoing>) {
@@ -294,7 +307,9 @@ impl HeadNode {
             .any(|x| !x.is_finite())
         {
             self.counters.rejected += 1;
-            warn!(node = %self.nodes[slot].info.id, "contribution with non-finite numbers; ignored");
+            if let Some(more) = self.log.admit(now.0, "non-finite contribution") {
+                warn!(node = %self.nodes[slot].info.id, more, "contribution with non-finite numbers; ignored");
+            }
             return;
         }
         let Some(t) = self.tracks.iter().position(|tr| tr.local == c.target) else {
@@ -331,7 +346,7 @@ impl HeadNode {
                 }
                 let mut kinds = if camera { c.folded } else { Kinds::NONE };
                 for r in &rssi {
-                    if track.hear(slot, r.dbm, track.time.secs_since(r.time)) {
+                    if track.hear_once(slot, r.time, r.dbm) {
                         kinds.insert(ObservationKind::Rssi);
                     }
                 }
@@ -352,7 +367,9 @@ impl HeadNode {
             }
             Offer::Future => {
                 self.counters.future += 1;
-                warn!(node = %self.nodes[slot].info.id, step = c.step, current = self.step, "contribution for a future step");
+                if let Some(more) = self.log.admit(now.0, "future contribution") {
+                    warn!(node = %self.nodes[slot].info.id, step = c.step, current = self.step, more, "contribution for a future step");
+                }
             }
         }
         if self.window.complete() {
@@ -370,23 +387,34 @@ impl HeadNode {
             return true;
         }
         self.counters.stale_measurements += 1;
-        warn!(
-            node = %self.nodes[slot].info.id,
-            what,
-            off_ms = off_ns / 1_000_000,
-            "stamped too far from now (clock off?); ignored"
-        );
+        if let Some(more) = self.log.admit(now.0, "stale capture") {
+            warn!(
+                node = %self.nodes[slot].info.id,
+                what,
+                off_ms = off_ns / 1_000_000,
+                more,
+                "stamped too far from now (clock off?); ignored"
+            );
+        }
         false
     }
 
     fn on_measurement(&mut self, now: ClusterTime, slot: usize, m: Measurement) {
         self.nodes[slot].mode = m.mode;
-        let Some(point) = m.pinhole() else {
-            // Only pin-hole detections start or feed tracks here.
-            self.counters.unfused_observations += m.observations.len() as u64;
-            return;
+        let ground = m.observations.iter().find_map(|o| match o {
+            proto::observation::Observation::Ground(g) => Some(g),
+            _ => None,
+        });
+        let (point, cov, prev_point, captured) = match (m.pinhole(), ground) {
+            (Some(p), _) => (p.point, p.cov, p.prev_point.map(Vector2::from), p.captured),
+            (None, Some(g)) => (g.position, g.cov, None, g.captured),
+            (None, None) => {
+                // Only camera detections start or feed tracks here.
+                self.counters.unfused_observations += m.observations.len() as u64;
+                return;
+            }
         };
-        if !self.fresh(now, point.captured, slot, "measurement") {
+        if !self.fresh(now, captured, slot, "measurement") {
             return;
         }
         let readings: Vec<_> = m.rssi().copied().collect();
@@ -402,12 +430,15 @@ impl HeadNode {
         self.detections.push(Detection {
             node: self.nodes[slot].info.id,
             slot,
-            point: Vector2::from(point.point),
-            cov: Matrix2::new(point.cov[0], point.cov[1], point.cov[1], point.cov[2]),
-            prev_point: point.prev_point.map(Vector2::from),
+            point: Vector2::from(point),
+            cov: Matrix2::new(cov[0], cov[1], cov[1], cov[2]),
+            prev_point,
             rssi,
             hint: m.target,
-            captured: point.captured,
+            captured,
+            ground: ground
+                .filter(|_| m.pinhole().is_none())
+                .map(|g| f64::from(g.height_m)),
         });
     }
 
@@ -537,6 +568,7 @@ impl HeadNode {
         });
         self.counters.numeric_failures += failed;
         self.counters.deaths += failed;
+        self.radio_search(now);
         self.step += 1;
         self.step_time = now;
         // Detections are kept: those that arrived between steps are associated at the close.
@@ -596,6 +628,7 @@ impl Node for HeadNode {
 }
 
 mod close;
+mod radio;
 mod sensed;
 #[cfg(test)]
 mod tests;

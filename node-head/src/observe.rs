@@ -1,17 +1,46 @@
 //! The head's one place that turns an observation into information about a track, per kind:
 //! a pin-hole point through the camera's model at the frame's capture time (and the previous
 //! frame's point, paper 000 eq. 13), a tag's reading through the node's trained RSSI model
-//! (paper 002 Algorithm 1) weighed by the errors this track's readings have made. Ground-plane
-//! people and acoustic ILD vectors are not fused by the EIFs.
+//! (paper 002 Algorithm 1) weighed by the errors this track's readings have made, a
+//! ground-plane person (paper 004) as a floor position at the frame's capture time. Acoustic
+//! ILD vectors are not fused by the EIFs.
 
 use crate::association::Detection;
 use crate::config::NodeInfo;
 use crate::track::Track;
 use nalgebra::Matrix6;
 use proto::models::{
-    State, camera_contribution_aged, information_contribution, pinhole_previous, rssi_aged, rssi_information,
+    State, camera_contribution_aged, ground_contribution_aged, ground_height_contribution,
+    information_contribution, pinhole_previous, rssi_aged, rssi_information,
 };
 use proto::observation::ObservationKind;
+
+/// Fold a camera's detection into `track`'s step sums by its kind: a ground-plane person or a
+/// pin-hole point.
+pub fn camera(track: &mut Track, det: &Detection, node: &NodeInfo, previous_point: bool) {
+    if det.ground.is_some() {
+        ground(track, det);
+    } else {
+        pinhole(track, det, node, previous_point);
+    }
+}
+
+/// Fold a camera's ground-plane person (floor position and covariance) into `track`'s step
+/// sums, both filters', linearized at the predicted mean at the frame's capture time, with the
+/// centre height its measured height gives.
+pub fn ground(track: &mut Track, det: &Detection) {
+    let mean_bar = *track.filter.mean();
+    let age_s = det.age_s(track.time);
+    let height = det.ground.and_then(|h| ground_height_contribution(h, &mean_bar));
+    if let Some((o, x)) = ground_contribution_aged(&det.point, &det.cov, &mean_bar, age_s) {
+        track.acc.add(&o, &x);
+        track.aux_acc.add(&o, &x);
+        if let Some((o, x)) = height {
+            track.acc.add(&o, &x);
+            track.aux_acc.add(&o, &x);
+        }
+    }
+}
 
 /// Fold a camera's pin-hole detection into `track`'s step sums (both the filter's and the
 /// camera-only auxiliary filter's), linearized at the track's predicted mean.
@@ -58,5 +87,8 @@ pub fn rssi(track: &mut Track, nodes: &[NodeInfo], mean_bar: &State, cov_bar: &M
 
 /// Whether the EIFs can fuse an observation of `kind` (the others are counted and ignored).
 pub fn fused_by_eif(kind: ObservationKind) -> bool {
-    matches!(kind, ObservationKind::Pinhole | ObservationKind::Rssi)
+    matches!(
+        kind,
+        ObservationKind::Pinhole | ObservationKind::Rssi | ObservationKind::Ground
+    )
 }

@@ -23,11 +23,15 @@ use crate::decision::Decision;
 use crate::membership::Membership;
 use crate::record::{MeasuredFrame, Record, Stamped};
 use crate::tracks::{GlobalTrack, TrackParams, Tracks};
+use proto::log_limit::LogLimiter;
 use proto::msg::{Assignment, Handover, HelloAck, Liveness, Message, NodeStatus, SyncBeacon};
 use proto::node::{Input, Node, Outgoing};
 use proto::scenario::Scenario;
 use proto::{ClusterTime, Envelope, NodeId, PROTOCOL_VERSION, Role, TargetId};
 use std::collections::BTreeMap;
+
+mod viewers;
+pub use viewers::MAX_VIEWERS;
 
 /// Server configuration: the scenario plus the server's own tuning.
 #[derive(Clone, Debug)]
@@ -65,6 +69,9 @@ impl ServerConfig {
 pub struct Counters {
     pub received: u64,
     pub rejected: u64,
+    /// Messages from ids that are neither members nor declared (also in `rejected`); they
+    /// reach neither the state nor the recording.
+    pub non_members: u64,
     pub handovers: u64,
     pub beacons: u64,
     /// Messages its runtime could not deliver.
@@ -83,6 +90,10 @@ pub struct ServerNode {
     status: BTreeMap<NodeId, NodeStatus>,
     journal: Vec<Stamped>,
     counters: Counters,
+    /// Which rejections are logged (all are counted).
+    log: LogLimiter,
+    /// The visualization nodes' feed.
+    viewers: viewers::ViewFeed,
 }
 
 /// What restoring from a recording found.
@@ -112,6 +123,8 @@ impl ServerNode {
             status: BTreeMap::new(),
             journal: Vec::new(),
             counters: Counters::default(),
+            log: LogLimiter::default(),
+            viewers: viewers::ViewFeed::default(),
         }
     }
 
@@ -164,7 +177,11 @@ impl ServerNode {
 
     fn reject(&mut self, now: ClusterTime, source: Option<NodeId>, what: &str, reason: String) {
         self.counters.rejected += 1;
-        tracing::warn!(source = %source.map_or_else(|| "unknown".to_string(), |s| s.to_string()), what, %reason, "message rejected");
+        let member = source.is_some_and(|s| self.members.member(s).is_some());
+        self.viewers.rejected(source, member);
+        if let Some(more) = self.log.admit(now.0, "message rejected") {
+            tracing::warn!(source = %source.map_or_else(|| "unknown".to_string(), |s| s.to_string()), what, %reason, more, "message rejected");
+        }
         self.decide(
             now,
             Decision::Rejected {
@@ -184,21 +201,34 @@ impl ServerNode {
     /// The transport saw a link to `node` come up or go down. A closed link marks the node
     /// down at once (no need to wait for the liveness timeout); an opened one admits a declared
     /// node like any first message.
+    ///
+    /// While its link is up a member is up: liveness rests on the transport's heartbeats, not
+    /// on what the node sends (a camera's status comes about once a second, no faster than
+    /// the liveness timeout). A link event for a node that is neither a member nor declared
+    /// changes nothing and is not recorded.
     pub fn on_link(&mut self, now: ClusterTime, node: NodeId, up: bool) -> Vec<Outgoing> {
+        let declared = self.members.declared_role(node).filter(|r| *r != Role::Server);
+        if self.members.member(node).is_none() && declared.is_none() {
+            return Vec::new();
+        }
         self.journal(now, Record::Link { node, up });
         let mut out = Vec::new();
         if up {
-            let d = match (self.members.member(node), self.members.declared_role(node)) {
+            let d = match (self.members.member(node), declared) {
                 (Some(_), _) => self.members.seen(now, node),
-                (None, Some(r)) if r != Role::Server => self.members.admit(now, node, r),
-                _ => None,
+                (None, Some(r)) => self.members.admit(now, node, r),
+                (None, None) => None,
             };
+            self.members.set_linked(node, true);
             if let Some(d) = d {
                 self.decide(now, d, &mut out);
             }
-        } else if let Some(d) = self.members.mark_down(now, node) {
-            self.decide(now, d, &mut out);
-            // Its tracks move on the next tick (failover), like any other dead head's.
+        } else {
+            self.members.set_linked(node, false);
+            if let Some(d) = self.members.mark_down(now, node) {
+                self.decide(now, d, &mut out);
+                // Its tracks move on the next tick (failover), like any other dead head's.
+            }
         }
         out
     }
@@ -215,13 +245,48 @@ impl ServerNode {
             self.journal(now, Record::Measured(MeasuredFrame::from_wire(env.source, m)));
             return Vec::new();
         }
+        let src = env.source;
+        let kind = env.body.kind();
+        // Tools and viewers are not in the scenario: their hello and a viewer's subscription
+        // pass (the subscription admits a viewer, bounded by MAX_VIEWERS).
+        let client_hello = matches!(&env.body, Message::Hello(h) if matches!(h.role, Role::Tool | Role::Viewer))
+            || matches!(&env.body, Message::ViewSubscribe(_));
+        let declared = self.members.declared_role(src).is_some_and(|r| r != Role::Server);
+        if self.members.member(src).is_none() && !declared && !client_hello {
+            // Not a member and not one the scenario declares: counted, logged rate-limited,
+            // answered if it says hello — and kept out of the state and the recording, so a
+            // stranger cannot fill either.
+            self.counters.received += 1;
+            self.counters.rejected += 1;
+            self.counters.non_members += 1;
+            if let Some(more) = self.log.admit(now.0, "non-member") {
+                tracing::warn!(node = %src, kind, more, "message from a node that is not a member; ignored, not recorded");
+            }
+            return match &env.body {
+                Message::Hello(h) => {
+                    let reason = self
+                        .hello_refusal(src, h)
+                        .unwrap_or_else(|| format!("{src} is not in the scenario"));
+                    vec![Outgoing::new(
+                        src,
+                        Message::HelloAck(HelloAck {
+                            accepted: false,
+                            reason,
+                        }),
+                    )]
+                }
+                _ => Vec::new(),
+            };
+        }
         self.journal(now, Record::Received(env.clone()));
         self.counters.received += 1;
         let mut out = Vec::new();
-        let src = env.source;
-        let kind = env.body.kind();
         if let Message::Hello(h) = &env.body {
             self.hello(now, src, h, &mut out);
+            return out;
+        }
+        if let Message::ViewSubscribe(s) = &env.body {
+            self.subscribe(now, src, env.seq, s, &mut out);
             return out;
         }
         // Anything else needs an admitted sender, or one the scenario declares (a node that
@@ -241,12 +306,14 @@ impl ServerNode {
                 }
             },
         };
+        self.viewers.heard(src, env.seq);
         match env.body {
             Message::Heartbeat => {}
             Message::NodeStatus(s) => {
                 self.status.insert(src, s);
             }
             Message::TrackReport(r) if role == Role::Head => {
+                self.viewers.reported(src, &r);
                 if let Some(d) = self.members.seen(now, src) {
                     self.decide(now, d, &mut out);
                 }
@@ -289,8 +356,9 @@ impl ServerNode {
         out
     }
 
-    fn hello(&mut self, now: ClusterTime, src: NodeId, h: &proto::msg::Hello, out: &mut Vec<Outgoing>) {
-        let refuse = if h.node != src {
+    /// Why a hello is refused, if it is.
+    fn hello_refusal(&self, src: NodeId, h: &proto::msg::Hello) -> Option<String> {
+        if h.node != src {
             Some(format!("hello names node {} but came from {src}", h.node))
         } else if h.version != PROTOCOL_VERSION {
             Some(format!(
@@ -300,15 +368,20 @@ impl ServerNode {
         } else {
             match (self.members.declared_role(src), h.role) {
                 (_, Role::Server) => Some("a second server".to_string()),
-                (None, Role::Tool) => None,
+                (None, Role::Tool | Role::Viewer) => None,
                 (Some(d), r) if d == r => None,
                 (Some(d), r) => Some(format!("scenario declares {src} as {d}, not {r}")),
                 (None, r) => Some(format!("{src} is not in the scenario (as {r})")),
             }
-        };
-        if let Some(reason) = refuse {
+        }
+    }
+
+    fn hello(&mut self, now: ClusterTime, src: NodeId, h: &proto::msg::Hello, out: &mut Vec<Outgoing>) {
+        if let Some(reason) = self.hello_refusal(src, h) {
             self.counters.rejected += 1;
-            tracing::warn!(node = %src, %reason, "hello refused");
+            if let Some(more) = self.log.admit(now.0, "hello refused") {
+                tracing::warn!(node = %src, %reason, more, "hello refused");
+            }
             out.push(Outgoing::new(
                 src,
                 Message::HelloAck(HelloAck {
@@ -361,6 +434,7 @@ impl ServerNode {
     fn decide(&mut self, now: ClusterTime, d: Decision, out: &mut Vec<Outgoing>) {
         tracing::debug!(decision = ?d, "decision");
         self.journal(now, Record::Decision(d.clone()));
+        self.viewers.decided(now, &d);
         match d {
             Decision::Admitted { node, .. } | Decision::Up { node } => {
                 if matches!(d, Decision::Up { .. })
@@ -406,6 +480,18 @@ impl ServerNode {
                     if self.members.is_up(to) && !out.iter().any(|o| o.to == to && o.body == a) {
                         out.push(Outgoing::new(to, a.clone()));
                     }
+                }
+                // The new head learns the camera's liveness with it: what it heard of that
+                // camera before it left is stale (its ups and downs since went to the other
+                // head).
+                if self.members.is_up(head)
+                    && let Some(m) = self.members.member(camera)
+                {
+                    let up = m.up;
+                    out.push(Outgoing::new(
+                        head,
+                        Message::Liveness(Liveness { node: camera, up }),
+                    ));
                 }
             }
             Decision::Handover { global, from, to, .. } => {
@@ -469,6 +555,8 @@ impl ServerNode {
         if !changed && self.cfg.journal {
             self.journal.truncate(mark);
         }
+        // What the viewers are sent follows from the state: it changes nothing to replay.
+        out.extend(self.view_updates(now));
         out
     }
 

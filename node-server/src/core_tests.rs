@@ -140,6 +140,26 @@ fn bad_handshakes_are_refused_counted_and_change_nothing() {
     assert_eq!(s.membership().members().count(), 0);
 }
 
+/// A stranger (an id the scenario does not declare) flooding the server changes nothing and
+/// leaves nothing in the recording: not its messages, not a decision per message, not its
+/// link events. It is counted.
+#[test]
+fn strangers_never_reach_the_recording() {
+    let mut s = started();
+    let stranger = NodeId(4242);
+    s.on_link(ms(5), stranger, true);
+    for k in 0..1000 {
+        s.on_message(ms(10 + k), env(stranger, Message::Heartbeat));
+        s.on_message(ms(10 + k), report(stranger, 1, None, ms(10 + k), 1.0, 1.0));
+        s.on_message(ms(10 + k), hello(stranger, Role::Camera));
+    }
+    s.on_link(ms(2000), stranger, false);
+    assert!(s.take_records().is_empty());
+    assert_eq!(s.counters().non_members, 3000);
+    assert_eq!(s.globals().count(), 0);
+    assert!(s.membership().member(stranger).is_none());
+}
+
 #[test]
 fn unexpected_messages_are_rejected_without_state_change() {
     let mut s = started();
@@ -662,4 +682,32 @@ fn the_old_heads_new_track_on_a_handed_over_target_merges_back() {
     }
     assert_eq!(s.global_of(H2, TargetId(6)), Some(g));
     assert_eq!(s.globals().count(), 1);
+}
+
+/// Over TCP the transport's heartbeats stay inside the transport; the core hears a camera only
+/// when it sends its status (about once a second). Its live link keeps it up all the same: no
+/// down/up flapping however quiet it is, and down at once when the link goes.
+#[test]
+fn a_member_with_a_live_link_never_flaps_and_goes_down_with_its_link() {
+    let mut s = server();
+    for n in [H2, CAM] {
+        s.on_link(ms(0), n, true);
+    }
+    let mut decisions = 0;
+    for k in 1..=200 {
+        // A status every 1.05 s against a 1 s timeout; ticks every 50 ms for 10 s.
+        if k % 21 == 0 {
+            s.on_message(ms(k * 50), env(CAM, Message::Heartbeat));
+        }
+        s.tick(ms(k * 50));
+    }
+    for r in s.take_records() {
+        if let Record::Decision(Decision::Down { .. } | Decision::Up { .. }) = r.record {
+            decisions += 1;
+        }
+    }
+    assert_eq!(decisions, 0, "liveness flapped");
+    assert!(s.membership().is_up(CAM));
+    s.on_link(ms(10_100), CAM, false);
+    assert!(!s.membership().is_up(CAM));
 }

@@ -15,6 +15,7 @@ pub mod export;
 #[cfg(test)]
 mod failover_tests;
 pub mod membership;
+pub mod metrics;
 pub mod process;
 pub mod record;
 pub mod recording;

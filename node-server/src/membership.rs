@@ -1,9 +1,12 @@
 //! Membership: who is in the network, who is alive, and which head each camera reports to.
 //!
 //! Nodes are admitted by the handshake (`Hello`) if the scenario declares them with that role;
-//! tools are admitted by handshake without being declared. Any accepted message counts as a
-//! sign of life. A node silent for `liveness_timeout_ms` is marked down on the next tick; a down
-//! node that speaks again is re-admitted. Cameras start on their scenario head (a camera with
+//! tools are admitted by handshake without being declared. Liveness rests on the transport's
+//! links: a node whose link is up (the transport's heartbeats flow) is up, a link going down
+//! marks it down at once. Only a node without a link report (the simulation runtime, a
+//! restored state) falls back to messages: any accepted message counts as a sign of life,
+//! and one silent for `liveness_timeout_ms` is marked down on the next tick. A down node that
+//! speaks again is re-admitted. Cameras start on their scenario head (a camera with
 //! none goes to the head whose region covers the floor point it looks at); while that head
 //! is down they are moved to the live head whose region is nearest (paper 002's clusters keep
 //! tracking while a head is away), and they move back when it returns.
@@ -19,6 +22,8 @@ pub struct Member {
     pub role: Role,
     pub up: bool,
     pub last_seen: ClusterTime,
+    /// The transport reports a live link to it: it is up whatever it says or does not say.
+    pub linked: bool,
 }
 
 /// The membership table.
@@ -217,6 +222,7 @@ impl Membership {
                         role,
                         up: true,
                         last_seen: now,
+                        linked: false,
                     },
                 );
                 Some(Decision::Admitted { node, role })
@@ -224,11 +230,18 @@ impl Membership {
         }
     }
 
-    /// Nodes silent past the timeout at `now`, marked down.
+    /// Record what the transport says of `node`'s link (it must already be a member).
+    pub fn set_linked(&mut self, node: NodeId, linked: bool) {
+        if let Some(m) = self.members.get_mut(&node) {
+            m.linked = linked;
+        }
+    }
+
+    /// Nodes without a live link silent past the timeout at `now`, marked down.
     pub fn expire(&mut self, now: ClusterTime) -> Vec<Decision> {
         let mut out = Vec::new();
         for (id, m) in &mut self.members {
-            if m.up && m.role != Role::Tool && now - m.last_seen > self.timeout_ns {
+            if m.up && !m.linked && m.role != Role::Tool && now - m.last_seen > self.timeout_ns {
                 m.up = false;
                 out.push(Decision::Down {
                     node: *id,
@@ -252,9 +265,11 @@ impl Membership {
         })
     }
 
-    /// Give every up member a fresh grace period from `now` (after a server restart).
+    /// Give every up member a fresh grace period from `now` (after a server restart). The old
+    /// process's links are gone: members are unlinked until the transport reports new ones.
     pub fn refresh_all(&mut self, now: ClusterTime) {
         for m in self.members.values_mut() {
+            m.linked = false;
             if m.up {
                 m.last_seen = now;
             }
@@ -320,6 +335,22 @@ mod tests {
             Some(Decision::Up { node: NodeId(10) })
         );
         assert_eq!(m.seen(ms(1700), NodeId(10)), None);
+    }
+
+    #[test]
+    fn a_node_with_a_live_link_stays_up_however_long_it_is_quiet() {
+        let s = crate::testkit::scenario();
+        let mut m = Membership::new(&s);
+        m.admit(ms(0), NodeId(10), Role::Camera);
+        m.set_linked(NodeId(10), true);
+        assert!(m.expire(ms(60_000)).is_empty(), "the transport vouches for it");
+        m.set_linked(NodeId(10), false);
+        assert_eq!(m.expire(ms(60_000)).len(), 1);
+        // After a restart nobody is linked until the transport says so again.
+        m.seen(ms(60_001), NodeId(10));
+        m.set_linked(NodeId(10), true);
+        m.refresh_all(ms(60_002));
+        assert_eq!(m.expire(ms(62_000)).len(), 1);
     }
 
     #[test]

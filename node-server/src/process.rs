@@ -1,5 +1,6 @@
 //! The server as an OS process: the [`ServerNode`] core driven by `runtime::process::run`, with
-//! every input, decision and sent frame appended to the recording after each step.
+//! every input, decision and sent frame (but the viewers' updates) appended to the recording
+//! after each step.
 //!
 //! The server is the time leader, so its cluster time is its wall clock (ns since the Unix
 //! epoch): continuous across restarts. On start it opens the recording; if the file exists it
@@ -10,6 +11,7 @@
 use crate::core::{RestoreStats, ServerConfig, ServerNode};
 use crate::record::{Origin, Record, Stamped};
 use crate::recording::{Recorder, RecordingError};
+use proto::msg::Message;
 use proto::node::Outgoing;
 use proto::scenario::Scenario;
 use proto::{ClusterTime, Envelope, NodeId};
@@ -116,7 +118,9 @@ impl Hooks<ServerNode> for Recording {
             self.rec.append(&r)?;
             self.records += 1;
         }
-        for o in sent {
+        // A viewer's updates follow from what is recorded; recording them too would grow the
+        // recording with every viewer.
+        for o in sent.iter().filter(|o| !matches!(o.body, Message::ViewUpdate(_))) {
             // The transport stamps the per-link sequence number; it is not known here.
             let env = Envelope {
                 source: node.id(),

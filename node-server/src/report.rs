@@ -20,6 +20,10 @@
 //!   such as TCP heartbeats take no sequence number, so a gap is a lost frame) plus the
 //!   `dropped` counters nodes report (cameras: undeliverable messages; heads: failed sends); `late` = contributions past their deadline as the heads report them;
 //!   `rejected` = inputs the server refused.
+//! - **Multi-target metrics** (`mota`, `motp_m`, `idf1`, `id_switches`, `fragmentations`,
+//!   `mostly_tracked`, `mostly_lost`, `gospa_m`, and everything behind them per run and per
+//!   target in `mot`): [`crate::metrics`] on frames built from the owner rows, one per step
+//!   after a warm-up, on the floor plane with a 1 m threshold ([`mot`]).
 //! - **Sync error**: the `sync_error_ns` each node (camera or head) last reported: the RMS of
 //!   its clock's error at the recent sync beacons (`proto::sync`); negative (not synchronized
 //!   yet) is left out.
@@ -31,7 +35,8 @@
 use crate::analysis::Loaded;
 use crate::core::{ServerConfig, ServerNode};
 use crate::decision::Decision;
-use crate::export::track_rows;
+use crate::export::{TrackRow, track_rows};
+use crate::metrics::MotMetrics;
 use crate::record::Record;
 use proto::msg::{Message, NodeStatus};
 use proto::scenario::NodeRole;
@@ -39,6 +44,8 @@ use proto::{Mode, NodeId};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
+
+pub mod mot;
 
 /// A global track whose mean distance to every true target exceeds this is a false track, m.
 pub const ASSOCIATION_GATE_M: f64 = 2.0;
@@ -124,6 +131,19 @@ pub struct Report {
     pub skipped: Vec<crate::recording::Skipped>,
     /// Bytes per second each node put on the wire.
     pub bandwidth: Vec<NodeBandwidth>,
+    /// The standard multi-target metrics against the truth ([`mot`]; `None` without truth):
+    /// CLEAR MOT's accuracy and precision (m), IDF1, identity switches, fragmentations, targets
+    /// mostly tracked (≥ 80% of their frames) and mostly lost (< 20%), mean GOSPA (m).
+    pub mota: Option<f64>,
+    pub motp_m: Option<f64>,
+    pub idf1: Option<f64>,
+    pub id_switches: Option<u64>,
+    pub fragmentations: Option<u64>,
+    pub mostly_tracked: Option<u64>,
+    pub mostly_lost: Option<u64>,
+    pub gospa_m: Option<f64>,
+    /// Every count behind them, and the same per target (`mot.targets`).
+    pub mot: Option<MotMetrics>,
 }
 
 fn mean_std(xs: &[f64]) -> (f64, f64, f64) {
@@ -165,43 +185,121 @@ pub fn compute(loaded: &Loaded, truth: Option<&dyn Truth>) -> Report {
 /// Compute the report with an association gate (m).
 pub fn compute_with(loaded: &Loaded, truth_of: Option<&dyn Truth>, gate_m: f64) -> Report {
     let sc = &loaded.scenario;
-    let rows: Vec<_> = track_rows(loaded).into_iter().filter(|r| r.owner).collect();
-    let ids = truth_of.map(|t| t.ids()).unwrap_or_default();
-    let truth = truth_of.is_some() && !ids.is_empty();
-    let true_pos = |target: usize, t: f64| truth_of.map_or([f64::NAN; 3], |tr| tr.position(target, t));
-    let d3 = |a: [f64; 3], r: &crate::export::TrackRow| {
+    let rows: Vec<TrackRow> = track_rows(loaded).into_iter().filter(|r| r.owner).collect();
+    let truth = truth_of.filter(|t| !t.ids().is_empty());
+    let scored = truth.map(|t| score_errors(&rows, t, gate_m)).unwrap_or_default();
+    let start = loaded.records.first().map_or(0.0, |s| s.at.as_secs_f64());
+    let end = loaded.records.last().map_or(0.0, |s| s.at.as_secs_f64());
+    let scoring = mot::Scoring::for_scenario(sc);
+    let mot = truth.and_then(|t| mot::score(&rows, t, start, end, &scoring));
+    let tally = tally_records(loaded);
+    let mut msgs = tally.messages.clone();
+    let (handovers, globals, rejected) = replayed_decisions(loaded);
+    msgs.rejected += rejected;
+    msgs.late = tally.late.values().sum();
+    msgs.dropped += tally.status.values().map(|s| s.dropped).sum::<u64>();
+    let steps = rows.len() as u64;
+    let cams: u64 = rows.iter().map(|r| u64::from(r.cameras)).sum();
+    let rssi: u64 = rows.iter().map(|r| u64::from(r.rssi_nodes)).sum();
+    let energy = energy(sc, &tally);
+    // (An empty f64 sum is −0.0; add +0.0 so an idle run prints 0.)
+    let power_mw_mean = energy.iter().map(|e| e.mean_power_mw).sum::<f64>() + 0.0;
+    let sync: Vec<NodeSync> = tally
+        .status
+        .iter()
+        .filter(|(_, s)| s.sync_error_ns >= 0)
+        .map(|(n, s)| NodeSync {
+            node: n.0,
+            error_ms: s.sync_error_ns as f64 * 1e-6,
+            offset_ms: s.sync_offset_ns as f64 * 1e-6,
+        })
+        .collect();
+    let sync_errs: Vec<f64> = sync.iter().map(|s| s.error_ms).collect();
+    let per_step = |x: u64| if steps > 0 { x as f64 / steps as f64 } else { 0.0 };
+    let all = &scored.all;
+    let (mean, std, rmse) = mean_std(all);
+    Report {
+        scenario: sc.name.clone(),
+        duration_s: match (loaded.records.first(), loaded.records.last()) {
+            (Some(a), Some(b)) => b.at.secs_since(a.at),
+            _ => 0.0,
+        },
+        steps,
+        truth: truth.is_some(),
+        mean_error_m: (!all.is_empty()).then_some(mean),
+        error_std_m: (!all.is_empty()).then_some(std),
+        rmse_m: (!all.is_empty()).then_some(rmse),
+        targets: scored.targets,
+        false_tracks: scored.false_tracks,
+        false_track_samples: scored.false_samples,
+        active_cameras_mean: per_step(cams),
+        rssi_nodes_mean: per_step(rssi),
+        power_mw_mean,
+        energy,
+        messages: msgs,
+        sync_error_ms_mean: (!sync_errs.is_empty())
+            .then(|| sync_errs.iter().sum::<f64>() / sync_errs.len() as f64),
+        sync_error_ms_max: sync_errs.iter().copied().reduce(f64::max),
+        sync,
+        handovers,
+        global_ids: globals,
+        skipped: loaded.skipped.clone(),
+        bandwidth: bandwidth(sc, &tally.first_status, &tally.status),
+        mota: mot.as_ref().and_then(|m| m.mota),
+        motp_m: mot.as_ref().and_then(|m| m.motp_m),
+        idf1: mot.as_ref().and_then(|m| m.idf1),
+        id_switches: mot.as_ref().map(|m| m.id_switches as u64),
+        fragmentations: mot.as_ref().map(|m| m.fragmentations as u64),
+        mostly_tracked: mot.as_ref().map(|m| m.mostly_tracked as u64),
+        mostly_lost: mot.as_ref().map(|m| m.mostly_lost as u64),
+        gospa_m: mot.as_ref().map(|m| m.gospa_m),
+        mot,
+    }
+}
+
+/// Each global associated with the true target nearest it on average, and the errors.
+#[derive(Debug, Default)]
+struct Scored {
+    targets: Vec<TargetError>,
+    /// Every associated sample's error.
+    all: Vec<f64>,
+    false_tracks: u64,
+    false_samples: u64,
+}
+
+/// Associate each global with its nearest true target on average (within `gate_m`, else it is
+/// a false track) and collect the errors of each target's samples.
+fn score_errors(rows: &[TrackRow], truth: &dyn Truth, gate_m: f64) -> Scored {
+    let ids = truth.ids();
+    let d3 = |a: [f64; 3], r: &TrackRow| {
         ((a[0] - r.x).powi(2) + (a[1] - r.y).powi(2) + (a[2] - r.z).powi(2)).sqrt()
     };
-    // Associate each global with its nearest true target on average.
-    let mut by_global: BTreeMap<u32, Vec<&crate::export::TrackRow>> = BTreeMap::new();
-    for r in &rows {
+    let mut by_global: BTreeMap<u32, Vec<&TrackRow>> = BTreeMap::new();
+    for r in rows {
         by_global.entry(r.global).or_default().push(r);
     }
     let mut per_target: BTreeMap<usize, (Vec<f64>, Vec<u32>)> = BTreeMap::new();
-    let (mut false_tracks, mut false_samples) = (0u64, 0u64);
-    if truth {
-        for (g, rs) in &by_global {
-            let best = (0..ids.len())
-                .map(|k| {
-                    let d: f64 = rs.iter().map(|r| d3(true_pos(k, r.t), r)).sum();
-                    (k, d / rs.len() as f64)
-                })
-                .min_by(|a, b| a.1.total_cmp(&b.1));
-            if let Some((k, mean_d)) = best {
-                if mean_d > gate_m {
-                    false_tracks += 1;
-                    false_samples += rs.len() as u64;
-                    continue;
-                }
-                let e = per_target.entry(k).or_default();
-                e.0.extend(rs.iter().map(|r| d3(true_pos(k, r.t), r)));
-                e.1.push(*g);
+    let mut out = Scored::default();
+    for (g, rs) in &by_global {
+        let best = (0..ids.len())
+            .map(|k| {
+                let d: f64 = rs.iter().map(|r| d3(truth.position(k, r.t), r)).sum();
+                (k, d / rs.len() as f64)
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((k, mean_d)) = best {
+            if mean_d > gate_m {
+                out.false_tracks += 1;
+                out.false_samples += rs.len() as u64;
+                continue;
             }
+            let e = per_target.entry(k).or_default();
+            e.0.extend(rs.iter().map(|r| d3(truth.position(k, r.t), r)));
+            e.1.push(*g);
         }
     }
-    let all: Vec<f64> = per_target.values().flat_map(|(e, _)| e.iter().copied()).collect();
-    let (mean, std, rmse) = mean_std(&all);
-    let targets = per_target
+    out.all = per_target.values().flat_map(|(e, _)| e.iter().copied()).collect();
+    out.targets = per_target
         .iter()
         .map(|(k, (e, gs))| {
             let (m, s, r) = mean_std(e);
@@ -215,55 +313,71 @@ pub fn compute_with(loaded: &Loaded, truth_of: Option<&dyn Truth>, gate_m: f64) 
             }
         })
         .collect();
+    out
+}
 
-    // Sensors per step, messages, statuses, power fallback.
-    let (mut cams, mut rssi, mut steps) = (0u64, 0u64, 0u64);
-    let mut status: BTreeMap<NodeId, NodeStatus> = BTreeMap::new();
-    let mut first_status: BTreeMap<NodeId, NodeStatus> = BTreeMap::new();
-    let mut late: BTreeMap<NodeId, u64> = BTreeMap::new();
-    let mut head_power: BTreeMap<NodeId, (f64, u64)> = BTreeMap::new();
+/// What the received frames say: messages sent and lost, each node's last status, each head's
+/// late count and track-report power.
+#[derive(Debug, Default)]
+struct Tally {
+    messages: Messages,
+    status: BTreeMap<NodeId, NodeStatus>,
+    /// Each node's first status (for its bandwidth).
+    first_status: BTreeMap<NodeId, NodeStatus>,
+    late: BTreeMap<NodeId, u64>,
+    head_power: BTreeMap<NodeId, (f64, u64)>,
+}
+
+fn tally_records(loaded: &Loaded) -> Tally {
+    let mut t = Tally::default();
     let mut last_seq: BTreeMap<NodeId, u64> = BTreeMap::new();
-    let mut msgs = Messages::default();
-    let (mut handovers, mut globals) = (0u64, 0u64);
     for s in &loaded.records {
         match &s.record {
             Record::Received(env) => {
-                msgs.sent += 1;
+                t.messages.sent += 1;
                 if let Some(prev) = last_seq.insert(env.source, env.seq)
                     && env.seq > prev
                 {
                     let gap = env.seq - prev - 1;
-                    msgs.sent += gap;
-                    msgs.dropped += gap;
+                    t.messages.sent += gap;
+                    t.messages.dropped += gap;
                 }
                 match &env.body {
                     Message::NodeStatus(st) => {
-                        first_status.entry(env.source).or_insert_with(|| st.clone());
-                        status.insert(env.source, st.clone());
+                        t.first_status.entry(env.source).or_insert_with(|| st.clone());
+                        t.status.insert(env.source, st.clone());
                     }
                     Message::TrackReport(r) => {
-                        late.insert(env.source, r.late);
-                        let e = head_power.entry(env.source).or_default();
+                        t.late.insert(env.source, r.late);
+                        let e = t.head_power.entry(env.source).or_default();
                         e.0 += r.power_mw;
                         e.1 += 1;
                     }
                     _ => {}
                 }
             }
-            Record::Sent { .. } => msgs.sent += 1,
+            Record::Sent { .. } => t.messages.sent += 1,
             _ => {}
         }
     }
-    // Decisions as this build's server makes them from the recorded inputs (the same replay
-    // the track rows come from; for a recording made by this build they equal the recorded
-    // ones).
-    let mut node = ServerNode::new(ServerConfig::from_scenario(sc.clone(), loaded.server_id()));
+    t
+}
+
+/// Handovers, global ids founded and inputs refused, as this build's server decides them from
+/// the recorded inputs (the same replay the track rows come from; for a recording made by this
+/// build they equal the recorded ones).
+fn replayed_decisions(loaded: &Loaded) -> (u64, u64, u64) {
+    let (mut handovers, mut globals, mut rejected) = (0u64, 0u64, 0u64);
+    let mut node = ServerNode::new(ServerConfig::from_scenario(
+        loaded.scenario.clone(),
+        loaded.server_id(),
+    ));
     for s in &loaded.records {
         node.feed(s);
         for r in node.take_records() {
             if let Record::Decision(d) = r.record {
                 match d {
-                    Decision::Rejected { .. } | Decision::Refused { .. } => msgs.rejected += 1,
+                    Decision::Rejected { .. } | Decision::Refused { .. } => rejected += 1,
                     Decision::Handover { .. } => handovers += 1,
                     Decision::NewGlobal { .. } | Decision::Split { .. } => globals += 1,
                     _ => {}
@@ -271,19 +385,16 @@ pub fn compute_with(loaded: &Loaded, truth_of: Option<&dyn Truth>, gate_m: f64) 
             }
         }
     }
-    for r in &rows {
-        steps += 1;
-        cams += u64::from(r.cameras);
-        rssi += u64::from(r.rssi_nodes);
-    }
-    msgs.late = late.values().sum();
-    msgs.dropped += status.values().map(|s| s.dropped).sum::<u64>();
+    (handovers, globals, rejected)
+}
 
+/// Energy from camera nodes' statuses; heads report theirs in their track reports (their
+/// statuses carry sync and failures), used only when no camera status was recorded.
+fn energy(sc: &proto::scenario::Scenario, tally: &Tally) -> Vec<NodeEnergy> {
     let step_s = sc.method.step_ms as f64 * 1e-3;
     let mut energy = Vec::new();
-    // Energy from camera nodes' statuses; heads report theirs in their track reports (their
-    // statuses carry sync and failures).
-    let cameras: Vec<(&NodeId, &NodeStatus)> = status
+    let cameras: Vec<(&NodeId, &NodeStatus)> = tally
+        .status
         .iter()
         .filter(|(n, _)| sc.node(n.0).is_some_and(|d| d.role == NodeRole::Camera))
         .collect();
@@ -298,7 +409,7 @@ pub fn compute_with(loaded: &Loaded, truth_of: Option<&dyn Truth>, gate_m: f64) 
         });
     }
     if cameras.is_empty() {
-        for (head, (sum_mw, n)) in &head_power {
+        for (head, (sum_mw, n)) in &tally.head_power {
             let secs = *n as f64 * step_s;
             energy.push(NodeEnergy {
                 node: head.0,
@@ -309,50 +420,7 @@ pub fn compute_with(loaded: &Loaded, truth_of: Option<&dyn Truth>, gate_m: f64) 
             });
         }
     }
-    // (An empty f64 sum is −0.0; add +0.0 so an idle run prints 0.)
-    let power_mw_mean = energy.iter().map(|e| e.mean_power_mw).sum::<f64>() + 0.0;
-
-    let sync: Vec<NodeSync> = status
-        .iter()
-        .filter(|(_, s)| s.sync_error_ns >= 0)
-        .map(|(n, s)| NodeSync {
-            node: n.0,
-            error_ms: s.sync_error_ns as f64 * 1e-6,
-            offset_ms: s.sync_offset_ns as f64 * 1e-6,
-        })
-        .collect();
-    let sync_errs: Vec<f64> = sync.iter().map(|s| s.error_ms).collect();
-    let duration_s = match (loaded.records.first(), loaded.records.last()) {
-        (Some(a), Some(b)) => b.at.secs_since(a.at),
-        _ => 0.0,
-    };
-    let per_step = |x: u64| if steps > 0 { x as f64 / steps as f64 } else { 0.0 };
-    let bandwidth = bandwidth(sc, &first_status, &status);
-    Report {
-        scenario: sc.name.clone(),
-        duration_s,
-        steps,
-        truth,
-        mean_error_m: (!all.is_empty()).then_some(mean),
-        error_std_m: (!all.is_empty()).then_some(std),
-        rmse_m: (!all.is_empty()).then_some(rmse),
-        targets,
-        false_tracks,
-        false_track_samples: false_samples,
-        active_cameras_mean: per_step(cams),
-        rssi_nodes_mean: per_step(rssi),
-        power_mw_mean,
-        energy,
-        messages: msgs,
-        sync_error_ms_mean: (!sync_errs.is_empty())
-            .then(|| sync_errs.iter().sum::<f64>() / sync_errs.len() as f64),
-        sync_error_ms_max: sync_errs.iter().copied().reduce(f64::max),
-        sync,
-        handovers,
-        global_ids: globals,
-        skipped: loaded.skipped.clone(),
-        bandwidth,
-    }
+    energy
 }
 
 /// Each node's bytes per second between its first and last status (see the module docs).
@@ -417,6 +485,21 @@ impl Report {
                 self.false_tracks, self.false_track_samples
             );
         }
+        if let Some(m) = &self.mot {
+            let _ = writeln!(s, "MOTA / MOTP     {} / {}", opt(m.mota, ""), opt(m.motp_m, "m"));
+            let _ = writeln!(s, "IDF1            {}", opt(m.idf1, ""));
+            let _ = writeln!(
+                s,
+                "id switches     {}, fragmentations {}",
+                m.id_switches, m.fragmentations
+            );
+            let _ = writeln!(
+                s,
+                "mostly tracked  {} of {} targets, mostly lost {}",
+                m.mostly_tracked, m.unique_objects, m.mostly_lost
+            );
+            let _ = writeln!(s, "GOSPA           {:.3} m", m.gospa_m);
+        }
         let _ = writeln!(s, "active cameras  {:.2} per step", self.active_cameras_mean);
         let _ = writeln!(s, "rssi nodes      {:.2} per step", self.rssi_nodes_mean);
         let _ = writeln!(s, "power           {:.0} mW (mean total)", self.power_mw_mean);
@@ -463,6 +546,26 @@ impl Report {
                     s,
                     "{:>6} {:>8} {:>9.3} {:>9.3} {:>9.3}  {:?}",
                     t.target, t.samples, t.mean_error_m, t.error_std_m, t.rmse_m, t.globals
+                );
+            }
+        }
+        if let Some(m) = self.mot.as_ref().filter(|m| !m.targets.is_empty()) {
+            let _ = writeln!(
+                s,
+                "\n{:>6} {:>9} {:>6} {:>8} {:>9} {:>6}  ids",
+                "target", "coverage", "idf1", "motp m", "switches", "frags"
+            );
+            for t in &m.targets {
+                let _ = writeln!(
+                    s,
+                    "{:>6} {:>9.3} {:>6.3} {:>8} {:>9} {:>6}  {:?}",
+                    t.id,
+                    t.coverage,
+                    t.idf1,
+                    t.motp_m.map_or("–".into(), |x| format!("{x:.3}")),
+                    t.id_switches,
+                    t.fragmentations,
+                    t.hyp_ids
                 );
             }
         }

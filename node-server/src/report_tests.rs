@@ -228,6 +228,31 @@ fn report_from_a_recorded_run() {
     }
     assert!(json["bandwidth"][0]["bytes_per_s"].is_number());
     assert!(r.to_table().contains("mean error      0.100 m"));
+    // The standard metrics: one target followed by one global 0.1 m off from 2 s to 10 s.
+    assert_eq!((r.mota, r.idf1), (Some(1.0), Some(1.0)));
+    assert!((r.motp_m.unwrap() - 0.1).abs() < 1e-9, "{:?}", r.motp_m);
+    assert_eq!(
+        (r.id_switches, r.fragmentations, r.mostly_tracked, r.mostly_lost),
+        (Some(0), Some(0), Some(1), Some(0))
+    );
+    assert!((r.gospa_m.unwrap() - 0.1).abs() < 1e-9);
+    let mot = r.mot.as_ref().unwrap();
+    assert_eq!(mot.frames, 41, "2 s to 10 s every 0.2 s");
+    assert_eq!(mot.targets[0].hyp_ids, r.targets[0].globals);
+    for key in [
+        "mota",
+        "motp_m",
+        "idf1",
+        "id_switches",
+        "fragmentations",
+        "mostly_tracked",
+        "mostly_lost",
+        "gospa_m",
+    ] {
+        assert!(json[key].is_number(), "{key}");
+    }
+    assert!(json["mot"]["targets"][0]["idf1"].is_number());
+    assert!(r.to_table().contains("IDF1            1.000"), "{}", r.to_table());
     assert!(r.to_table().contains("bytes/s"));
 }
 
@@ -241,6 +266,8 @@ fn without_truth_errors_are_absent_and_power_falls_back_to_reports() {
     let r = compute(&loaded, None);
     assert!(!r.truth);
     assert_eq!(r.mean_error_m, None);
+    assert_eq!((r.mota, r.idf1, r.gospa_m), (None, None, None));
+    assert!(r.mot.is_none() && !r.to_table().contains("IDF1"));
     assert!(r.energy.iter().all(|e| e.source == "track_report"));
     assert!((r.power_mw_mean - 3000.0).abs() < 1e-9, "two heads at 1500 mW");
 }
@@ -296,5 +323,19 @@ fn a_ghost_track_is_a_false_track_not_an_error() {
     let r = compute(&loaded, Some(&truth()));
     assert_eq!(r.false_tracks, 1);
     assert!(r.false_track_samples > 10);
+    // The ghost is a false positive in every frame while head 2 owns the target (until the
+    // handover), and nothing else changes: MOTA 1 − fp/41, IDF1 2·41/(41 + 41 + fp).
+    let fp = r.mot.as_ref().unwrap().false_positives as f64;
+    assert!(fp > 10.0, "{fp}");
+    assert!(
+        (r.mota.unwrap() - (1.0 - fp / 41.0)).abs() < 1e-12,
+        "{:?}",
+        r.mota
+    );
+    assert!(
+        (r.idf1.unwrap() - 82.0 / (82.0 + fp)).abs() < 1e-12,
+        "{:?}",
+        r.idf1
+    );
     assert!((r.mean_error_m.unwrap() - 0.1).abs() < 1e-9);
 }

@@ -44,7 +44,7 @@ fn env(body: Message) -> Envelope {
 }
 
 /// The number of f64 and f32 slots of each sample, by tag (what the poison test must find).
-pub const FLOAT_SLOTS: [(usize, usize); 17] = [
+pub const FLOAT_SLOTS: [(usize, usize); 19] = [
     (0, 0),   // hello
     (0, 0),   // hello_ack
     (0, 0),   // heartbeat
@@ -62,6 +62,8 @@ pub const FLOAT_SLOTS: [(usize, usize); 17] = [
     (0, 0),   // sample_request
     (0, 14),  // sample_set: two samples of state 6 + weight 1
     (0, 0),   // frame_report
+    (0, 0),   // view_subscribe
+    (12, 0),  // view_update: mean 6 + cov_pos 6
 ];
 
 /// One observation of each kind, in wire-tag order.
@@ -268,5 +270,82 @@ pub fn messages() -> Vec<Envelope> {
             mode: Mode::Active,
             detections: 2,
         })),
+        env(Message::ViewSubscribe(ViewSubscribe { period_ms: 200 })),
+        env(Message::ViewUpdate(view_update())),
     ]
+}
+
+/// A view update with one track, one camera with its status, one head and one handover.
+fn view_update() -> ViewUpdate {
+    use crate::view::{HandoverCause, ViewCounters, ViewHandover, ViewNode, ViewTrack};
+    ViewUpdate {
+        round: 12,
+        part: 0,
+        parts: 1,
+        time: ClusterTime(1_500_400_000),
+        tracks: vec![ViewTrack {
+            global: TargetId(1005),
+            owner: NodeId(3),
+            local: Some(TargetId(5)),
+            time: ClusterTime(1_500_390_000),
+            mean: vec6(5),
+            cov_pos: [0.28125, 0.03125, -0.015625, 0.34375, 0.0078125, 0.40625],
+            contributors: vec![Contributor {
+                node: NodeId(10),
+                kinds: Kinds::of(ObservationKind::Pinhole),
+            }],
+        }],
+        tracks_total: 1,
+        nodes: vec![
+            ViewNode {
+                node: NodeId(10),
+                role: Role::Camera,
+                up: true,
+                silent_ms: 120,
+                head: Some(NodeId(3)),
+                status: Some(NodeStatus {
+                    mode: Mode::Active,
+                    time_in_mode_ns: [5, 6, 7],
+                    frames: 40,
+                    detections: 38,
+                    dropped: 1,
+                    rejected: 0,
+                    sync_offset_ns: 900,
+                    sync_error_ns: 80,
+                    bytes_sent: 0,
+                }),
+                steps: 0,
+                late: 0,
+                rejected: 2,
+                lost: 3,
+            },
+            ViewNode {
+                node: NodeId(3),
+                role: Role::Head,
+                up: false,
+                silent_ms: 4000,
+                head: None,
+                status: None,
+                steps: 301,
+                late: 4,
+                rejected: 0,
+                lost: 0,
+            },
+        ],
+        nodes_total: 2,
+        handovers: vec![ViewHandover {
+            seq: 9,
+            time: ClusterTime(1_500_350_000),
+            global: TargetId(1005),
+            from: Some(NodeId(2)),
+            to: NodeId(3),
+            cause: HandoverCause::Region,
+        }],
+        counters: ViewCounters {
+            received: 5000,
+            rejected: 6,
+            handovers: 9,
+            undelivered: 11,
+        },
+    }
 }

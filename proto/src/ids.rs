@@ -22,9 +22,14 @@ impl TagId {
         TagId(0x0200_0000_0000 | u64::from(target & 0xffff))
     }
 
-    /// Parse `aa:bb:cc:dd:ee:ff` (or with `-`), case-insensitive.
+    /// Parse `aa:bb:cc:dd:ee:ff` (or with `-`, or the twelve hex digits bare, as recorded BLE
+    /// files write them), case-insensitive.
     pub fn parse_mac(s: &str) -> Option<TagId> {
-        let parts: Vec<&str> = s.trim().split([':', '-']).collect();
+        let s = s.trim();
+        if s.len() == 12 && s.bytes().all(|b| b.is_ascii_hexdigit()) {
+            return u64::from_str_radix(s, 16).ok().map(TagId);
+        }
+        let parts: Vec<&str> = s.split([':', '-']).collect();
         if parts.len() != 6 {
             return None;
         }
@@ -72,6 +77,8 @@ pub enum Role {
     Tool,
     /// A two-microphone acoustic node (paper 001).
     Acoustic,
+    /// A visualization node: subscribes to the server's view feed and has no say in tracking.
+    Viewer,
 }
 
 impl fmt::Display for Role {
@@ -82,6 +89,7 @@ impl fmt::Display for Role {
             Role::Server => "server",
             Role::Tool => "tool",
             Role::Acoustic => "acoustic",
+            Role::Viewer => "viewer",
         })
     }
 }
@@ -99,12 +107,16 @@ mod tests {
             TagId::parse_mac("AA-bb-CC-dd-EE-ff"),
             Some(TagId(0xaabb_ccdd_eeff))
         );
+        assert_eq!(TagId::parse_mac("B827eb4521b4"), Some(TagId(0xb827_eb45_21b4)));
         for bad in [
             "",
             "aa:bb",
             "aa:bb:cc:dd:ee:fg",
             "aaa:bb:cc:dd:ee:ff",
             "aa:bb:cc:dd:ee:ff:00",
+            "b827eb4521b",
+            "b827eb4521bg",
+            "+b827eb4521b",
         ] {
             assert_eq!(TagId::parse_mac(bad), None, "{bad:?}");
         }

@@ -3,8 +3,9 @@
 //! What two nodes must agree on lives here and nowhere else: the messages and their wire
 //! encoding ([`msg`], [`observation`], [`wire`]), what sensors deliver to a node core and the
 //! core's contract ([`sensor`], [`node`]), units and frames ([`ids`],
-//! [`time`]), the camera model ([`camera`], [`opencv`]), the state layout, motion and
-//! measurement models ([`models`]) and the scenario file ([`scenario`]).
+//! [`time`], [`geo`]), the camera model ([`camera`], [`opencv`]), the state layout, motion and
+//! measurement models ([`models`]), the scenario file ([`scenario`]) and the visualization
+//! node's feed ([`view`]).
 //!
 //! Units: metres, seconds (nanoseconds on the wire), radians, dBm, milliwatts. The world frame
 //! is right-handed with z up; camera frames follow OpenCV (x right, y down, z forward).
@@ -12,7 +13,9 @@
 pub mod acoustic;
 pub mod camera;
 pub mod examples;
+pub mod geo;
 pub mod ids;
+pub mod log_limit;
 pub mod models;
 pub mod msg;
 pub mod node;
@@ -23,6 +26,7 @@ pub mod sensor;
 pub mod sync;
 pub mod time;
 pub mod validate;
+pub mod view;
 pub mod wire;
 
 pub use ids::{NodeId, Role, TagId, TargetId};
@@ -32,7 +36,7 @@ pub use wire::{WireError, decode, encode};
 
 /// Version of the wire protocol. Carried in every frame header and in the handshake; a
 /// mismatch is rejected before the body is decoded.
-pub const PROTOCOL_VERSION: u16 = 2;
+pub const PROTOCOL_VERSION: u16 = 3;
 
 /// Largest encoded frame any transport accepts, in bytes.
 pub const MAX_FRAME_BYTES: usize = 16 * 1024;

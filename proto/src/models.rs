@@ -395,6 +395,25 @@ pub fn ground_aged(x: &State, age_s: f64) -> (Vector2<f64>, SMatrix<f64, 2, 6>) 
     (Vector2::new(then[POS], then[POS + 1]), aged_jacobian(jac, age_s))
 }
 
+/// Standard deviation of a ground-plane person's centre height (half the height a camera
+/// measured), m.
+pub const GROUND_CENTRE_Z_SIGMA_M: f64 = 0.25;
+
+/// The information a ground-plane person's measured height gives: the target's centre is at
+/// half of it, with [`GROUND_CENTRE_Z_SIGMA_M`] (heights do not change, so no aging). `None`
+/// for a height that is not finite and positive.
+pub fn ground_height_contribution(height_m: f64, mean: &State) -> Option<(Info, State)> {
+    if !(height_m.is_finite() && height_m > 0.0) {
+        return None;
+    }
+    let mut jac = SMatrix::<f64, 1, 6>::zeros();
+    jac[(0, POS + 2)] = 1.0;
+    let z = nalgebra::Vector1::new(0.5 * height_m);
+    let predicted = nalgebra::Vector1::new(mean[POS + 2]);
+    let noise = nalgebra::Matrix1::new(GROUND_CENTRE_Z_SIGMA_M.powi(2));
+    information_contribution(&z, &predicted, &jac, &noise, mean)
+}
+
 /// Squared Mahalanobis distance `νᵀ (H Σ Hᵀ + R)⁻¹ ν` of a floor position (covariance `R`) seen
 /// `age_s` seconds before the time of a track's (`mean`, `cov`), in the ground plane; `None`
 /// when the innovation covariance is singular. The ground-plane gate of cameras (against

@@ -7,6 +7,7 @@
 use crate::ids::{NodeId, Role, TargetId};
 pub use crate::observation::{Kinds, Observation, ObservationKind, RssiReading};
 use crate::time::ClusterTime;
+pub use crate::view::{ViewSubscribe, ViewUpdate};
 use serde::{Deserialize, Serialize};
 
 /// 6×6 matrix, row-major (information matrices, covariances of the state).
@@ -415,6 +416,10 @@ pub enum Message {
     SampleRequest(SampleRequest),
     SampleSet(SampleSet),
     FrameReport(FrameReport),
+    /// viewer → server: send me the view feed (renewed every second).
+    ViewSubscribe(ViewSubscribe),
+    /// server → viewer: the tracks, nodes and handovers, every step.
+    ViewUpdate(ViewUpdate),
 }
 
 impl Message {
@@ -438,12 +443,15 @@ impl Message {
             Message::SampleRequest(_) => "sample_request",
             Message::SampleSet(_) => "sample_set",
             Message::FrameReport(_) => "frame_report",
+            Message::ViewSubscribe(_) => "view_subscribe",
+            Message::ViewUpdate(_) => "view_update",
         }
     }
 
     /// Whether a transport may drop this message when a queue is full. Measurements and
     /// reports are superseded by the next step (a logging run's dropped frames are counted
-    /// by the camera); control messages never are.
+    /// by the camera), and so are a viewer's subscription (renewed every second) and its
+    /// updates; control messages never are.
     pub fn droppable(&self) -> bool {
         matches!(
             self,
@@ -455,6 +463,8 @@ impl Message {
                 | Message::MeasuredFrame(_)
                 | Message::SampleSet(_)
                 | Message::FrameReport(_)
+                | Message::ViewSubscribe(_)
+                | Message::ViewUpdate(_)
         )
     }
 }

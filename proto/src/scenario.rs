@@ -17,6 +17,9 @@ use thiserror::Error;
 
 mod acoustic_spec;
 mod check;
+mod radio_source;
+
+pub use radio_source::{RadioSpec, blind_camera};
 pub mod particle;
 
 pub use particle::ParticleParams;
@@ -57,6 +60,9 @@ pub struct World {
     /// RSSI propagation of the simulated world (ignored by real deployments).
     #[serde(default)]
     pub radio: RadioWorld,
+    /// Where the world is on Earth (Google Earth, Foxglove's location fixes), if known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geo: Option<crate::geo::Geo>,
 }
 
 /// A vertical wall segment from floor to `height` that occludes cameras and attenuates radio.
@@ -160,6 +166,10 @@ pub struct Network {
     pub sync_beacon_ms: u64,
     /// Outgoing queue length per link; droppable messages beyond it are dropped and counted.
     pub queue_len: usize,
+    /// TCP without TLS: anyone who reaches a node's port can pose as any node. For closed
+    /// test networks only; every node logs it loudly.
+    #[serde(default)]
+    pub insecure: bool,
 }
 
 impl Default for Network {
@@ -171,6 +181,7 @@ impl Default for Network {
             liveness_timeout_ms: 1000,
             sync_beacon_ms: 1000,
             queue_len: 256,
+            insecure: false,
         }
     }
 }
@@ -447,6 +458,23 @@ pub struct NodeSpec {
     /// Microphones, analysis and fingerprints (acoustic nodes only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub acoustic: Option<AcousticSpec>,
+    /// Where the node's radio sits, `[x, y, z]` metres (camera nodes; default: the camera's
+    /// centre). A camera node without `camera` geometry is a radio-only node and needs it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position: Option<[f64; 3]>,
+    /// Where a real node's radio readings come from (camera nodes): `ble`, `ble:ADAPTER` or
+    /// `file:PATH.mbd@SENSOR-MAC` (relative to the scenario file). Absent: launched nodes hear
+    /// the simulated world, others no radio unless `ocelli camera --radio` names one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radio: Option<RadioSpec>,
+}
+
+impl NodeSpec {
+    /// A camera node without a camera: it only hears radio tags (CameraOff is its working
+    /// mode; it is never Active).
+    pub fn radio_only(&self) -> bool {
+        self.role == NodeRole::Camera && self.camera.is_none()
+    }
 }
 
 fn default_host() -> String {
@@ -561,6 +589,7 @@ impl Scenario {
         })?;
         let base = path.parent().unwrap_or(Path::new("."));
         for node in &mut scenario.nodes {
+            node.radio = node.radio.take().map(|r| r.resolved(base));
             if let Some(path) = node.acoustic.as_mut().and_then(|a| a.fingerprints.as_mut())
                 && path.is_relative()
             {
@@ -656,6 +685,17 @@ impl Scenario {
             distortion,
             pose,
         })
+    }
+
+    /// Where node `id`'s radio sits: its `position`, else its camera's centre.
+    ///
+    /// # Errors
+    /// The node does not exist, or has neither a position nor usable camera geometry.
+    pub fn sensor_position(&self, id: u32) -> Result<Vector3<f64>, ScenarioError> {
+        match self.node(id).and_then(|n| n.position) {
+            Some(p) => Ok(Vector3::from(p)),
+            None => Ok(self.camera_model(id)?.pose.centre()),
+        }
     }
 
     /// Camera → head map from the scenario (cameras with no head go to the first head).

@@ -6,6 +6,7 @@
 mod audio;
 mod detection;
 mod frame;
+pub mod mbd;
 mod source;
 
 pub use audio::{AudioFrame, AudioSource};

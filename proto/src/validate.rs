@@ -257,8 +257,51 @@ impl Validate for Message {
                 }
                 Ok(())
             }
+            Message::ViewSubscribe(_) => Ok(()),
+            Message::ViewUpdate(u) => check_view_update(u),
         }
     }
+}
+
+fn at_most(field: &'static str, len: usize, max: usize) -> Result<(), ValidationError> {
+    if len > max {
+        return Err(err(field, format!("{len} entries exceed the maximum of {max}")));
+    }
+    Ok(())
+}
+
+/// A view update: bounded lists, a part within its round, finite tracks with a position
+/// covariance whose variances are not negative.
+fn check_view_update(u: &crate::view::ViewUpdate) -> Result<(), ValidationError> {
+    use crate::view::{
+        MAX_VIEW_CONTRIBUTORS, MAX_VIEW_HANDOVERS, MAX_VIEW_NODES, MAX_VIEW_PARTS, MAX_VIEW_TRACKS,
+    };
+    if u.parts == 0 || u.parts > MAX_VIEW_PARTS || u.part >= u.parts {
+        return Err(err(
+            "view_update.part",
+            format!(
+                "part {} of {} (a round has 1 to {MAX_VIEW_PARTS} parts)",
+                u.part, u.parts
+            ),
+        ));
+    }
+    at_most("view_update.tracks", u.tracks.len(), MAX_VIEW_TRACKS)?;
+    at_most("view_update.nodes", u.nodes.len(), MAX_VIEW_NODES)?;
+    at_most("view_update.handovers", u.handovers.len(), MAX_VIEW_HANDOVERS)?;
+    for t in &u.tracks {
+        finite("view_update.tracks.mean", &t.mean)?;
+        finite("view_update.tracks.cov_pos", &t.cov_pos)?;
+        let c = &t.cov_pos;
+        if c[0] < 0.0 || c[3] < 0.0 || c[5] < 0.0 {
+            return Err(err("view_update.tracks.cov_pos", "a negative variance"));
+        }
+        at_most(
+            "view_update.tracks.contributors",
+            t.contributors.len(),
+            MAX_VIEW_CONTRIBUTORS,
+        )?;
+    }
+    Ok(())
 }
 
 /// Each observation of a list: finite numbers, proper covariances, sane sizes.

@@ -81,7 +81,7 @@ pub fn decode(frame: &[u8]) -> Result<Envelope, WireError> {
 
 /// Kind names of [`crate::Message`] by wire tag (variant index). A test pins it to
 /// [`crate::Message::kind`].
-pub const MESSAGE_KINDS: [&str; 17] = [
+pub const MESSAGE_KINDS: [&str; 19] = [
     "hello",
     "hello_ack",
     "heartbeat",
@@ -99,6 +99,8 @@ pub const MESSAGE_KINDS: [&str; 17] = [
     "sample_request",
     "sample_set",
     "frame_report",
+    "view_subscribe",
+    "view_update",
 ];
 
 /// Turn a postcard failure into an error that names the message kind and the problem

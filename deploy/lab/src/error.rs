@@ -22,6 +22,8 @@ pub enum LabError {
     #[error(transparent)]
     Send(#[from] runtime::transport::SendError),
     #[error(transparent)]
+    Tls(#[from] runtime::transport::TlsError),
+    #[error(transparent)]
     RecordingFile(#[from] node_server::RecordingError),
     #[error(transparent)]
     Camera(#[from] node_camera::config::ConfigError),

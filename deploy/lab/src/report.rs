@@ -12,7 +12,7 @@ use node_server::analysis::{LoadError, Loaded, load};
 use node_server::report::{self, Report, Truth};
 use proto::ClusterTime;
 use proto::scenario::{Scenario, ScenarioError};
-use sim::WorldTruth;
+use sim::{RecordedTruth, WorldTruth, recorded_truth::RecordedTruthError};
 use std::path::Path;
 use thiserror::Error;
 
@@ -64,6 +64,8 @@ pub enum ReportError {
     Load(#[from] LoadError),
     #[error(transparent)]
     Scenario(#[from] ScenarioError),
+    #[error(transparent)]
+    RecordedTruth(#[from] RecordedTruthError),
 }
 
 /// A recording's report and how it was scored.
@@ -86,8 +88,16 @@ pub fn of_recording(
 ) -> Result<RecordingReport, ReportError> {
     let loaded = load(path, scenario)?;
     let scoring = Scoring::of(&loaded, t0);
-    let truth = scoring.truth(&loaded.scenario)?;
-    let report = report::compute(&loaded, truth.as_ref().map(|t| t as &dyn Truth));
+    let report = match (scoring.truth(&loaded.scenario)?, scoring.t0()) {
+        (Some(t), _) => report::compute(&loaded, Some(&t as &dyn Truth)),
+        // Radio-only nodes replaying a recorded file: its positions are the truth, and
+        // RSSI-only tracks err metres, so a track is the beacon's within a wider gate.
+        (None, Some(t0)) => match RecordedTruth::of(&loaded.scenario, t0)? {
+            Some(t) => report::compute_with(&loaded, Some(&t), sim::recorded_truth::ASSOCIATION_GATE_M),
+            None => report::compute(&loaded, None),
+        },
+        (None, None) => report::compute(&loaded, None),
+    };
     Ok(RecordingReport {
         loaded,
         report,

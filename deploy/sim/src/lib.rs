@@ -12,9 +12,11 @@ pub mod faults;
 pub mod logged;
 pub mod net;
 pub mod queue;
+pub mod recorded_truth;
 pub mod runtime;
 pub mod truth;
 
+pub use recorded_truth::RecordedTruth;
 pub use runtime::{Level, NetCounters, Sim, SimOptions, SimOutcome};
 pub use truth::WorldTruth;
 

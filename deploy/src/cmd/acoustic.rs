@@ -8,7 +8,7 @@
 //!   [--scenario FILE]`: the grid estimator on the acoustic likelihood alone, one line per
 //!   frame (`{"t", "x", "y", "sigma_m"}` with `--json`).
 
-use super::common::{TransportArg, load_scenario, run_node, transport_or_scenario};
+use super::common::{SecurityArgs, TransportArg, load_scenario, run_node, transport_or_scenario};
 use anyhow::{Context, Result, bail};
 use node_acoustic::process::{OpenAudio, ProcessConfig, run};
 use node_acoustic::source::WavSource;
@@ -51,6 +51,8 @@ pub struct NodeArgs {
     /// Transport (default: the scenario's `network.transport`).
     #[arg(long, value_enum)]
     pub transport: Option<TransportArg>,
+    #[command(flatten)]
+    pub security: SecurityArgs,
     /// Audio: `synthetic` (the scenario's simulated room), `wav:FILE` (played in real time,
     /// looping) or `live:DEVICE` (`live:default`; needs the `cpal` feature).
     #[arg(long, default_value = "synthetic")]
@@ -157,7 +159,14 @@ fn node(args: NodeArgs) -> Result<ExitCode> {
     let scenario = load_scenario(args.scenario.as_ref())?;
     let kind = transport_or_scenario(args.transport, &scenario);
     let clock = HostClock::follower();
-    let transport = transport_config(&scenario, NodeId(id), kind, &clock, None)?;
+    let transport = transport_config(
+        &scenario,
+        NodeId(id),
+        kind,
+        &clock,
+        None,
+        &args.security.link_security(),
+    )?;
     let epoch = args.epoch_ns.map_or_else(|| clock.now(), ClusterTime);
     let (audio, paced) = audio_source(&args.audio, &scenario, id, args.seed, epoch)?;
     let leader = scenario.server().map(|s| NodeId(s.id));

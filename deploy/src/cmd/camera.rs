@@ -5,7 +5,7 @@
 //! agree without sync; the synthetic world's t = 0 is `--epoch-ns` (default: start of this
 //! process), which `launch` sets to the same value for every camera.
 
-use super::common::{ScenarioArg, TransportArg, node_of_role, run_node, transport_or_scenario};
+use super::common::{ScenarioArg, SecurityArgs, TransportArg, node_of_role, run_node, transport_or_scenario};
 use anyhow::{Result, bail};
 use node_camera::process::{OpenFrames, ProcessConfig, run};
 use node_camera::source_spec::{Count, SharedStats, SourceSpec, SourceStats, SpecError, open_source};
@@ -31,6 +31,8 @@ pub struct Args {
     /// Transport (default: the scenario's `network.transport`).
     #[arg(long, value_enum)]
     pub transport: Option<TransportArg>,
+    #[command(flatten)]
+    pub security: SecurityArgs,
     /// Frame source (see `node_camera::source_spec`): `synthetic`, `images:DIR[?manifest=FILE][&loop]`, `v4l2:/dev/videoN`,
     /// `file:PATH[?loop]`, `rtsp://…`, `http://…` (MJPEG) or `libcamera[:NAME]` (the last four
     /// need the `gstreamer` feature).
@@ -49,6 +51,10 @@ pub struct Args {
     /// server's recording (for `ocelli replay`).
     #[arg(long)]
     pub record_measurements: bool,
+    /// Radio: `ble`, `ble:ADAPTER` or `file:PATH.mbd@SENSOR-MAC` (default: the scenario node's
+    /// `radio`, else the synthetic world's with `--source synthetic`).
+    #[arg(long, value_parser = proto::scenario::RadioSpec::parse)]
+    pub radio: Option<proto::scenario::RadioSpec>,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -147,9 +153,28 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
     let kind = transport_or_scenario(args.transport, &scenario);
     let source = SourceSpec::parse(&args.source)?;
     let clock = HostClock::follower();
-    let transport = transport_config(&scenario, NodeId(args.id), kind, &clock, None)?;
+    let transport = transport_config(
+        &scenario,
+        NodeId(args.id),
+        kind,
+        &clock,
+        None,
+        &args.security.link_security(),
+    )?;
     let epoch = args.epoch_ns.map_or_else(|| clock.now(), ClusterTime);
-    let (frames, radio, source_stats) = sources(source, &scenario, args.id, args.seed, epoch)?;
+    let node = scenario.node(args.id);
+    let (frames, radio, source_stats) = if node.is_some_and(|n| n.radio_only()) {
+        // No camera: no frames (its core never captures).
+        let none: OpenFrames =
+            Box::new(|| Ok(Box::new(node_camera::radio::NoCamera) as Box<dyn FrameSource>));
+        (none, None, None)
+    } else {
+        sources(source, &scenario, args.id, args.seed, epoch)?
+    };
+    let radio = match args.radio.as_ref().or(node.and_then(|n| n.radio.as_ref())) {
+        Some(spec) => Some(super::radio::open(spec, &clock, epoch)?),
+        None => radio,
+    };
     let leader = scenario.server().map(|s| NodeId(s.id));
     let cfg = ProcessConfig {
         id: args.id,

@@ -122,6 +122,28 @@ pub fn finite(s: &str) -> Result<f64, String> {
     number(s)
 }
 
+/// How a node's TCP links are secured: `--tls-dir DIR` (the cluster's certificates, as
+/// `ocelli deploy` writes them) or `--insecure` (plain TCP, loudly logged).
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct SecurityArgs {
+    /// Directory with `ca.pem`, `node-<ID>.pem` and `node-<ID>.key` for mutual TLS over TCP.
+    #[arg(long)]
+    pub tls_dir: Option<PathBuf>,
+    /// Plain TCP without TLS: anyone reaching a port can pose as any node. Closed test
+    /// networks only (the scenario's `[network] insecure = true` says the same).
+    #[arg(long)]
+    pub insecure: bool,
+}
+
+impl SecurityArgs {
+    pub fn link_security(&self) -> runtime::config::LinkSecurity {
+        runtime::config::LinkSecurity {
+            tls_dir: self.tls_dir.clone(),
+            insecure: self.insecure,
+        }
+    }
+}
+
 /// The simulated network of `ocelli sim` and `ocelli replay RECORDING`.
 #[derive(clap::Args, Debug, Clone)]
 #[command(next_help_heading = "Simulated network")]

@@ -1,8 +1,9 @@
 //! `ocelli deploy [SCENARIO] --out DIR`: render per-host configuration (scenario, systemd
-//! units, `sysusers.d` snippet, `nodes.txt`) for installing a scenario on real machines.
+//! units, `sysusers.d` snippet, `nodes.txt`, and over TCP the cluster's certificates) for
+//! installing a scenario on real machines.
 
 use super::common::ScenarioArg;
-use crate::deploy::{Options, render, write_plan};
+use crate::deploy::{Options, certs, render, uses_tls, write_plan};
 use anyhow::{Context, Result};
 use proto::scenario::{DEFAULT_SCENARIO_TOML, Scenario};
 use std::path::PathBuf;
@@ -34,6 +35,21 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     let plan = render(&scenario, &text, &opts)?;
     write_plan(&plan, &args.out).with_context(|| format!("writing under {}", args.out.display()))?;
+    if uses_tls(&scenario, plan.transport) {
+        let issued = certs::issue(&scenario, &plan, &args.out)?;
+        println!(
+            "TLS: {} node certificate(s) from the CA in {} ({}); keep its ca.key off the nodes",
+            issued.certificates,
+            issued.ca_dir.display(),
+            if issued.reused_ca {
+                "existing CA reused"
+            } else {
+                "new CA"
+            }
+        );
+    } else if plan.transport == proto::scenario::TransportKind::Tcp {
+        tracing::warn!("the scenario says `insecure = true`: plain TCP between hosts, no certificates");
+    }
     for host in &plan.hosts {
         let units = host
             .files

@@ -2,7 +2,7 @@
 //! own process until SIGINT/SIGTERM (a second signal aborts). Prints a JSON summary of what
 //! it did on standard output when it stops.
 
-use super::common::{ScenarioArg, TransportArg, node_of_role, run_node, transport_or_scenario};
+use super::common::{ScenarioArg, SecurityArgs, TransportArg, node_of_role, run_node, transport_or_scenario};
 use anyhow::Result;
 use node_head::HeadConfig;
 use node_head::process::run as run_head;
@@ -23,6 +23,8 @@ pub struct Args {
     /// Transport (the scenario's `network.transport` when omitted).
     #[arg(long, value_enum)]
     pub transport: Option<TransportArg>,
+    #[command(flatten)]
+    pub security: SecurityArgs,
     /// TCP: listen here instead of the scenario's address (port 0 picks one).
     #[arg(long)]
     pub listen: Option<SocketAddr>,
@@ -34,7 +36,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let kind = transport_or_scenario(args.transport, &scenario);
     let head_cfg = HeadConfig::from_scenario(&scenario, args.id)?;
     let clock = HostClock::follower();
-    let transport = transport_config(&scenario, NodeId(args.id), kind, &clock, args.listen)?;
+    let transport = transport_config(
+        &scenario,
+        NodeId(args.id),
+        kind,
+        &clock,
+        args.listen,
+        &args.security.link_security(),
+    )?;
     let summary =
         run_node(|shutdown| async move { Ok(run_head(head_cfg, transport, clock, shutdown).await?) })?;
     let c = summary.counters;

@@ -5,6 +5,7 @@ use crate::launch::{LaunchOptions, launch};
 use crate::supervisor::RestartPolicy;
 use anyhow::Result;
 use std::io::IsTerminal;
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -43,10 +44,24 @@ pub struct Args {
     /// records it, so `ocelli replay` can re-run the recording with any method and policy.
     #[arg(long)]
     pub record_measurements: bool,
+    /// Serve the viewer (live map, 3D view, metrics, KML) here; a busy default port is
+    /// replaced by a free one.
+    #[arg(long, default_value = super::viewer::DEFAULT_LISTEN, conflicts_with = "no_view")]
+    pub view: SocketAddr,
+    /// Start no viewer.
+    #[arg(long)]
+    pub no_view: bool,
+    /// Over TCP, plain links without TLS (the scenario's `[network] insecure = true`): anyone
+    /// reaching a port can pose as any node. Without it a launch makes certificates for the run.
+    #[arg(long)]
+    pub insecure: bool,
 }
 
 pub fn run(args: Args, log_json: bool) -> Result<ExitCode> {
-    let scenario = args.scenario.load()?;
+    let mut scenario = args.scenario.load()?;
+    if args.insecure {
+        scenario.network.insecure = true;
+    }
     let opts = LaunchOptions {
         transport: args.transport.kind(),
         duration: args.duration.map(Duration::from_secs_f64),
@@ -57,6 +72,7 @@ pub fn run(args: Args, log_json: bool) -> Result<ExitCode> {
         record_measurements: args.record_measurements,
         log_json,
         restart: (!args.no_restart).then(RestartPolicy::default),
+        view: (!args.no_view).then(|| view_address(args.view)),
     };
     let launched = launch(scenario, &opts)?;
     for (node, n) in &launched.restarts {
@@ -74,4 +90,22 @@ pub fn run(args: Args, log_json: bool) -> Result<ExitCode> {
         "run finished; `ocelli report RECORDING` prints this report again"
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// `addr` if it can be bound now; port 0, or the default port when it is taken (another
+/// launch, another viewer), becomes a free port on the same interface, said on standard error.
+fn view_address(addr: SocketAddr) -> SocketAddr {
+    let is_default = addr.to_string() == super::viewer::DEFAULT_LISTEN;
+    if addr.port() != 0 && (!is_default || std::net::TcpListener::bind(addr).is_ok()) {
+        return addr;
+    }
+    match std::net::TcpListener::bind(SocketAddr::new(addr.ip(), 0)).and_then(|l| l.local_addr()) {
+        Ok(free) => {
+            if is_default {
+                eprintln!("{addr} is busy: the viewer serves on {free} instead");
+            }
+            free
+        }
+        Err(_) => addr,
+    }
 }

@@ -12,7 +12,8 @@ use proto::msg::{Message, SyncBeacon};
 use proto::node::Outgoing;
 use proto::{ClusterTime, MAX_FRAME_BYTES, NodeId, Role};
 use runtime::transport::{
-    Event, IpcConfig, IpcLimits, StatsSnapshot, TcpConfig, TransportConfig, TransportStats, open,
+    Event, IpcConfig, IpcLimits, Security, StatsSnapshot, TcpConfig, Tls, TransportConfig, TransportStats,
+    open,
 };
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -70,6 +71,13 @@ pub struct Args {
     pub heartbeat_ms: u64,
     #[arg(long, default_value_t = 500)]
     pub liveness_ms: u64,
+    /// TCP: mutual TLS with this directory's `ca.pem`, `node-<ID>.pem`, `node-<ID>.key`
+    /// (certificates of tools, `n<ID>.tool.ocelli`).
+    #[arg(long)]
+    pub tls_dir: Option<std::path::PathBuf>,
+    /// TCP: plain, no TLS.
+    #[arg(long)]
+    pub insecure: bool,
 }
 
 fn parse_peer(s: &str) -> Result<(u32, SocketAddr), String> {
@@ -113,7 +121,12 @@ fn config(args: &Args) -> Result<TransportConfig> {
             TransportConfig::Ipc(c)
         }
         Kind::Tcp => {
-            let mut c = TcpConfig::new(me, Role::Tool);
+            let security = match (&args.tls_dir, args.insecure) {
+                (Some(dir), _) => Security::Tls(Tls::load(dir, me)?),
+                (None, true) => Security::Insecure,
+                (None, false) => bail!("tcp needs --tls-dir DIR or --insecure"),
+            };
+            let mut c = TcpConfig::new(me, Role::Tool, security);
             c.listen = args.listen;
             c.peers = args
                 .peers

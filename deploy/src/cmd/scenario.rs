@@ -34,6 +34,34 @@ pub enum Action {
         #[arg(long, default_value_t = super::camera::SYNTHETIC_SEED)]
         seed: u64,
     },
+    /// Print a generated hall: cameras on the walls and on a grid of posts aimed to cover the
+    /// floor, heads whose regions tile it, people crossing it (every third tagged); checked as
+    /// `check` does, with the floor's coverage by two cameras or more printed on stderr.
+    Generate {
+        #[arg(long, default_value_t = 100)]
+        cameras: u32,
+        #[arg(long, default_value_t = 5)]
+        heads: u32,
+        #[arg(long, default_value_t = 10)]
+        people: u32,
+        /// Floor size, metres: WIDTHxDEPTH.
+        #[arg(long, default_value = "30x20")]
+        size: String,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+    /// Print a deployment replaying one trajectory of the BLE RSSI dataset: one radio-only node
+    /// per sensor at its surveyed position, one head tracking from RSSI alone (the law fitted
+    /// on the other trajectories). `ocelli launch` it to score it against the file's truth.
+    BleRssi {
+        /// Trajectory name (`straight_01`, …; default: the first).
+        #[arg(long)]
+        trajectory: Option<String>,
+        /// The dataset's directory (default: `$OCELLI_BLE_RSSI_DIR`, else
+        /// `shared/datasets/ble-rssi` beside the repository).
+        #[arg(long)]
+        dataset: Option<PathBuf>,
+    },
 }
 
 /// Every check a deployment would otherwise fail on later.
@@ -101,6 +129,55 @@ pub fn run(args: Args) -> Result<ExitCode> {
             println!(
                 "rssi-default = {{ kind = \"log-distance\", a = {a:.2}, b = {b:.2}, variance = {variance:.1} }}"
             );
+        }
+        Action::Generate {
+            cameras,
+            heads,
+            people,
+            size,
+            seed,
+        } => {
+            use world::generate::{HallSpec, coverage, generate};
+            let parse = |v: Option<&str>| v.and_then(|v| v.trim().parse::<f64>().ok());
+            let mut it = size.split('x');
+            let (Some(w), Some(d)) = (parse(it.next()), parse(it.next())) else {
+                anyhow::bail!("--size {size:?}: expected WIDTHxDEPTH in metres, e.g. 30x20");
+            };
+            let spec = HallSpec {
+                cameras,
+                heads,
+                people,
+                size: [w, d],
+                seed,
+                ..HallSpec::default()
+            };
+            let (s, text) = generate(&spec)?;
+            eprintln!(
+                "{}: floor seen by two cameras or more: {:.1}% (0.5 m grid)",
+                s.name,
+                100.0 * coverage(&s, 0.5, 0.0, 2)
+            );
+            print!("{text}");
+        }
+        Action::BleRssi { trajectory, dataset } => {
+            use lab::experiment::ble_rssi::{data, launch};
+            let dir = dataset.unwrap_or_else(data::default_dir);
+            let ds = data::load(&dir)?;
+            let i = match &trajectory {
+                None => 0,
+                Some(name) => ds
+                    .trajectories
+                    .iter()
+                    .position(|t| &t.name == name)
+                    .ok_or_else(|| {
+                        let names: Vec<&str> = ds.trajectories.iter().map(|t| t.name.as_str()).collect();
+                        anyhow::anyhow!(
+                            "no trajectory {name:?} in {} (there are {names:?})",
+                            dir.display()
+                        )
+                    })?,
+            };
+            print!("{}", launch::scenario_toml(&ds, i)?);
         }
     }
     Ok(ExitCode::SUCCESS)

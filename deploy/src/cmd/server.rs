@@ -1,7 +1,7 @@
 //! `ocelli server`: run the server process (membership, handover, global ids, time leader,
 //! recording) from a scenario, over iceoryx2 or TCP. Restarting it on the same recording resumes.
 
-use super::common::{ScenarioArg, TransportArg, node_of_role, run_node, transport_or_scenario};
+use super::common::{ScenarioArg, SecurityArgs, TransportArg, node_of_role, run_node, transport_or_scenario};
 use anyhow::{Context, Result};
 use node_server::Origin;
 use node_server::process::{ProcessConfig, run as run_server};
@@ -23,6 +23,8 @@ pub struct Args {
     /// Transport (default: the scenario's `network.transport`).
     #[arg(long, value_enum)]
     pub transport: Option<TransportArg>,
+    #[command(flatten)]
+    pub security: SecurityArgs,
     /// Recording file; resumed if it exists.
     #[arg(long, value_name = "FILE")]
     pub record: PathBuf,
@@ -53,7 +55,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
     node_of_role(&scenario, id, NodeRole::Server)?;
     let kind = transport_or_scenario(args.transport, &scenario);
     // The leader's clock stamps the transport's own frames.
-    let transport = transport_config(&scenario, NodeId(id), kind, &HostClock::leader(), None)?;
+    let transport = transport_config(
+        &scenario,
+        NodeId(id),
+        kind,
+        &HostClock::leader(),
+        None,
+        &args.security.link_security(),
+    )?;
     let cfg = ProcessConfig {
         scenario,
         id: NodeId(id),

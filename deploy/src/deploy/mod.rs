@@ -7,7 +7,13 @@
 //! cameras *and* the server. So a deployment on a single host uses iceoryx2 (`ipc`, shared
 //! memory); as soon as the scenario names two hosts every node uses TCP (peers on one host then
 //! talk over the loopback, which costs a little latency but needs no bridge between transports).
+//! TCP links are mutual TLS: [`certs::issue`] makes the cluster's CA (kept in the output's
+//! `ca/`, never installed) and gives each host its own nodes' certificates, which the units
+//! hand to their service with `LoadCredential=`. Every unit is sandboxed (no privileges, a
+//! read-only system but for the recording's directory) and restarts after a crash only,
+//! within a start limit.
 
+pub mod certs;
 mod units;
 
 use proto::scenario::{NodeRole, NodeSpec, Scenario, TransportKind};
@@ -16,7 +22,7 @@ use std::net::IpAddr;
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 
-pub use units::unit_name;
+pub use units::{TLS_DIR, unit_name, uses_tls};
 
 /// Where the binary and the scenario live on a target host.
 pub const BINARY: &str = "/usr/local/bin/ocelli";

@@ -70,7 +70,7 @@ fn multi_host_units_use_tcp_and_the_right_settings() {
 
     let server = file(&plan, "pc", "rootfs/etc/systemd/system/ocelli-server-1.service");
     for line in [
-        "ExecStart=/usr/local/bin/ocelli server --scenario /etc/ocelli/scenario.toml --id 1 --transport tcp --record /var/lib/ocelli/default-server-1.ocrec\n",
+        "ExecStart=/usr/local/bin/ocelli server --scenario /etc/ocelli/scenario.toml --id 1 --transport tcp --tls-dir ${CREDENTIALS_DIRECTORY} --record /var/lib/ocelli/default-server-1.ocrec\n",
         "StateDirectory=ocelli\n",
         "WorkingDirectory=/var/lib/ocelli\n",
         "User=ocelli\n",
@@ -78,8 +78,10 @@ fn multi_host_units_use_tcp_and_the_right_settings() {
         "Restart=on-failure\n",
         "KillSignal=SIGTERM\n",
         "TimeoutStopSec=15s\n",
-        "PrivateTmp=no\n",
+        "PrivateTmp=yes\n",
+        "PrivateDevices=yes\n",
         "RuntimeDirectory=ocelli/server-1\n",
+        "LoadCredential=node-1.key:/etc/ocelli/tls/node-1.key\n",
     ] {
         assert!(server.contains(line), "server unit lacks {line:?}:\n{server}");
     }
@@ -89,7 +91,11 @@ fn multi_host_units_use_tcp_and_the_right_settings() {
         "pi-10",
         "rootfs/etc/systemd/system/ocelli-camera-10.service",
     );
-    assert!(cam.contains("--id 10 --transport tcp\n"), "{cam}");
+    assert!(
+        cam.contains("--id 10 --transport tcp --tls-dir ${CREDENTIALS_DIRECTORY}\n"),
+        "{cam}"
+    );
+    assert!(!cam.contains("PrivateDevices"), "a camera reads its V4L2 device");
     assert!(cam.contains("WorkingDirectory=/run/ocelli/camera-10\n"));
     assert!(cam.contains("SupplementaryGroups=video\n"));
     assert!(!cam.contains("StateDirectory"), "only the server keeps state");
@@ -124,7 +130,7 @@ fn camera_source_is_passed_to_cameras_only() {
         "rootfs/etc/systemd/system/ocelli-camera-11.service",
     );
     assert!(
-        cam.contains("--transport tcp --source v4l2:/dev/video0\n"),
+        cam.contains("--tls-dir ${CREDENTIALS_DIRECTORY} --source v4l2:/dev/video0\n"),
         "{cam}"
     );
     let head = file(&plan, "hub", "rootfs/etc/systemd/system/ocelli-head-2.service");
@@ -183,5 +189,117 @@ fn written_plan_lands_under_host_directories() {
     assert!(out.join("hub/rootfs/etc/ocelli/scenario.toml").exists());
     // The units point at the installed copy of nodes.txt.
     assert!(out.join("hub/rootfs/etc/ocelli/nodes.txt").exists());
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn every_unit_is_sandboxed_and_restarts_within_limits() {
+    for (s, text) in [
+        (Scenario::default_scenario(), DEFAULT_SCENARIO_TOML.to_string()),
+        multi_host("192.168.1.10:7400"),
+    ] {
+        let plan = render(&s, &text, &Options::default()).unwrap();
+        for host in &plan.hosts {
+            for (path, unit) in host
+                .files
+                .iter()
+                .filter(|(p, _)| p.extension().is_some_and(|e| e == "service"))
+            {
+                for line in [
+                    "NoNewPrivileges=yes\n",
+                    "ProtectSystem=strict\n",
+                    "ProtectHome=yes\n",
+                    "CapabilityBoundingSet=\n",
+                    "UMask=0027\n",
+                    "RestrictSUIDSGID=yes\n",
+                    "SystemCallFilter=@system-service\n",
+                    "Restart=on-failure\n",
+                    "StartLimitIntervalSec=300\n",
+                    "StartLimitBurst=5\n",
+                ] {
+                    assert!(
+                        unit.contains(line),
+                        "{}: {line:?} missing:\n{unit}",
+                        path.display()
+                    );
+                }
+                assert!(!unit.contains("Restart=always"), "{unit}");
+                // The sandbox is in [Service], the start limit in [Unit].
+                let service = unit.find("[Service]").unwrap();
+                assert!(unit.find("StartLimitBurst").unwrap() < service);
+                assert!(unit.find("ProtectSystem").unwrap() > service);
+            }
+        }
+    }
+    // On one host (iceoryx2) the shared /tmp stays writable and shared.
+    let plan = render(
+        &Scenario::default_scenario(),
+        DEFAULT_SCENARIO_TOML,
+        &Options::default(),
+    )
+    .unwrap();
+    let head = file(
+        &plan,
+        "localhost",
+        "rootfs/etc/systemd/system/ocelli-head-2.service",
+    );
+    assert!(
+        head.contains("PrivateTmp=no\nReadWritePaths=/tmp\n") && !head.contains("LoadCredential"),
+        "{head}"
+    );
+    let server = file(
+        &plan,
+        "localhost",
+        "rootfs/etc/systemd/system/ocelli-server-1.service",
+    );
+    assert!(
+        server.contains("StateDirectory=ocelli\nStateDirectoryMode=0750\n"),
+        "{server}"
+    );
+}
+
+#[test]
+fn an_insecure_multi_host_scenario_gets_no_certificates_and_says_so() {
+    let (mut s, _) = multi_host("192.168.1.10:7400");
+    s.network.insecure = true;
+    let text = s.to_toml();
+    let plan = render(&s, &text, &Options::default()).unwrap();
+    let unit = file(&plan, "pc", "rootfs/etc/systemd/system/ocelli-server-1.service");
+    assert!(!unit.contains("--tls-dir") && unit.contains("INSECURE"), "{unit}");
+    assert!(file(&plan, "pc", "nodes.txt").contains("INSECURE"));
+}
+
+#[test]
+fn certificates_go_to_their_hosts_only_and_a_second_deploy_keeps_the_ca() {
+    use runtime::transport::Tls;
+    use std::os::unix::fs::PermissionsExt;
+    let (s, text) = multi_host("192.168.1.10:7400");
+    let plan = render(&s, &text, &Options::default()).unwrap();
+    let out = std::env::temp_dir().join(format!("ocelli-deploy-certs-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    write_plan(&plan, &out).unwrap();
+    let first = certs::issue(&s, &plan, &out).unwrap();
+    assert_eq!((first.certificates, first.reused_ca), (s.nodes.len(), false));
+    let tls = |host: &str| out.join(host).join("rootfs/etc/ocelli/tls");
+    assert!(tls("pi-10").join("node-10.key").exists());
+    assert!(
+        !tls("pi-10").join("node-11.key").exists(),
+        "a Pi holds only its own key"
+    );
+    assert!(tls("hub").join("node-2.pem").exists() && tls("hub").join("node-3.pem").exists());
+    for key in [tls("pi-10").join("node-10.key"), out.join("ca/ca.key")] {
+        let mode = std::fs::metadata(&key).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o600, "{}", key.display());
+    }
+    assert!(
+        !tls("pc").join("ca.key").exists(),
+        "the CA key stays off the hosts"
+    );
+    let ca_before = std::fs::read_to_string(out.join("ca/ca.pem")).unwrap();
+    // Deploy again: the same CA signs, so a new node certificate works with the old ca.pem.
+    let again = certs::issue(&s, &plan, &out).unwrap();
+    assert!(again.reused_ca);
+    assert_eq!(std::fs::read_to_string(out.join("ca/ca.pem")).unwrap(), ca_before);
+    assert!(Tls::load(&tls("pi-10"), proto::NodeId(10)).is_ok());
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -2,12 +2,14 @@
 //!
 //! A launch claims its own run folder ([`run_dir`]), writes the effective scenario there (a
 //! domain of its own, free TCP ports), starts the server, the heads and the cameras as
-//! `ocelli server|head|camera` children (each tied to the launcher's life, each logging to its
-//! own file, each restarted with backoff if it crashes), shows live progress read from the
-//! server's recording as it grows ([`progress`]), and stops in order on SIGINT, SIGTERM or
-//! SIGHUP or after the duration. Whatever happened to the children, it reaps them all, removes
-//! the domain's iceoryx2 files from `/dev/shm` and reports on the recording exactly as
-//! `ocelli report` does.
+//! `ocelli server|head|camera` children and the visualization node as `ocelli viewer` (its URL
+//! printed), each tied to the launcher's life, each logging to its own file, each restarted with
+//! backoff if it crashes, shows live progress read from the server's recording as it grows
+//! ([`progress`]), and stops in order on SIGINT, SIGTERM or SIGHUP or after the duration.
+//! Whatever happened to the children, it reaps them all, removes the domain's iceoryx2 files
+//! from `/dev/shm` and reports on the recording exactly as `ocelli report` does. Over TCP the
+//! nodes speak mutual TLS with a CA and certificates made for the run (`run-dir/tls`), or plain
+//! TCP if the scenario (or `--insecure`) says `insecure`.
 
 mod acoustic;
 pub mod progress;
@@ -44,6 +46,8 @@ pub struct LaunchOptions {
     pub log_json: bool,
     /// Restart crashed nodes (none: leave them down).
     pub restart: Option<RestartPolicy>,
+    /// Start the viewer serving here (`None`: no viewer).
+    pub view: Option<std::net::SocketAddr>,
 }
 
 /// What a launch leaves behind.
@@ -86,6 +90,8 @@ struct Spawn {
     epoch: ClusterTime,
     opts: LaunchOptions,
     recording: PathBuf,
+    /// The run's certificates (TCP with TLS).
+    tls_dir: Option<PathBuf>,
 }
 
 impl Spawn {
@@ -94,20 +100,8 @@ impl Spawn {
     fn command(&self, role: &'static str, id: u32, log: PathBuf) -> MakeCommand {
         let how = self.clone();
         Box::new(move || {
-            let mut cmd = Command::new(&how.exe);
-            if how.opts.log_json {
-                cmd.arg("--log-json");
-            }
-            cmd.arg(role)
-                .arg("--scenario")
-                .arg(&how.scenario_path)
-                .arg("--id")
-                .arg(id.to_string())
-                .arg("--transport")
-                .arg(match how.opts.transport {
-                    TransportKind::Ipc => "ipc",
-                    TransportKind::Tcp => "tcp",
-                });
+            let mut cmd = how.base(role);
+            cmd.arg("--id").arg(id.to_string());
             match role {
                 // The recording says where scenario time 0 is and that the world is simulated.
                 "server" => {
@@ -128,6 +122,40 @@ impl Spawn {
                 }
                 _ => {}
             }
+            let file = std::fs::OpenOptions::new().create(true).append(true).open(&log)?;
+            cmd.stdout(Stdio::null()).stderr(file);
+            Ok(cmd)
+        })
+    }
+
+    /// `ocelli [--log-json] ROLE --scenario … --transport … [--tls-dir …]`: what every child
+    /// is started with.
+    fn base(&self, role: &str) -> Command {
+        let mut cmd = Command::new(&self.exe);
+        if self.opts.log_json {
+            cmd.arg("--log-json");
+        }
+        cmd.arg(role)
+            .arg("--scenario")
+            .arg(&self.scenario_path)
+            .arg("--transport")
+            .arg(match self.opts.transport {
+                TransportKind::Ipc => "ipc",
+                TransportKind::Tcp => "tcp",
+            });
+        if let Some(dir) = &self.tls_dir {
+            cmd.arg("--tls-dir").arg(dir);
+        }
+        cmd
+    }
+
+    /// The viewer, a client of the server over the launch's transport, serving `addr`, logging
+    /// to `log`.
+    fn viewer_command(&self, addr: std::net::SocketAddr, log: PathBuf) -> MakeCommand {
+        let how = self.clone();
+        Box::new(move || {
+            let mut cmd = how.base("viewer");
+            cmd.arg("--listen").arg(addr.to_string());
             let file = std::fs::OpenOptions::new().create(true).append(true).open(&log)?;
             cmd.stdout(Stdio::null()).stderr(file);
             Ok(cmd)
@@ -170,7 +198,29 @@ fn spawn_all(sup: &mut Supervisor, scenario: &Scenario, how: &Spawn, run: &RunDi
             sup.spawn(node, make, instant_now())?;
         }
     }
+    // The viewer's URL is printed: it is what a person opens.
+    if let Some(addr) = how.opts.view {
+        let make = how.viewer_command(addr, run.log("viewer"));
+        sup.spawn("viewer", make, instant_now())?;
+        eprintln!("viewer: http://{addr}");
+    }
     Ok(())
+}
+
+/// Over TCP every link is mutual TLS with certificates made for this run (a CA of its own, one
+/// certificate per node and one for the viewer), unless the scenario says insecure; where they
+/// are.
+fn issue_certificates(scenario: &Scenario, opts: &LaunchOptions, run: &RunDir) -> Result<Option<PathBuf>> {
+    if opts.transport != TransportKind::Tcp || scenario.network.insecure {
+        return Ok(None);
+    }
+    let dir = run.dir.join("tls");
+    let viewer = opts
+        .view
+        .map(|_| (view::node::free_id(scenario), proto::Role::Viewer));
+    crate::deploy::certs::issue_all_in(scenario, viewer.as_slice(), &dir)
+        .context("making the run's certificates")?;
+    Ok(Some(dir))
 }
 
 /// The stop signals a launch obeys: SIGINT (Ctrl-C), SIGTERM (systemd, docker, `timeout`),
@@ -314,11 +364,16 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<Launched> {
         epoch,
         opts: opts.clone(),
         recording: run.recording.clone(),
+        tls_dir: issue_certificates(&scenario, opts, &run)?,
     };
     let mut sup = Supervisor::new(Duration::from_secs(5), opts.restart);
     spawn_all(&mut sup, &scenario, &how, &run)?;
     let pids = run.dir.join("pids");
     write_pids(&mut sup, &pids)?;
+    // The synthetic world's time 0 (cluster nanoseconds), for tests that score a run as it goes.
+    let epoch_file = run.dir.join("epoch-ns");
+    std::fs::write(&epoch_file, epoch.0.to_string())
+        .with_context(|| format!("writing {}", epoch_file.display()))?;
     tracing::info!(
         nodes = scenario.nodes.len(),
         run = %run.dir.display(),

@@ -12,6 +12,7 @@
 //! node can learn where a target truly is.
 
 pub mod acoustics;
+pub mod generate;
 pub mod prepare;
 pub mod project;
 pub mod radio;

@@ -10,10 +10,10 @@
 use crate::config::{AcousticConfig, ConfigError};
 use crate::node::{AcousticInput, AcousticNode, Counters};
 use futures_util::stream;
+use proto::NodeId;
 use proto::scenario::Scenario;
 use proto::sensor::{AudioFrame, AudioSource, SourceError};
-use proto::{ClusterTime, NodeId};
-use runtime::{Hooks, HostClock, RunError, RunSummary};
+use runtime::{HostClock, RunError, RunSummary};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
@@ -122,23 +122,6 @@ impl AudioLoop {
     }
 }
 
-/// After each step: tell the audio thread whether the core wants audio.
-struct ListenSwitch(Arc<AtomicBool>);
-
-impl Hooks<AcousticNode> for ListenSwitch {
-    type Error = std::convert::Infallible;
-
-    fn after(
-        &mut self,
-        node: &mut AcousticNode,
-        _: ClusterTime,
-        _: &[proto::node::Outgoing],
-    ) -> Result<(), Self::Error> {
-        self.0.store(node.listening(), Ordering::Relaxed);
-        Ok(())
-    }
-}
-
 /// Run acoustic node `cfg.id` until `shutdown` is cancelled.
 ///
 /// # Errors
@@ -193,7 +176,7 @@ pub async fn run(
     let sensors = Box::pin(stream::unfold(rx, |mut rx| async move {
         rx.recv().await.map(|a| (a, rx))
     }));
-    let mut hooks = ListenSwitch(listening);
+    let mut hooks = runtime::process::SensorSwitch::new(listening, AcousticNode::listening);
     let result = runtime::run(&mut node, cfg.process, clock, sensors, &mut hooks, shutdown).await;
     stop.store(true, Ordering::Relaxed);
     if tokio::task::spawn_blocking(move || audio.join()).await.is_err() {

@@ -131,6 +131,7 @@ pub fn bounding_world(rows: &[SurveyRow], margin: f64) -> World {
         max: [max[0], max[1], 3.0],
         walls: Vec::new(),
         radio: RadioWorld::default(),
+        geo: None,
     }
 }
 

@@ -18,7 +18,7 @@ impl Fusion for CentralizedEif {
     }
 
     fn absorb(&mut self, track: &mut Track, det: &Detection, node: &NodeInfo, cfg: &HeadConfig) {
-        observe::pinhole(track, det, node, cfg.method.previous_point);
+        observe::camera(track, det, node, cfg.method.previous_point);
     }
 
     fn update(&mut self, track: &mut Track, _: ClusterTime) -> Updated {

@@ -221,6 +221,10 @@ impl Fusion for GridFusion {
     }
 
     fn absorb(&mut self, track: &mut Track, det: &Detection, _: &NodeInfo, _: &HeadConfig) {
+        // The grid's optical model takes pin-hole points; ground-plane people are not in it.
+        if det.ground.is_some() {
+            return;
+        }
         let d = optical::Detection {
             point: [det.point.x, det.point.y],
             cov: [det.cov[(0, 0)], det.cov[(0, 1)], det.cov[(1, 1)]],

@@ -30,7 +30,12 @@ impl Fusion for Ml {
     }
 
     fn absorb(&mut self, track: &mut Track, det: &Detection, node: &NodeInfo, cfg: &HeadConfig) {
-        if let Some(p) = lift(&node.camera, &det.point, &det.cov, cfg.ml_depth) {
+        let lifted = if det.ground.is_some() {
+            lift_ground(det, cfg.ml_depth, track.filter.mean()[2])
+        } else {
+            lift(&node.camera, &det.point, &det.cov, cfg.ml_depth)
+        };
+        if let Some(p) = lifted {
             track.ml_points.push(p);
         }
     }
@@ -132,6 +137,25 @@ pub fn lift(
             Some((p, r * local * r.transpose()))
         }
     }
+}
+
+/// A ground-plane person's floor position as a world point: on the known plane (with its σ),
+/// or at the track's height `track_z` with [`crate::association::ground::GROUND_BIRTH_Z_SIGMA`]
+/// when the depth is a mean depth.
+pub fn lift_ground(
+    det: &Detection,
+    depth: DepthHandling,
+    track_z: f64,
+) -> Option<(Vector3<f64>, Matrix3<f64>)> {
+    let (z, sigma) = match depth {
+        DepthHandling::KnownPlane { z, sigma } => (z, sigma),
+        DepthHandling::MeanDepth { .. } => (track_z, crate::association::GROUND_BIRTH_Z_SIGMA),
+    };
+    let mut cov = Matrix3::zeros();
+    cov.fixed_view_mut::<2, 2>(0, 0).copy_from(&det.cov);
+    cov[(2, 2)] = sigma * sigma;
+    let p = Vector3::new(det.point.x, det.point.y, z);
+    (p.iter().all(|v| v.is_finite()) && cov.iter().all(|v| v.is_finite())).then_some((p, cov))
 }
 
 /// Fuse lifted points (eq. 4–5): x = (Σ Σ_i⁻¹)⁻¹ Σ Σ_i⁻¹ z_i, Σ_x = (Σ Σ_i⁻¹)⁻¹. `None` with no

@@ -30,6 +30,7 @@ pub fn bench_update(nx: usize, ny: usize, iters: usize) -> f64 {
             attenuation_db: 6.0,
         }],
         radio: RadioWorld::default(),
+        geo: None,
     };
     let grid = Arc::new(Grid::new(&world, cell).expect("the bench grid is valid"));
     let camera = CameraModel {

@@ -69,6 +69,7 @@ pub fn survey_world(db: &FingerprintDb) -> World {
         max: [x1, y1, 3.0],
         walls: Vec::new(),
         radio: RadioWorld::default(),
+        geo: None,
     }
 }
 

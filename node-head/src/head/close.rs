@@ -53,6 +53,7 @@ impl HeadNode {
         let mut rssi_nodes = vec![false; self.nodes.len()];
         self.hand_sensed_to_fusion();
         for t in 0..self.tracks.len() {
+            self.hold_height(t);
             self.fuse_track(t, now, &mut stats, &mut rssi_nodes);
         }
         stats.rssi_nodes = rssi_nodes.iter().filter(|&&b| b).count();
@@ -60,7 +61,11 @@ impl HeadNode {
         let live: Vec<_> = self.tracks.iter().map(|t| t.local).collect();
         self.fusion.retain(&live);
         stats.tracks = self.tracks.len();
-        for t in self.tracks.iter().filter(|t| t.confirmed) {
+        // A radio track is reported once a tag was heard for it (see `radio_search`).
+        let evidenced = |t: &crate::track::Track| {
+            t.global.is_some() || t.camera_steps > 0 || t.rssi_heard.iter().any(|&h| h)
+        };
+        for t in self.tracks.iter().filter(|t| t.confirmed && evidenced(t)) {
             if let Some(server) = self.cfg.server {
                 out.push(Outgoing::new(
                     server,
@@ -109,7 +114,11 @@ impl HeadNode {
         for d in &dets {
             let node = &self.cfg.nodes[d.slot];
             self.fusion.absorb(track, d, node, &self.cfg);
-            let mut kinds = Kinds::of(ObservationKind::Pinhole);
+            let mut kinds = Kinds::of(if d.ground.is_some() {
+                ObservationKind::Ground
+            } else {
+                ObservationKind::Pinhole
+            });
             for r in d.rssi.iter().filter(|_| node.rssi) {
                 if track.hear(d.slot, r.dbm, at.secs_since(r.time)) {
                     kinds.insert(ObservationKind::Rssi);
@@ -271,8 +280,9 @@ impl HeadNode {
         if variant.is_none() || self.tracks.is_empty() {
             for s in 0..self.nodes.len() {
                 let n = &self.nodes[s];
-                if n.member && n.up && n.mode != Mode::Active {
-                    self.command(s, Mode::Active, out);
+                let on = n.info.working_mode(Mode::Active);
+                if n.member && n.up && n.mode != on {
+                    self.command(s, on, out);
                 }
             }
             return None;
@@ -317,12 +327,17 @@ impl HeadNode {
                     .weighed(&tracks[t].trainers[slots[n]].model());
                 let heard = node.rssi && tracks[t].rssi_heard[slots[n]];
                 let rssi = heard.then_some((&model, &node.position));
-                Expected::at(Some(&node.camera), walls, sigma, rssi, &means[t])
+                let camera = (!node.radio_only).then_some(&node.camera);
+                Expected::at(camera, walls, sigma, rssi, &means[t])
             },
         )?;
         let slot = self.slots[&decision.node];
+        let to = self.nodes[slot].info.working_mode(decision.to);
+        if to == self.nodes[slot].mode {
+            return Some(decision);
+        }
         debug!(node = %decision.node, from = ?decision.from, to = ?decision.to, reward = decision.reward, cost = decision.cost, "activation");
-        self.command(slot, decision.to, out);
+        self.command(slot, to, out);
         Some(decision)
     }
 }

@@ -61,14 +61,14 @@ impl HeadNode {
     pub(super) fn on_acoustic(&mut self, now: ClusterTime, slot: usize, body: Message) {
         let (id, member) = self.sensed.acoustic[slot];
         if !member {
-            self.reject(id, "acoustic");
+            self.reject(now, id, "acoustic");
             return;
         }
         let observations = match body {
             Message::Measurement(m) => m.observations,
             Message::NodeStatus(_) | Message::Heartbeat => return,
             other => {
-                self.reject(id, other.kind());
+                self.reject(now, id, other.kind());
                 return;
             }
         };

@@ -159,6 +159,36 @@ fn assignment_moves_a_camera_out_of_the_cluster() {
     assert!(h.power_mw() > power_before);
 }
 
+/// A camera seen going down while in this cluster, then assigned to another head (which heard
+/// of it coming back), then assigned here again, is up here again: it gets priors.
+#[test]
+fn a_camera_assigned_back_is_not_left_down_by_a_stale_liveness() {
+    let s = Scenario::default_scenario();
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    h.tick(ClusterTime::ZERO);
+    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.0)));
+    let cam = NodeId(10);
+    let assign = |head: u32| {
+        env(
+            1,
+            Message::Assignment(proto::msg::Assignment {
+                node: cam,
+                head: NodeId(head),
+            }),
+        )
+    };
+    let liveness = Message::Liveness(proto::msg::Liveness { node: cam, up: false });
+    h.on_message(ClusterTime::ZERO, env(1, liveness));
+    h.on_message(ClusterTime::ZERO, assign(3));
+    h.on_message(ClusterTime::ZERO, assign(2));
+    let out = h.tick(ClusterTime::from_millis(200));
+    assert!(
+        out.iter()
+            .any(|o| o.to == cam && matches!(o.body, Message::Prior(_))),
+        "camera 10 is back in the cluster but gets no prior: {out:?}"
+    );
+}
+
 #[test]
 fn duplicate_tracks_on_one_target_are_merged() {
     let s = Scenario::default_scenario();

@@ -288,6 +288,7 @@ impl Sim {
                         rssi: Vec::new(),
                         hint: None,
                         captured: ClusterTime::ZERO,
+                        ground: None,
                     };
                     if let Some(d2) = distance2(&self.cams[c].model, &det, &mean, &cov, ClusterTime::ZERO)
                         && d2 <= 13.8

@@ -6,10 +6,11 @@
 //! clock corrected by the leader's beacons, which the loop consumes and hands the core as
 //! [`Input::Sync`]); what the core returns is sent with a bounded wait
 //! ([`ProcessConfig::send_timeout`]), so a vanished peer never stalls the node, and what could
-//! not be delivered is counted and told to the core ([`Input::Undelivered`]). A `NodeStatus`
-//! leaving the node carries the bytes its transport has sent (`bytes_sent`, which only the
-//! runtime knows). A role adds its own work after each step through [`Hooks`] (the server
-//! records; a camera switches capture).
+//! not be delivered is counted and told to the core ([`Input::Undelivered`]). An `Assignment`
+//! of this node to a head makes sure the transport has a link to that head (TCP dials it). A
+//! `NodeStatus` leaving the node carries the bytes its transport has sent (`bytes_sent`, which
+//! only the runtime knows). A role adds its own work after each step through [`Hooks`] (the
+//! server records; a camera switches capture).
 
 use crate::clock::HostClock;
 use crate::transport::{Delivery, Event, StatsSnapshot, TransportConfig, TransportError, open};
@@ -99,6 +100,30 @@ pub trait Hooks<N> {
     }
 }
 
+/// After each step, tell a sensor thread whether the core wants its input (a camera's frames,
+/// an acoustic node's audio): the node decides, the thread reads the flag before capturing.
+pub struct SensorSwitch<N> {
+    flag: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    wants: fn(&N) -> bool,
+}
+
+impl<N> SensorSwitch<N> {
+    /// `wants` reads the node's wish; `flag` is shared with the sensor thread.
+    pub fn new(flag: std::sync::Arc<std::sync::atomic::AtomicBool>, wants: fn(&N) -> bool) -> Self {
+        SensorSwitch { flag, wants }
+    }
+}
+
+impl<N> Hooks<N> for SensorSwitch<N> {
+    type Error = std::convert::Infallible;
+
+    fn after(&mut self, node: &mut N, _: ClusterTime, _: &[Outgoing]) -> Result<(), Self::Error> {
+        self.flag
+            .store((self.wants)(node), std::sync::atomic::Ordering::Relaxed);
+        Ok(())
+    }
+}
+
 /// No extra work.
 #[derive(Debug, Default)]
 pub struct NoHooks;
@@ -143,6 +168,15 @@ where
                 }
                 Some(Event::Message(m)) => {
                     summary.received += 1;
+                    // Assigned to a head this node has no link to (TCP: it dials only the
+                    // scenario's head at start): reach it now, before its priors come.
+                    if let Message::Assignment(a) = &m.env.body
+                        && a.node == me
+                        && Some(m.from) == cfg.leader
+                        && !endpoint.ensure_link(a.head)
+                    {
+                        warn!(node = %me, head = %a.head, "assigned to a head this node cannot reach");
+                    }
                     match &m.env.body {
                         Message::SyncBeacon(b) if Some(m.from) == cfg.leader => {
                             match clock.observe(b.leader_time) {

@@ -81,6 +81,9 @@ impl Checker<'_> {
             self.positive(format!("world.walls[{i}].height"), w.height)?;
             self.non_negative(format!("world.walls[{i}].attenuation-db"), w.attenuation_db)?;
         }
+        if let Some(g) = &s.world.geo {
+            g.validate().map_err(|e| self.bad("world.geo", e.to_string()))?;
+        }
         self.radio(s)
     }
 
@@ -230,16 +233,43 @@ impl Checker<'_> {
             listen_port(addr).map_err(|problem| self.bad(field("listen"), problem))?;
         }
         if n.role != NodeRole::Camera {
+            if n.position.is_some() || n.radio.is_some() {
+                return self.fail(
+                    field(if n.radio.is_some() { "radio" } else { "position" }),
+                    "only camera nodes carry a radio",
+                );
+            }
             return Ok(());
         }
-        let Some(cam) = &n.camera else {
-            return self.fail(field("camera"), "a camera node needs camera geometry");
-        };
+        if let Some(p) = n.position
+            && !all_finite(&p)
+        {
+            return self.fail(
+                field("position"),
+                format!("expected finite [x, y, z], got [{}, {}, {}]", p[0], p[1], p[2]),
+            );
+        }
         if let Some(h) = n.head
             && !heads.contains(&h)
         {
             return self.fail(field("head"), format!("no head with id {h}"));
         }
+        let Some(cam) = &n.camera else {
+            // A radio-only node: it needs a place and a radio.
+            if n.position.is_none() {
+                return self.fail(
+                    field("camera"),
+                    "a camera node needs camera geometry, or `position` (and rssi) to be a radio-only node",
+                );
+            }
+            if !n.rssi {
+                return self.fail(
+                    field("rssi"),
+                    "a node without a camera must hear radio (rssi = true)",
+                );
+            }
+            return Ok(());
+        };
         self.camera(cam, &field)
     }
 
@@ -348,7 +378,7 @@ impl Scenario {
     /// The first camera whose model does not build or that sees nothing of the world.
     pub fn check_deployment(&self) -> Result<(), ScenarioError> {
         let c = Checker { origin: &self.name };
-        for n in self.cameras() {
+        for n in self.cameras().filter(|n| n.camera.is_some()) {
             let model = self.camera_model(n.id)?;
             if !sees_the_world(&model, self) {
                 let k = &model.intrinsics;
@@ -442,7 +472,8 @@ mod tests {
                 .as_mut()
                 .unwrap();
             cam.pose = Some(super::super::PoseSpec::LookAt {
-                position: [5.0, 4.0, 2.5],
+                // At the ceiling, looking up: every point of the room is behind it or level.
+                position: [5.0, 4.0, 3.0],
                 look_at: [5.0, 4.0 - 1e-3, 10.0],
             });
         }));

@@ -37,6 +37,8 @@ pub enum SourceError {
     },
     #[error("capture device: {0}")]
     Device(String),
+    #[error("{path}: no readings of sensor {sensor}")]
+    NoReadings { path: PathBuf, sensor: TagId },
     #[error("{source_name}: stalled, no samples for {waited_ms} ms")]
     Stalled { source_name: String, waited_ms: u64 },
 }

@@ -50,7 +50,11 @@ fn key_paths(v: &toml::Value, prefix: &str, out: &mut std::collections::BTreeSet
 fn example_parses_and_exercises_every_field() {
     let s = Scenario::load(&example_path()).unwrap();
     for c in s.cameras() {
-        s.camera_model(c.id).unwrap();
+        if c.radio_only() {
+            s.sensor_position(c.id).unwrap();
+        } else {
+            s.camera_model(c.id).unwrap();
+        }
     }
     let mut written = std::collections::BTreeSet::new();
     key_paths(&toml::from_str(&example_text()).unwrap(), "", &mut written);
@@ -67,6 +71,8 @@ fn example_parses_and_exercises_every_field() {
         "nodes.camera.pose.rvec",
         "nodes.camera.distortion.k3",
         "world.walls.attenuation-db",
+        "nodes.position",
+        "nodes.radio",
     ] {
         assert!(written.contains(key), "the example does not show `{key}`");
     }
@@ -94,7 +100,7 @@ fn broken(from: &str, to: &str) -> ScenarioError {
 /// A broken file fails with the path, the field and what was expected.
 #[test]
 fn broken_files_name_path_field_and_expectation() {
-    let cases: [(&str, &str, &[&str]); 11] = [
+    let cases: [(&str, &str, &[&str]); 15] = [
         (
             "step-ms = 200",
             "step-ms = \"fast\"",
@@ -141,6 +147,29 @@ fn broken_files_name_path_field_and_expectation() {
             "height = 1.2",
             "height = -1.2",
             &["world.walls[0].height", "positive"],
+        ),
+        (
+            "radio = \"ble:hci0\"",
+            "radio = \"bluetooth\"",
+            &[
+                "radio",
+                "expected `ble`, `ble:ADAPTER` or `file:PATH.mbd@SENSOR-MAC`",
+            ],
+        ),
+        (
+            "position = [5.9, 3.9, 2.2]",
+            "position = [5.9, nan, 2.2]",
+            &["nodes[id=13].position", "finite"],
+        ),
+        (
+            "position = [5.9, 3.9, 2.2]\n",
+            "",
+            &["nodes[id=13].camera", "radio-only"],
+        ),
+        (
+            "region = [0.0, 0.0, 6.0, 4.0]",
+            "region = [0.0, 0.0, 6.0, 4.0]\nradio = \"ble\"",
+            &["nodes[id=2].radio", "only camera nodes carry a radio"],
         ),
     ];
     for (from, to, wants) in cases {

@@ -14,6 +14,13 @@ pub fn now() -> std::time::Instant {
     std::time::Instant::now()
 }
 
+/// Cluster time now, seconds: a launch's cluster time is the wall clock (for marking when the
+/// harness did something to a run; never asserted on by itself).
+#[allow(clippy::disallowed_methods)]
+pub fn cluster_now_s() -> f64 {
+    proto::ClusterTime::wall_clock().as_secs_f64()
+}
+
 pub fn signal(pid: u32, sig: libc::c_int) {
     #[allow(unsafe_code)]
     // SAFETY: kill(2) has no memory-safety preconditions.

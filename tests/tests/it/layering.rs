@@ -62,3 +62,14 @@ fn the_vocabulary_builds_no_runtime() {
         assert!(!deps.iter().any(|d| d == f), "world depends on {f}: {deps:?}");
     }
 }
+
+#[test]
+fn the_assignment_crate_stays_a_leaf() {
+    // Every node crate may use it, so it must not pull in anything a node may not depend on.
+    let deps = dependencies("proto/assign/Cargo.toml");
+    assert_eq!(
+        deps,
+        vec!["pathfinding".to_string()],
+        "assign depends on {deps:?}"
+    );
+}

@@ -1,8 +1,11 @@
 //! End-to-end tests: real `ocelli` processes.
 
+mod chaos;
 mod cluster;
 mod harness;
 mod layering;
 mod netns;
 mod operations;
+mod radio;
 mod transport;
+mod viewer;

@@ -1,7 +1,8 @@
 //! Nodes on separate "hosts": the server and a head in one Linux network namespace, four
 //! cameras in another, joined by a veth pair with 10.x addresses that exist only inside the two
 //! namespaces (nothing is routed outside). Every node runs as its own `ocelli` process over TCP,
-//! as `ocelli deploy` would set them up on real machines. After ~12 s the nodes get SIGTERM;
+//! as `ocelli deploy` would set them up on real machines, with mutual TLS (certificates made
+//! for the test by the deploy code). After ~12 s the nodes get SIGTERM;
 //! the server's recording must show the robot tracked by that head, close to its true path.
 //!
 //! Needs root and `ip` (iproute2; `.ci/run` installs it). If namespaces cannot be created the
@@ -203,6 +204,9 @@ fn nodes_in_separate_network_namespaces_track_the_robot_over_tcp() {
     let scenario_path = dir.join("scenario.toml");
     std::fs::write(&scenario_path, s.to_toml()).expect("scenario file");
     let sp = scenario_path.to_str().expect("utf-8 path");
+    let tls_dir = dir.join("tls");
+    deploy::deploy::certs::issue_all_in(&s, &[], &tls_dir).expect("certificates");
+    let tls = tls_dir.to_str().expect("utf-8 path");
     let record = dir.join("rec.ocrec");
     #[allow(clippy::disallowed_methods)] // the synthetic world's epoch, as `ocelli launch` sets it
     let epoch = proto::ClusterTime::wall_clock().0;
@@ -221,6 +225,8 @@ fn nodes_in_separate_network_namespaces_track_the_robot_over_tcp() {
             "1",
             "--transport",
             "tcp",
+            "--tls-dir",
+            tls,
             "--record",
             rec,
         ],
@@ -229,7 +235,17 @@ fn nodes_in_separate_network_namespaces_track_the_robot_over_tcp() {
     nodes.spawn(
         &net.hub,
         "head-2",
-        &["head", "--scenario", sp, "--id", "2", "--transport", "tcp"],
+        &[
+            "head",
+            "--scenario",
+            sp,
+            "--id",
+            "2",
+            "--transport",
+            "tcp",
+            "--tls-dir",
+            tls,
+        ],
         &dir,
     );
     for id in CAMERAS {
@@ -245,6 +261,8 @@ fn nodes_in_separate_network_namespaces_track_the_robot_over_tcp() {
                 &id,
                 "--transport",
                 "tcp",
+                "--tls-dir",
+                tls,
                 "--epoch-ns",
                 &epoch_arg,
             ],

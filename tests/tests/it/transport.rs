@@ -372,6 +372,7 @@ fn tcp_delivers_in_order_both_ways() {
         &[
             "--transport",
             "tcp",
+            "--insecure",
             "--id",
             "1",
             "--listen",
@@ -386,6 +387,7 @@ fn tcp_delivers_in_order_both_ways() {
         &[
             "--transport",
             "tcp",
+            "--insecure",
             "--id",
             "2",
             "--peer",
@@ -410,7 +412,15 @@ fn tcp_delivers_in_order_both_ways() {
 fn tcp_rejects_garbage_and_keeps_receiving() {
     let mut rx = Peer::spawn(
         "listener",
-        &["--transport", "tcp", "--id", "1", "--listen", "127.0.0.1:0"],
+        &[
+            "--transport",
+            "tcp",
+            "--insecure",
+            "--id",
+            "1",
+            "--listen",
+            "127.0.0.1:0",
+        ],
     );
     let peer = format!("1={}", listen_addr(&rx.ready()));
     let mut tx = Peer::spawn(
@@ -418,6 +428,7 @@ fn tcp_rejects_garbage_and_keeps_receiving() {
         &[
             "--transport",
             "tcp",
+            "--insecure",
             "--id",
             "2",
             "--peer",
@@ -447,7 +458,15 @@ fn tcp_rejects_garbage_and_keeps_receiving() {
 #[test]
 fn tcp_dialer_survives_a_listener_crash_and_restart() {
     let listen = format!("127.0.0.1:{}", free_port());
-    let rx_args = ["--transport", "tcp", "--id", "1", "--listen", listen.as_str()];
+    let rx_args = [
+        "--transport",
+        "tcp",
+        "--insecure",
+        "--id",
+        "1",
+        "--listen",
+        listen.as_str(),
+    ];
     let mut rx = Peer::spawn("listener", &rx_args);
     rx.ready();
     let peer = format!("1={listen}");
@@ -456,6 +475,7 @@ fn tcp_dialer_survives_a_listener_crash_and_restart() {
         &[
             "--transport",
             "tcp",
+            "--insecure",
             "--id",
             "2",
             "--peer",
@@ -483,4 +503,80 @@ fn tcp_dialer_survives_a_listener_crash_and_restart() {
     assert_eq!(s["peers_lost"], 1, "{s}");
     assert!(tx.stop().success());
     assert!(rx2.stop().success());
+}
+
+/// Two processes over mutual TLS, each with a certificate of the same CA; a third whose
+/// certificate comes from another CA is refused and counted, and gets nothing through.
+#[test]
+fn tcp_with_tls_delivers_and_refuses_a_certificate_of_another_ca() {
+    use proto::{NodeId, Role};
+    use runtime::transport::{ClusterCa, TlsFiles};
+    let dir = std::env::temp_dir().join(format!("ocelli-e2e-peer-tls-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let ca = ClusterCa::generate("e2e").unwrap();
+    for id in [1, 2] {
+        TlsFiles::in_dir(&dir.join("ours"), NodeId(id))
+            .write(ca.cert_pem(), &ca.issue(NodeId(id), Role::Tool).unwrap())
+            .unwrap();
+    }
+    let other = ClusterCa::generate("e2e").unwrap();
+    TlsFiles::in_dir(&dir.join("theirs"), NodeId(3))
+        .write(other.cert_pem(), &other.issue(NodeId(3), Role::Tool).unwrap())
+        .unwrap();
+    let ours = dir.join("ours");
+    let ours = ours.to_str().unwrap();
+    let theirs = dir.join("theirs");
+    let theirs = theirs.to_str().unwrap();
+    let mut rx = Peer::spawn(
+        "listener",
+        &[
+            "--transport",
+            "tcp",
+            "--tls-dir",
+            ours,
+            "--id",
+            "1",
+            "--listen",
+            "127.0.0.1:0",
+        ],
+    );
+    let peer = format!("1={}", listen_addr(&rx.ready()));
+    let dialer = |id: &str, tls: &str| {
+        vec![
+            "--transport".to_string(),
+            "tcp".into(),
+            "--tls-dir".into(),
+            tls.into(),
+            "--id".into(),
+            id.into(),
+            "--peer".into(),
+            peer.clone(),
+            "--to".into(),
+            "1".into(),
+            "--send".into(),
+            "100".into(),
+            "--linger-ms".into(),
+            "500".into(),
+        ]
+    };
+    let args = dialer("3", theirs);
+    let mut impostor = Peer::spawn("impostor", &args.iter().map(String::as_str).collect::<Vec<_>>());
+    let args = dialer("2", ours);
+    let mut tx = Peer::spawn("dialer", &args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_in_order(&rx.rounds_from(2, 100), 0);
+    assert!(tx.wait_exit().success(), "dialer failed:\n{}", tx.stderr());
+    let s = rx.stats_where("the impostor refused", |v| {
+        v["rejected_identity"].as_u64() >= Some(1)
+    });
+    assert_eq!(
+        s["peers_up"], 1,
+        "only the dialer with our certificate got a link: {s}"
+    );
+    assert!(
+        !rx.seen.iter().any(|v| v["event"] == "message" && v["from"] == 3),
+        "a message from the impostor arrived"
+    );
+    impostor.crash();
+    assert!(rx.stop().success());
+    let _ = std::fs::remove_dir_all(&dir);
 }

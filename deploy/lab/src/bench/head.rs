@@ -15,6 +15,10 @@
 //!   reading, which the head linearizes with the node's model after re-running Algorithm 1's
 //!   choice for every node, and trains on (the camera-only filter, N trainers).
 //!
+//! - `assign[D×T×C]`: the association's optimal assignment of D detections from C cameras to
+//!   T tracks (`super::assign`), and how often and by how much the greedy nearest-first rule
+//!   it replaced costs more on the same problems.
+//!
 //! Contributions are real ones: a ring of N cameras looking at the room centre, each linearized
 //! with `proto::models::camera_contribution`. The timed loops allocate nothing.
 
@@ -207,6 +211,7 @@ pub fn run(args: &Options) -> Result<serde_json::Value> {
         "ekf_update_us": ekf_update,
         "head_step_us": head_step,
         "head_step_rssi_us": head_step_rssi,
+        "assign": super::assign::run(((200.0 * args.scale) as usize).max(10), |reps, f| median_us(reps, f)),
         "note": "medians; update = predict + sum of N wire contributions + update; activation = one Algorithm 2 decision over N nodes (three modes)",
     });
     Ok(out)
@@ -239,6 +244,7 @@ fn head_step_us(n: usize, scale: f64, rssi: bool) -> Result<f64> {
             cost_factor: 1.0,
             fps: 5.0,
             member: true,
+            radio_only: false,
         })
         .collect();
     let cfg = HeadConfig {

@@ -1,5 +1,6 @@
 //! The benchmarks behind `ocelli bench`: each times a hot path and returns its figures as JSON.
 
+pub mod assign;
 pub mod camera;
 pub mod fuse;
 pub mod grid;

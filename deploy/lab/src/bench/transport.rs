@@ -1,5 +1,5 @@
-//! `ocelli bench transport`: one-way latency over iceoryx2 and TCP loopback through the real
-//! transport interface (the sender stamps the envelope with a monotonic clock just before
+//! `ocelli bench transport`: one-way latency over iceoryx2, plain TCP and mutual-TLS TCP
+//! loopback through the real transport interface (the sender stamps the envelope with a monotonic clock just before
 //! `Endpoint::send`, which encodes; the receiver reads the clock when the decoded message
 //! leaves the inbox), at a fixed rate (30 Hz, a camera's frame rate) and at full rate, plus
 //! encode/decode cost per message kind. Sender and receiver are two threads of this process,
@@ -10,8 +10,9 @@ use crate::{LabError, Result};
 use proto::msg::*;
 use proto::node::Outgoing;
 use proto::{ClusterTime, Envelope, NodeId, Role, decode, encode};
-use runtime::transport::{Event, IpcConfig, TcpConfig, TransportConfig, open};
+use runtime::transport::{ClusterCa, Event, IpcConfig, Security, TcpConfig, Tls, TransportConfig, open};
 use serde_json::{Value, json};
+use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 /// What to measure and how long.
@@ -42,6 +43,25 @@ impl Default for Options {
 enum Kind {
     Ipc,
     Tcp,
+    /// TCP with mutual TLS, as between hosts.
+    Tls,
+}
+
+/// Node `id`'s TCP settings for `kind`: its certificate from `ca` for TLS, plain otherwise; no
+/// per-link read limit (the bench measures the transport's cost, not its flood protection).
+fn tcp_config(kind: Kind, ca: &ClusterCa, id: u32, role: Role) -> Result<TcpConfig> {
+    let security = match kind {
+        Kind::Tls => Security::Tls(Tls::from_pem(ca.cert_pem(), &ca.issue(NodeId(id), role)?)?),
+        _ => Security::Insecure,
+    };
+    let mut c = TcpConfig::new(NodeId(id), role, security);
+    c.roster = Some(BTreeMap::from([
+        (NodeId(1), Role::Head),
+        (NodeId(2), Role::Camera),
+    ]));
+    c.max_frames_per_sec = u32::MAX;
+    c.queue_len = 4096;
+    Ok(c)
 }
 
 /// Result of one latency phase.
@@ -95,9 +115,13 @@ impl Phase {
     }
 
     fn p99_us(&self) -> f64 {
+        self.percentile_us(0.99)
+    }
+
+    fn percentile_us(&self, p: f64) -> f64 {
         let mut l = self.latencies_ns.clone();
         l.sort_unstable();
-        percentile(&l, 0.99)
+        percentile(&l, p)
     }
 }
 
@@ -121,6 +145,8 @@ fn now_ns(base: Instant) -> i64 {
 fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Result<Phase> {
     #[allow(clippy::disallowed_methods)] // a benchmark runtime owns its clock
     let base = Instant::now();
+    let ca = std::sync::Arc::new(ClusterCa::generate("bench")?);
+    let receiver_ca = ca.clone();
     let domain = format!("bench-{}-{tag}", std::process::id());
     let (addr_tx, addr_rx) = std::sync::mpsc::channel();
     let (done_tx, done_rx) = std::sync::mpsc::channel::<()>();
@@ -132,10 +158,9 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
         rt.block_on(async move {
             let cfg = match kind {
                 Kind::Ipc => TransportConfig::Ipc(IpcConfig::new(receiver_domain, NodeId(1), Role::Head, 2)),
-                Kind::Tcp => {
-                    let mut c = TcpConfig::new(NodeId(1), Role::Head);
+                Kind::Tcp | Kind::Tls => {
+                    let mut c = tcp_config(kind, &receiver_ca, 1, Role::Head)?;
                     c.listen = Some(std::net::SocketAddr::from(([127, 0, 0, 1], 0)));
-                    c.queue_len = 4096;
                     TransportConfig::Tcp(c)
                 }
             };
@@ -186,18 +211,17 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
         rt.block_on(async move {
             let cfg = match kind {
                 Kind::Ipc => TransportConfig::Ipc(IpcConfig::new(domain, NodeId(2), Role::Camera, 2)),
-                Kind::Tcp => {
-                    let mut c = TcpConfig::new(NodeId(2), Role::Camera);
+                Kind::Tcp | Kind::Tls => {
+                    let mut c = tcp_config(kind, &ca, 2, Role::Camera)?;
                     c.peers.insert(
                         NodeId(1),
                         addr.ok_or_else(|| LabError::failed("transport bench", "no listen address"))?,
                     );
-                    c.queue_len = 4096;
                     TransportConfig::Tcp(c)
                 }
             };
             let (ep, mut inbox, stats, shutdown) = open(cfg).await?;
-            if kind == Kind::Tcp {
+            if kind != Kind::Ipc {
                 loop {
                     match tokio::time::timeout(Duration::from_secs(10), inbox.recv()).await {
                         Ok(Some(Event::PeerUp(_))) => break,
@@ -368,10 +392,23 @@ pub fn run(args: &Options) -> Result<serde_json::Value> {
     let tokio_baseline = tokio_wake_baseline(args.rate_messages, interval)?;
     let mut transports = serde_json::Map::new();
     let mut p99 = serde_json::Map::new();
-    for (kind, name) in [(Kind::Ipc, "ipc"), (Kind::Tcp, "tcp")] {
+    let mut tls_cost = serde_json::Map::new();
+    for (kind, name) in [(Kind::Ipc, "ipc"), (Kind::Tcp, "tcp"), (Kind::Tls, "tls")] {
         let rate = phase(kind, args.rate_messages, Some(interval), "rate")?;
         let full = phase(kind, args.burst_messages, None, "full")?;
         p99.insert(format!("{name}_p99_us"), json!(rate.p99_us()));
+        if kind != Kind::Ipc {
+            for (phase_name, ph) in [("fixed_rate", &rate), ("full_rate", &full)] {
+                tls_cost.insert(
+                    format!("{phase_name}_{name}_p50_us"),
+                    json!(ph.percentile_us(0.5)),
+                );
+                tls_cost.insert(
+                    format!("{phase_name}_{name}_p99_us"),
+                    json!(ph.percentile_us(0.99)),
+                );
+            }
+        }
         transports.insert(
             name.into(),
             json!({"fixed_rate": rate.to_json(), "full_rate": full.to_json()}),
@@ -395,10 +432,12 @@ pub fn run(args: &Options) -> Result<serde_json::Value> {
         "full_rate": "measurements offered back to back; droppable, so beyond the queues they are dropped and counted (sender queue + receiver inbox); latency of those delivered",
         "hops": {
             "ipc": "sender task publishes (iceoryx2 thread-safe service) -> shared memory + event -> the receiver task, woken by the listener's descriptor in its own reactor, decodes",
-            "tcp": "sender task -> link task (same runtime) -> loopback socket -> reader task (decode) -> receiver task (same runtime)"
+            "tcp": "sender task -> link task (same runtime) -> loopback socket -> reader task (decode) -> receiver task (same runtime)",
+            "tls": "as tcp, with TLS 1.3 (rustls, ring) encryption and decryption on each end; mutual certificates checked once, at connect"
         },
         "goals": {"ipc_p99_us": 20, "tcp_p99_us": 200},
         "transports": transports,
+        "tls_cost": tls_cost,
         "codec": codec,
         "thread_wake_baseline": baseline,
         "tokio_wake_baseline": tokio_baseline,

@@ -18,6 +18,7 @@
 //! the shared datasets): run it by name.
 
 pub mod data;
+pub mod launch;
 pub mod law;
 pub mod track;
 

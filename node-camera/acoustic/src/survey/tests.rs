@@ -11,6 +11,7 @@ fn world() -> World {
         max: [2.0, 2.0, 2.5],
         walls: Vec::new(),
         radio: RadioWorld::default(),
+        geo: None,
     }
 }
 

@@ -36,8 +36,8 @@ pub(crate) async fn push<T>(
     }
 }
 
-/// Decode one received frame. A rejection is counted by kind, logged with what was wrong,
-/// and yields `None`; the caller goes on with the next frame. When the link is bound to a
+/// Decode one received frame. A rejection is counted by kind, logged (rate-limited) with what
+/// was wrong, and yields `None`; the caller goes on with the next frame. When the link is bound to a
 /// node (`expected`), a frame claiming another source is rejected as invalid.
 pub(crate) fn accept(
     frame: &[u8],
@@ -49,7 +49,9 @@ pub(crate) fn accept(
         Ok(env) => match expected {
             Some(peer) if env.source != peer => {
                 bump(&stats.rejected_invalid);
-                tracing::warn!(transport, %peer, claimed = %env.source, "frame rejected: source does not match the link's peer");
+                if let Some(more) = stats.log_admits("frame from another source") {
+                    tracing::warn!(transport, %peer, claimed = %env.source, more, "frame rejected: source does not match the link's peer");
+                }
                 None
             }
             _ => Some(env),
@@ -63,14 +65,18 @@ pub(crate) fn accept(
 
 /// Count and log a frame that failed to decode.
 pub(crate) fn reject(e: &WireError, len: usize, stats: &TransportStats, transport: &'static str) {
-    let counter = match e {
-        WireError::Oversized { .. } => &stats.rejected_oversized,
-        WireError::Version { .. } => &stats.rejected_version,
-        WireError::Invalid(_) => &stats.rejected_invalid,
-        WireError::Empty | WireError::Malformed(_) | WireError::TrailingBytes(_) => &stats.rejected_malformed,
+    let (counter, kind) = match e {
+        WireError::Oversized { .. } => (&stats.rejected_oversized, "oversized frame"),
+        WireError::Version { .. } => (&stats.rejected_version, "wrong-version frame"),
+        WireError::Invalid(_) => (&stats.rejected_invalid, "invalid frame"),
+        WireError::Empty | WireError::Malformed(_) | WireError::TrailingBytes(_) => {
+            (&stats.rejected_malformed, "malformed frame")
+        }
     };
     bump(counter);
-    tracing::warn!(transport, len, error = %e, "frame rejected");
+    if let Some(more) = stats.log_admits(kind) {
+        tracing::warn!(transport, len, error = %e, more, "frame rejected ({more} more since the last line)");
+    }
 }
 
 /// Hand a received envelope to the runtime under the drop policy, counting it as received.

@@ -89,6 +89,10 @@ pub struct IpcConfig {
     /// the clock. Shared memory has no connection whose loss tells a peer we are gone, so
     /// liveness on the same host rests on these (as it rests on TCP's own heartbeats).
     pub heartbeat: Option<(std::time::Duration, super::Clock)>,
+    /// A peer that sent nothing (not even a heartbeat) for this long is reported down
+    /// (`Event::PeerDown`), and up again with its next frame: link liveness as TCP reports it.
+    /// `None`: peers are reported up once and never down.
+    pub liveness_timeout: Option<Duration>,
 }
 
 impl std::fmt::Debug for IpcConfig {
@@ -114,6 +118,7 @@ impl IpcConfig {
             limits: IpcLimits::for_nodes(nodes, queue_len),
             queue_len,
             heartbeat: None,
+            liveness_timeout: None,
         }
     }
 }
@@ -409,6 +414,9 @@ pub(crate) struct Receiver {
     wake: AsyncFd<OwnedFd>,
     pending: VecDeque<Event>,
     known: HashSet<NodeId>,
+    /// When each known peer was last heard, if silence reports a peer down.
+    last_heard: HashMap<NodeId, std::time::Instant>,
+    liveness_timeout: Option<Duration>,
     stats: Arc<TransportStats>,
     stop: CancellationToken,
 }
@@ -444,6 +452,8 @@ impl Receiver {
             wake,
             pending: VecDeque::new(),
             known: HashSet::new(),
+            last_heard: HashMap::new(),
+            liveness_timeout: cfg.liveness_timeout,
             stats,
             stop,
         })
@@ -458,11 +468,15 @@ impl Receiver {
             if self.stop.is_cancelled() || !self.drain() {
                 return None;
             }
+            self.report_silent();
             if !self.pending.is_empty() {
                 continue;
             }
+            // Woken now and then to report silent peers even when nothing arrives.
+            let check = self.liveness_timeout.map(|l| l / 4);
             tokio::select! {
                 () = self.stop.cancelled() => return None,
+                () = tokio::time::sleep(check.unwrap_or_default()), if check.is_some() => {}
                 ready = self.wake.readable() => match ready {
                     // Cleared before draining: a notification after this point wakes again.
                     Ok(mut guard) => guard.clear_ready(),
@@ -479,6 +493,7 @@ impl Receiver {
     pub(crate) fn try_recv(&mut self) -> Option<Event> {
         if self.pending.is_empty() && !self.stop.is_cancelled() {
             self.drain();
+            self.report_silent();
         }
         self.pending.pop_front()
     }
@@ -507,6 +522,9 @@ impl Receiver {
             };
             drop(sample);
             let from = env.source;
+            if self.liveness_timeout.is_some() {
+                self.last_heard.insert(from, now());
+            }
             if self.known.insert(from) {
                 bump(&self.stats.peers_up);
                 self.pending.push_back(Event::PeerUp(from));
@@ -515,6 +533,28 @@ impl Receiver {
             self.pending.push_back(Event::Message(Incoming { from, env }));
         }
         true
+    }
+
+    /// Report peers silent for the liveness timeout down and forget them (their next frame
+    /// reports them up).
+    fn report_silent(&mut self) {
+        let Some(limit) = self.liveness_timeout else {
+            return;
+        };
+        let t = now();
+        let silent: Vec<NodeId> = self
+            .last_heard
+            .iter()
+            .filter(|(_, at)| t.saturating_duration_since(**at) > limit)
+            .map(|(n, _)| *n)
+            .collect();
+        for peer in silent {
+            self.last_heard.remove(&peer);
+            self.known.remove(&peer);
+            bump(&self.stats.peers_lost);
+            tracing::warn!(%peer, silent_ms = limit.as_millis() as u64, "peer silent; link down");
+            self.pending.push_back(Event::PeerDown(peer));
+        }
     }
 }
 
@@ -538,6 +578,12 @@ fn duplicate(listener: &Listener<Svc>) -> Result<OwnedFd, TransportError> {
     }
     // SAFETY: `fd` is a fresh descriptor no one else owns.
     Ok(unsafe { OwnedFd::from_raw_fd(fd) })
+}
+
+/// The receiver's clock, for silence (a runtime owns one).
+#[allow(clippy::disallowed_methods)]
+fn now() -> std::time::Instant {
+    std::time::Instant::now()
 }
 
 struct Outlet {

@@ -2,8 +2,8 @@
 //!
 //! - [`TransportConfig::Ipc`]: iceoryx2 shared memory between processes on one host
 //!   (`ipc`), one inbox service per node under a domain prefix.
-//! - [`TransportConfig::Tcp`]: tokio TCP between hosts (`tcp`), length-delimited frames,
-//!   handshake, heartbeats, reconnect with backoff.
+//! - [`TransportConfig::Tcp`]: tokio TCP between hosts (`tcp`), mutually authenticated with
+//!   TLS ([`tls`]), length-delimited frames, handshake, heartbeats, reconnect with backoff.
 //! - [`TransportConfig::InProcess`]: a hub of tokio channels (`inproc`) for tests and
 //!   single-process use.
 //!
@@ -11,8 +11,8 @@
 //! that yields [`Event`]s, the shared [`TransportStats`] and a [`ShutdownHandle`]. Every frame
 //! is one `Envelope` encoded by [`proto::wire::encode`]; the endpoint stamps source, per-link
 //! sequence number and the caller's cluster time. Receivers decode with
-//! [`proto::wire::decode`]; a rejected frame is logged (`tracing::warn!`), counted, and the
-//! receiver carries on.
+//! [`proto::wire::decode`]; a rejected frame is counted, logged rate-limited (one line per kind
+//! and interval, [`proto::log_limit`]), and the receiver carries on.
 //!
 //! Queues are bounded. When one is full a [`proto::Message::droppable`] message is dropped and
 //! counted; any other message (commands, priors, handovers, …) waits for room.
@@ -24,6 +24,7 @@ mod inproc;
 mod ipc;
 pub mod stats;
 mod tcp;
+pub mod tls;
 
 use bytes::Bytes;
 use proto::ids::{NodeId, Role};
@@ -44,7 +45,8 @@ pub use backoff::Backoff;
 pub use inproc::InProcessHub;
 pub use ipc::{IpcConfig, IpcLimits, file_prefix};
 pub use stats::{StatsSnapshot, TransportStats};
-pub use tcp::TcpConfig;
+pub use tcp::{Security, TcpConfig};
+pub use tls::{ClusterCa, NodeCert, Tls, TlsError, TlsFiles};
 
 /// Where a transport gets the cluster time for frames it makes itself (handshakes,
 /// heartbeats). Node runtimes own the clock and inject it.
@@ -290,6 +292,17 @@ impl Endpoint {
         .await
     }
 
+    /// Make sure this endpoint has, or is making, a link to `peer`: over TCP a peer whose
+    /// address the configuration's directory knows is dialed now (a camera reaching the head it
+    /// was just assigned to). Returns whether a link exists or is being made; iceoryx2 and
+    /// in-process endpoints reach every peer without one and always return true.
+    pub fn ensure_link(&self, peer: NodeId) -> bool {
+        match &self.inner.link {
+            Link::Tcp(router) => router.ensure(peer),
+            Link::InProcess(_) | Link::Ipc(_) => true,
+        }
+    }
+
     async fn send_frame(&self, frame: OutFrame) -> Result<Delivery, SendError> {
         let i = &self.inner;
         let to = frame.to;
@@ -307,7 +320,9 @@ impl Endpoint {
             Ok(Delivery::Dropped) => {}
             Err(SendError::UnknownPeer(_)) => {
                 stats::bump(&i.stats.unroutable);
-                tracing::warn!(to = %to, "no link to recipient");
+                if let Some(more) = i.stats.log_admits("no link to recipient") {
+                    tracing::warn!(to = %to, more, "no link to recipient");
+                }
             }
             Err(_) => {}
         }

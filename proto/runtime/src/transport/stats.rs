@@ -1,8 +1,11 @@
 //! Counters every transport keeps: what was sent, received, dropped, rejected and how links
 //! came and went. Atomics, so the hot path never locks; [`TransportStats::snapshot`] gives a
-//! serializable copy for logs, status messages and the `ocelli peer` JSON lines.
+//! serializable copy for logs, status messages and the `ocelli peer` JSON lines. Rejections
+//! are logged through the stats' [`LogLimiter`]: one line per kind and interval, with a count.
 
+use proto::log_limit::LogLimiter;
 use serde::{Deserialize, Serialize};
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Live counters of one endpoint. Shared (`Arc`) between the endpoint, its tasks and threads.
@@ -33,6 +36,18 @@ pub struct TransportStats {
     pub peers_lost: AtomicU64,
     pub heartbeats_sent: AtomicU64,
     pub heartbeats_received: AtomicU64,
+    /// Handshakes refused because the peer's certificate or claim does not prove who it says
+    /// it is (a certificate of another node or CA, an id or role the scenario does not give).
+    pub rejected_identity: AtomicU64,
+    /// Connections refused because the node already has a live link to that id.
+    pub rejected_duplicate: AtomicU64,
+    /// Connections closed by a listener's limits: too many handshakes at once, or one that did
+    /// not finish in time.
+    pub rejected_connections: AtomicU64,
+    /// Times a link was read more slowly because its peer sent faster than the per-link limit.
+    pub throttled: AtomicU64,
+    /// Decides which rejections are logged (the counters above count them all).
+    pub(crate) log: Mutex<LogLimiter>,
     /// Bytes of the encoded frames this endpoint put on its links: every message it queued
     /// and the transport's own heartbeats (framing and TCP/IP headers not counted).
     pub bytes_sent: AtomicU64,
@@ -58,6 +73,14 @@ pub struct StatsSnapshot {
     pub peers_lost: u64,
     pub heartbeats_sent: u64,
     pub heartbeats_received: u64,
+    #[serde(default)]
+    pub rejected_identity: u64,
+    #[serde(default)]
+    pub rejected_duplicate: u64,
+    #[serde(default)]
+    pub rejected_connections: u64,
+    #[serde(default)]
+    pub throttled: u64,
     #[serde(default)]
     pub bytes_sent: u64,
 }
@@ -93,7 +116,29 @@ impl TransportStats {
             peers_lost: g(&self.peers_lost),
             heartbeats_sent: g(&self.heartbeats_sent),
             heartbeats_received: g(&self.heartbeats_received),
+            rejected_identity: g(&self.rejected_identity),
+            rejected_duplicate: g(&self.rejected_duplicate),
+            rejected_connections: g(&self.rejected_connections),
+            throttled: g(&self.throttled),
             bytes_sent: g(&self.bytes_sent),
         }
     }
+
+    /// Whether to log this occurrence of `kind` (see [`LogLimiter`]): `Some(n)` — log it, and
+    /// say `n` more happened since the last line of its kind.
+    pub(crate) fn log_admits(&self, kind: &'static str) -> Option<u64> {
+        let mut l = self.log.lock().unwrap_or_else(|p| p.into_inner());
+        l.admit(monotonic_ns(), kind)
+    }
+}
+
+/// Nanoseconds since this process first asked: the transports' clock for log limits.
+fn monotonic_ns() -> i64 {
+    use std::sync::OnceLock;
+    use std::time::Instant;
+    static START: OnceLock<Instant> = OnceLock::new();
+    // The transport is a runtime: it owns a clock (node cores are given theirs).
+    #[allow(clippy::disallowed_methods)]
+    let start = *START.get_or_init(Instant::now);
+    i64::try_from(start.elapsed().as_nanos()).unwrap_or(i64::MAX)
 }

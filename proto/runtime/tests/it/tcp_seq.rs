@@ -5,7 +5,7 @@
 use proto::msg::{Message, SyncBeacon};
 use proto::node::Outgoing;
 use proto::{ClusterTime, Envelope, NodeId, Role};
-use runtime::transport::{Event, Inbox, TcpConfig, TransportConfig, open};
+use runtime::transport::{ClusterCa, Event, Inbox, Security, TcpConfig, Tls, TransportConfig, open};
 use std::time::Duration;
 
 const WAIT: Duration = Duration::from_secs(10);
@@ -32,11 +32,20 @@ async fn next_data(inbox: &mut Inbox) -> Envelope {
 #[tokio::test]
 async fn heartbeats_between_data_frames_leave_no_sequence_gap() {
     let heartbeat = Duration::from_millis(10);
-    let mut server = TcpConfig::new(NodeId(1), Role::Server);
+    // Over mutual TLS, as every link between hosts.
+    let ca = ClusterCa::generate("seq").unwrap();
+    let tls = |id: u32, role: Role| {
+        Security::Tls(Tls::from_pem(ca.cert_pem(), &ca.issue(NodeId(id), role).unwrap()).unwrap())
+    };
+    let roster: std::collections::BTreeMap<NodeId, Role> =
+        [(NodeId(1), Role::Server), (NodeId(2), Role::Camera)].into();
+    let mut server = TcpConfig::new(NodeId(1), Role::Server, tls(1, Role::Server));
+    server.roster = Some(roster.clone());
     server.listen = Some("127.0.0.1:0".parse().unwrap());
     server.heartbeat = heartbeat;
     let (a, mut ia, sa, ha) = open(TransportConfig::Tcp(server)).await.unwrap();
-    let mut camera = TcpConfig::new(NodeId(2), Role::Camera);
+    let mut camera = TcpConfig::new(NodeId(2), Role::Camera, tls(2, Role::Camera));
+    camera.roster = Some(roster);
     camera.peers.insert(NodeId(1), a.local_addr().unwrap());
     camera.heartbeat = heartbeat;
     let (b, mut ib, sb, hb) = open(TransportConfig::Tcp(camera)).await.unwrap();

@@ -221,6 +221,11 @@ fn sample_f64s(m: &Message) -> Vec<f64> {
             }
             v
         }
+        Message::ViewUpdate(u) => u
+            .tracks
+            .iter()
+            .flat_map(|t| t.mean.into_iter().chain(t.cov_pos))
+            .collect(),
         _ => Vec::new(),
     }
 }

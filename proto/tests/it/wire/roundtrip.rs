@@ -4,6 +4,10 @@ use proptest::prelude::*;
 use proto::ids::{NodeId, Role, TagId, TargetId};
 use proto::msg::*;
 use proto::observation::{GroundPoint, IldVector, Kinds, MAX_BINS, Observation, PinholePoint};
+use proto::view::{
+    HandoverCause, MAX_VIEW_CONTRIBUTORS, MAX_VIEW_HANDOVERS, MAX_VIEW_PARTS, ViewCounters, ViewHandover,
+    ViewNode, ViewTrack,
+};
 use proto::{
     ClusterTime, Envelope, MAX_CONTRIBUTORS, MAX_MEASURED_DETECTIONS, Message, Mode, decode, encode,
 };
@@ -241,7 +245,13 @@ fn contributors() -> impl Strategy<Value = Vec<Contributor>> {
 fn message() -> impl Strategy<Value = Message> {
     prop_oneof![
         (
-            prop::sample::select(vec![Role::Camera, Role::Head, Role::Server, Role::Tool]),
+            prop::sample::select(vec![
+                Role::Camera,
+                Role::Head,
+                Role::Server,
+                Role::Tool,
+                Role::Viewer
+            ]),
             any::<u32>()
         )
             .prop_map(|(role, n)| Message::Hello(Hello {
@@ -383,7 +393,110 @@ fn message() -> impl Strategy<Value = Message> {
                 detections
             }
         )),
+        any::<u32>().prop_map(|period_ms| Message::ViewSubscribe(ViewSubscribe { period_ms })),
+        view_update(),
     ]
+}
+
+fn view_track() -> impl Strategy<Value = ViewTrack> {
+    (
+        (any::<u32>(), any::<u32>(), prop::option::of(any::<u32>()), time()),
+        (vec6(), prop::array::uniform6(finite()), contributors()),
+    )
+        .prop_map(
+            |((g, owner, local, time), (mean, mut cov_pos, mut contributors))| {
+                for i in [0, 3, 5] {
+                    cov_pos[i] = cov_pos[i].abs();
+                }
+                contributors.truncate(MAX_VIEW_CONTRIBUTORS);
+                ViewTrack {
+                    global: TargetId(g),
+                    owner: NodeId(owner),
+                    local: local.map(TargetId),
+                    time,
+                    mean,
+                    cov_pos,
+                    contributors,
+                }
+            },
+        )
+}
+
+fn view_node() -> impl Strategy<Value = ViewNode> {
+    (
+        (
+            any::<u32>(),
+            prop::sample::select(vec![Role::Camera, Role::Head, Role::Viewer]),
+        ),
+        (any::<bool>(), any::<u64>(), prop::option::of(any::<u32>())),
+        (prop::option::of(mode()), any::<[u64; 4]>()),
+    )
+        .prop_map(|((n, role), (up, silent_ms, head), (mode, c))| ViewNode {
+            node: NodeId(n),
+            role,
+            up,
+            silent_ms,
+            head: head.map(NodeId),
+            status: mode.map(|mode| NodeStatus {
+                mode,
+                time_in_mode_ns: [c[0], c[1], c[2]],
+                frames: c[3],
+                detections: c[2],
+                dropped: c[1],
+                rejected: c[0],
+                sync_offset_ns: -5,
+                sync_error_ns: 7,
+                bytes_sent: 0,
+            }),
+            steps: c[0],
+            late: c[1],
+            rejected: c[2],
+            lost: c[3],
+        })
+}
+
+fn view_update() -> impl Strategy<Value = Message> {
+    let handover = (
+        any::<u64>(),
+        time(),
+        any::<u32>(),
+        prop::option::of(any::<u32>()),
+        any::<u32>(),
+    )
+        .prop_map(|(seq, time, g, from, to)| ViewHandover {
+            seq,
+            time,
+            global: TargetId(g),
+            from: from.map(NodeId),
+            to: NodeId(to),
+            cause: HandoverCause::Failover,
+        });
+    (
+        (any::<u64>(), 1..=MAX_VIEW_PARTS, time()),
+        prop::collection::vec(view_track(), 0..4),
+        prop::collection::vec(view_node(), 0..6),
+        prop::collection::vec(handover, 0..=MAX_VIEW_HANDOVERS),
+        any::<[u64; 4]>(),
+    )
+        .prop_map(|((round, parts, time), tracks, nodes, handovers, c)| {
+            Message::ViewUpdate(ViewUpdate {
+                round,
+                part: parts - 1,
+                parts,
+                time,
+                tracks_total: tracks.len() as u32,
+                tracks,
+                nodes_total: nodes.len() as u32,
+                nodes,
+                handovers,
+                counters: ViewCounters {
+                    received: c[0],
+                    rejected: c[1],
+                    handovers: c[2],
+                    undelivered: c[3],
+                },
+            })
+        })
 }
 
 fn sample_set() -> impl Strategy<Value = Message> {

@@ -5,11 +5,12 @@
 //! does not cost a whole trajectory, and nothing is skipped silently.
 
 use nalgebra::Vector3;
+use proto::TagId;
+use proto::sensor::mbd::{self, MbdError};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// Fields of one `.mbd` line: timestamp, sensor MAC, beacon MAC, RSSI, x, y, z, 3×3 orientation.
-pub const MBD_FIELDS: usize = 16;
+pub use proto::sensor::mbd::MBD_FIELDS;
 /// Suffix of the merged (all sensors) trajectory files.
 pub const TRACK_SUFFIX: &str = "_all_sensors.mbd";
 /// Environment variable that overrides the dataset directory.
@@ -115,69 +116,42 @@ pub fn parse_devices(text: &str) -> Result<Vec<Sensor>, String> {
     Ok(sensors)
 }
 
-fn number(field: &str, what: &str) -> Result<f64, String> {
-    let v: f64 = field
-        .trim()
-        .parse()
-        .map_err(|_| format!("{what} {field:?} is not a number"))?;
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(format!("{what} {field:?} is not finite"))
-    }
-}
-
-/// The RSSI a BLE receiver can report, dBm.
-pub const RSSI_DBM: std::ops::RangeInclusive<f64> = -127.0..=20.0;
-
-/// One `.mbd` line as a packet, or what is wrong with it.
-fn parse_packet(line: &str, sensors: &[Sensor]) -> Result<Packet, String> {
-    let f: Vec<&str> = line.split(',').collect();
-    if f.len() != MBD_FIELDS {
-        return Err(format!("{} fields, expected {MBD_FIELDS}", f.len()));
-    }
-    let t = number(f[0], "timestamp")?;
-    let mac = f[1].trim();
-    let sensor = sensors
+/// One `.mbd` line as a packet (`None` for a blank line), or what is wrong with it. The line is
+/// read by `proto::sensor::mbd`, the parser the file radio source uses.
+fn parse_packet(line: &str, macs: &[Option<TagId>]) -> Result<Option<Packet>, String> {
+    let r = match mbd::parse_line(line) {
+        Ok(Some(r)) => r,
+        Ok(None) => return Ok(None),
+        Err(MbdError::Mac {
+            what: "sensor MAC",
+            field,
+        }) => return Err(format!("unknown sensor MAC {:?}", field.trim())),
+        Err(e) => return Err(e.to_string()),
+    };
+    let sensor = macs
         .iter()
-        .position(|s| s.mac == mac)
-        .ok_or_else(|| format!("unknown sensor MAC {mac:?}"))?;
-    let rssi = number(f[3], "RSSI")?;
-    if !RSSI_DBM.contains(&rssi) {
-        return Err(format!(
-            "RSSI {rssi} dBm out of range [{}, {}]",
-            RSSI_DBM.start(),
-            RSSI_DBM.end()
-        ));
-    }
-    let mut p = [0.0; 3];
-    for (a, v) in p.iter_mut().enumerate() {
-        *v = number(f[4 + a], "position")?;
-    }
-    for field in &f[7..] {
-        number(field, "orientation")?;
-    }
-    Ok(Packet {
-        t,
+        .position(|m| *m == Some(r.sensor))
+        .ok_or_else(|| format!("unknown sensor MAC {:?}", r.sensor.to_string()))?;
+    Ok(Some(Packet {
+        t: r.time_s,
         sensor,
-        rssi,
-        truth: Vector3::from(p),
-    })
+        rssi: r.dbm,
+        truth: Vector3::from(r.position),
+    }))
 }
 
 /// Parse one `.mbd` file's text into packets sorted by time (the merged files are ordered up to
 /// a few sub-millisecond swaps), t relative to the first packet. Blank lines are allowed; a
 /// line with a wrong field count, a non-numeric or non-finite number, an RSSI outside
-/// [`RSSI_DBM`] or a sensor MAC not in `sensors` is skipped and counted.
+/// `proto::sensor::mbd::BLE_RSSI_DBM` or a sensor MAC not in `sensors` is skipped and counted.
 pub fn parse_track(text: &str, sensors: &[Sensor]) -> (Vec<Packet>, crate::skipped::SkippedLines) {
+    let macs: Vec<Option<TagId>> = sensors.iter().map(|s| TagId::parse_mac(&s.mac)).collect();
     let mut raw = Vec::new();
     let mut skipped = crate::skipped::SkippedLines::default();
     for (i, line) in text.lines().enumerate() {
-        if line.trim().is_empty() {
-            continue;
-        }
-        match parse_packet(line, sensors) {
-            Ok(p) => raw.push(p),
+        match parse_packet(line, &macs) {
+            Ok(Some(p)) => raw.push(p),
+            Ok(None) => {}
             Err(problem) => skipped.add(i + 1, problem),
         }
     }
@@ -258,8 +232,8 @@ pub fn load(dir: &Path) -> Result<Dataset, DataError> {
 mod tests {
     use super::*;
 
-    const DEV: &str = r#"Dongles:{"aa": [[1.0, 2.0, 1.5], 1, "s1"], "bb": [[3.0, 4.0, 2.3], 2, "s0"]}
-Beacons:{"cc": [[], 3, "beacon1"] }"#;
+    const DEV: &str = r#"Dongles:{"0000000000aa": [[1.0, 2.0, 1.5], 1, "s1"], "0000000000bb": [[3.0, 4.0, 2.3], 2, "s0"]}
+Beacons:{"0000000000cc": [[], 3, "beacon1"] }"#;
     const ORIENT: &str = "1,0,0,0,1,0,0,0,1";
 
     fn sensors() -> Vec<Sensor> {
@@ -271,7 +245,7 @@ Beacons:{"cc": [[], 3, "beacon1"] }"#;
         let s = sensors();
         assert_eq!(s.len(), 2);
         assert_eq!(s[0].alias, "s0");
-        assert_eq!(s[0].mac, "bb");
+        assert_eq!(s[0].mac, "0000000000bb");
         assert_eq!(s[1].pos, Vector3::new(1.0, 2.0, 1.5));
     }
 
@@ -284,7 +258,9 @@ Beacons:{"cc": [[], 3, "beacon1"] }"#;
 
     #[test]
     fn track_parses_sorts_and_rebases_time() {
-        let text = format!("10.5,aa,cc,-70,1,2,1.8,{ORIENT}\n\n10.0,bb,cc,-80,1.5,2,1.8,{ORIENT}\n");
+        let text = format!(
+            "10.5,0000000000aa,0000000000cc,-70,1,2,1.8,{ORIENT}\n\n10.0,0000000000bb,0000000000cc,-80,1.5,2,1.8,{ORIENT}\n"
+        );
         let (p, skipped) = parse_track(&text, &sensors());
         assert_eq!(skipped.count, 0);
         assert_eq!(p.len(), 2);
@@ -298,25 +274,31 @@ Beacons:{"cc": [[], 3, "beacon1"] }"#;
     #[test]
     fn track_skips_malformed_and_impossible_lines_naming_line_and_problem() {
         let s = sensors();
-        let ok = format!("1.0,aa,cc,-70,1,2,1.8,{ORIENT}");
+        let (a, c) = ("0000000000aa", "0000000000cc");
+        let ok = format!("1.0,{a},{c},-70,1,2,1.8,{ORIENT}");
         let cases = [
-            (format!("{ok}\n1.0,aa,cc,-70,1,2,1.8"), 2, "fields"),
+            (format!("{ok}\n1.0,{a},{c},-70,1,2,1.8"), 2, "fields"),
             (
-                format!("{ok}\n1.0,zz,cc,-70,1,2,1.8,{ORIENT}"),
+                format!("{ok}\n1.0,zz,{c},-70,1,2,1.8,{ORIENT}"),
                 2,
                 "unknown sensor",
             ),
-            (format!("1.0,aa,cc,strong,1,2,1.8,{ORIENT}"), 1, "RSSI"),
-            (format!("1.0,aa,cc,-70,1,NaN,1.8,{ORIENT}"), 1, "not finite"),
-            (format!("1.0,aa,cc,-300,1,2,1.8,{ORIENT}"), 1, "out of range"),
             (
-                "1.0,aa,cc,-70,1,2,1.8,1,0,0,0,x,0,0,0,1".to_string(),
+                format!("{ok}\n1.0,0000000000dd,{c},-70,1,2,1.8,{ORIENT}"),
+                2,
+                "unknown sensor",
+            ),
+            (format!("1.0,{a},{c},strong,1,2,1.8,{ORIENT}"), 1, "RSSI"),
+            (format!("1.0,{a},{c},-70,1,NaN,1.8,{ORIENT}"), 1, "not finite"),
+            (format!("1.0,{a},{c},-300,1,2,1.8,{ORIENT}"), 1, "out of range"),
+            (
+                format!("1.0,{a},{c},-70,1,2,1.8,1,0,0,0,x,0,0,0,1"),
                 1,
                 "orientation",
             ),
         ];
         for (text, line, what) in cases {
-            let text = format!("{text}\n2.0,bb,cc,-75,1,2,1.8,{ORIENT}\n");
+            let text = format!("{text}\n2.0,0000000000bb,{c},-75,1,2,1.8,{ORIENT}\n");
             let (packets, skipped) = parse_track(&text, &s);
             assert_eq!(
                 packets.len(),

@@ -90,6 +90,7 @@ pub fn room(walls: u32, distance: f64, length: f64) -> World {
         max: [8.0, 5.0, 3.0],
         walls: w,
         radio: RadioWorld::default(),
+        geo: None,
     }
 }
 
@@ -99,6 +100,7 @@ fn array_world() -> World {
         max: [ARRAY[2], ARRAY[3], 3.0],
         walls: Vec::new(),
         radio: RadioWorld::default(),
+        geo: None,
     }
 }
 

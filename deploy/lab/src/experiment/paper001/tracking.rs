@@ -71,6 +71,8 @@ pub fn scenario() -> Scenario {
         cost_factor: 1.0,
         region: None,
         rssi: false,
+        position: None,
+        radio: None,
         acoustic: Some(AcousticSpec {
             left: [11.2, 3.3, 1.2],
             right: [11.2, 3.15, 1.2],

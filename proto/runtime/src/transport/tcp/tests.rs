@@ -1,12 +1,19 @@
 //! Tests of the TCP transport on loopback: delivery both ways, reconnect, liveness, queue
-//! drop accounting, garbage and handshake rejection.
+//! drop accounting, garbage and handshake rejection (plain TCP); identity, duplicates,
+//! limits and floods in `tests_tls`.
 
 use super::super::{Delivery, Event, Inbox, TcpConfig, TransportConfig, open};
 use super::*;
-use futures_util::FutureExt;
-use proto::msg::{Command, Mode, SyncBeacon};
+use crate::transport::codec::Frame;
+use crate::transport::{Backoff, SendError};
+use futures_util::{FutureExt, SinkExt, StreamExt};
+use proto::PROTOCOL_VERSION;
+use proto::msg::{Command, Hello, Mode, SyncBeacon};
 use proto::node::Outgoing;
 use proto::time::ClusterTime;
+use proto::wire::decode;
+use tokio::net::TcpStream;
+use tokio::time::timeout;
 
 const WAIT: Duration = Duration::from_secs(10);
 
@@ -19,7 +26,7 @@ fn beacon(round: u64) -> Message {
 }
 
 fn listener_cfg(me: u32) -> TcpConfig {
-    let mut c = TcpConfig::new(NodeId(me), Role::Head);
+    let mut c = TcpConfig::new(NodeId(me), Role::Head, Security::Insecure);
     c.listen = Some("127.0.0.1:0".parse().unwrap());
     c.heartbeat = Duration::from_millis(50);
     c.liveness_timeout = Duration::from_millis(400);
@@ -27,7 +34,7 @@ fn listener_cfg(me: u32) -> TcpConfig {
 }
 
 fn dialer_cfg(me: u32, peer: u32, addr: SocketAddr) -> TcpConfig {
-    let mut c = TcpConfig::new(NodeId(me), Role::Camera);
+    let mut c = TcpConfig::new(NodeId(me), Role::Camera, Security::Insecure);
     c.peers.insert(NodeId(peer), addr);
     c.heartbeat = Duration::from_millis(50);
     c.liveness_timeout = Duration::from_millis(400);
@@ -152,7 +159,7 @@ async fn full_queue_drops_measurements_counts_them_and_holds_commands() {
 /// Handshake by hand, returning the connection.
 async fn raw_client(addr: SocketAddr, me: u32) -> Conn {
     let stream = TcpStream::connect(addr).await.unwrap();
-    let mut conn = Framed::new(stream, FrameCodec::new(MAX_FRAME_BYTES));
+    let mut conn = framed(Box::new(stream));
     let env = Envelope {
         source: NodeId(me),
         seq: 0,
@@ -230,7 +237,7 @@ async fn a_silent_peer_is_declared_down() {
 async fn wrong_version_hello_is_refused_with_a_reason() {
     let (a, _ia, sa, _ha) = open(TransportConfig::Tcp(listener_cfg(1))).await.unwrap();
     let stream = TcpStream::connect(a.local_addr().unwrap()).await.unwrap();
-    let mut conn = Framed::new(stream, FrameCodec::new(MAX_FRAME_BYTES));
+    let mut conn = framed(Box::new(stream));
     // The next version's header, then anything.
     conn.send(Bytes::from(vec![PROTOCOL_VERSION as u8 + 1, 0, 0]))
         .await

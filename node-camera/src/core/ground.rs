@@ -1,0 +1,150 @@
+//! The camera core in paper 004's mode (`camera-tracker = "particle"`): frames go through the
+//! segmentation (regions and foreground mask) into the per-person particle filters, and people
+//! leave as ground-plane observations ([`crate::ground_people`]) — the same split as the
+//! pin-hole points: gated to a prior they are folded into that prior's `Contribution`
+//! (distributed) or sent as a `Measurement` naming it (centralized); ungated ones go as
+//! `Measurement { target: None }` so heads can start tracks.
+
+use super::CameraNode;
+use crate::ground_people;
+use crate::segment::Segmenter;
+use crate::tracker::manager::Foreground;
+use proto::msg::{Message, Prior, SampleRequest};
+use proto::node::Outgoing;
+use proto::sensor::{Detection, Frame};
+use proto::{ClusterTime, NodeId, TargetId};
+
+impl CameraNode {
+    /// Whether the camera runs paper 004's particle filters.
+    pub fn tracks_people(&self) -> bool {
+        self.people.is_some()
+    }
+
+    /// The newest frame's people on the ground (empty unless [`Self::tracks_people`]).
+    pub fn latest_people(&self) -> &[proto::observation::GroundPoint] {
+        self.people.as_ref().map_or(&[], |p| p.latest())
+    }
+
+    /// A segmented frame's regions through the particle filters; the people are sent.
+    pub(super) fn ground_frame(
+        &mut self,
+        now: ClusterTime,
+        frame: &Frame,
+        regions: &[Detection],
+    ) -> Vec<Outgoing> {
+        let mut out = Vec::new();
+        let Some(people) = self.people.as_mut() else {
+            return out;
+        };
+        let foreground = match &self.segmenter {
+            Segmenter::AdaptiveBackground(seg) => Foreground::of(seg),
+            Segmenter::ColourDifference(_) => None,
+        };
+        if let Err(e) = people.track(&self.cfg.camera, frame, regions, foreground) {
+            self.reject("frame", e.to_string());
+            return out;
+        }
+        self.counters.frames += 1;
+        self.counters.detections += regions.len() as u64;
+        self.captured = Some(frame.captured);
+        self.forget_stale(now);
+        self.send_people(now, frame.captured, &mut out);
+        out
+    }
+
+    /// The measurement-level simulation's boxes straight to the ground plane.
+    pub(super) fn ground_boxes(
+        &mut self,
+        now: ClusterTime,
+        captured: ClusterTime,
+        detections: &[Detection],
+    ) -> Vec<Outgoing> {
+        let mut out = Vec::new();
+        let Some(people) = self.people.as_mut() else {
+            return out;
+        };
+        people.from_boxes(&self.cfg.camera, detections, captured);
+        self.counters.frames += 1;
+        self.counters.detections += detections.len() as u64;
+        self.captured = Some(captured);
+        self.forget_stale(now);
+        self.send_people(now, captured, &mut out);
+        out
+    }
+
+    /// Gate the newest people against the known priors and send what the mode asks for.
+    fn send_people(&mut self, now: ClusterTime, captured: ClusterTime, out: &mut Vec<Outgoing>) {
+        let Some(people) = self.people.as_ref() else {
+            return;
+        };
+        let priors: Vec<(&Prior, f64)> = self
+            .priors
+            .values()
+            .filter(|(t, _)| self.fresh(captured, *t))
+            .map(|(t, p)| (p, t.secs_since(captured)))
+            .collect();
+        let assoc = ground_people::associate(&priors, people.latest(), self.cfg.gate_chi2);
+        let targets: Vec<Option<(TargetId, u64)>> = assoc
+            .iter()
+            .map(|a| a.map(|i| (priors[i].0.target, priors[i].0.step)))
+            .collect();
+        let centralized = !self.cfg.fusion.distributed();
+        let mut msgs = Vec::new();
+        for (g, target) in people.latest().iter().zip(targets) {
+            if target.is_some() && !centralized {
+                continue;
+            }
+            let rssi = if target.is_some() {
+                self.fresh_tags(now)
+            } else {
+                Vec::new()
+            };
+            msgs.push(Message::Measurement(ground_people::measurement(
+                &self.cfg.camera,
+                g.clone(),
+                target,
+                self.mode,
+                &rssi,
+            )));
+        }
+        for body in msgs {
+            self.counters.measurements += 1;
+            self.send_to_head(body, out);
+        }
+    }
+
+    /// The contribution for one prior from the newest frame's people.
+    pub(super) fn ground_answer(&self, now: ClusterTime, prior: &Prior) -> Option<proto::msg::Contribution> {
+        let people = self.people.as_ref()?;
+        let rssi = self.fresh_tags(now);
+        let captured = self.captured.filter(|&t| self.fresh(t, now));
+        let age_s = captured.map_or(0.0, |t| now.secs_since(t));
+        let chosen =
+            captured.and_then(|_| ground_people::nearest(prior, people.latest(), age_s, self.cfg.gate_chi2));
+        Some(ground_people::contribution(
+            prior,
+            chosen,
+            captured.unwrap_or(now),
+            age_s,
+            self.mode,
+            &rssi,
+        ))
+    }
+
+    /// A request for the filters' sample sets: one `SampleSet` per person to the asker (none
+    /// when the camera tracks no one or runs no particle filters).
+    pub(super) fn on_sample_request(&mut self, source: NodeId, req: &SampleRequest) -> Vec<Outgoing> {
+        if req.node != self.cfg.id {
+            self.reject("sample request", format!("addressed to {}", req.node));
+            return Vec::new();
+        }
+        let Some(people) = self.people.as_ref() else {
+            return Vec::new();
+        };
+        people
+            .samples(req.local)
+            .into_iter()
+            .map(|s| Outgoing::new(source, Message::SampleSet(s)))
+            .collect()
+    }
+}

@@ -1,0 +1,142 @@
+//! The camera core in paper 004's mode, on rendered frames of the default scenario.
+
+use super::*;
+use nalgebra::Matrix6;
+use proto::NodeId;
+use proto::models;
+use proto::msg::{Prior, SampleRequest};
+use proto::observation::{Observation, ObservationKind};
+use proto::scenario::{CameraTracker, Fusion, Scenario};
+use world::render::Renderer;
+
+const CAM: u32 = 10;
+
+fn setup(fusion: Fusion) -> (Scenario, CameraNode, Renderer) {
+    let mut s = Scenario::default_scenario();
+    s.method.fusion = fusion;
+    s.method.camera_tracker = CameraTracker::Particle;
+    let cfg = CameraConfig::from_scenario(&s, CAM).unwrap();
+    let r = Renderer::for_node(&s, CAM, 3).unwrap();
+    (s, CameraNode::new(cfg, ClusterTime::ZERO), r)
+}
+
+fn env(body: Message) -> Envelope {
+    Envelope {
+        source: NodeId(2),
+        seq: 1,
+        time: ClusterTime::ZERO,
+        body,
+    }
+}
+
+/// Frames from `t0` to `t1` at 5 fps; all outputs.
+fn run(node: &mut CameraNode, s: &Scenario, r: &Renderer, t0: f64, t1: f64) -> Vec<Outgoing> {
+    let targets = world::targets(s).unwrap();
+    let mut out = Vec::new();
+    let mut f = Frame::new(0, 0, ClusterTime::ZERO);
+    let mut t = t0;
+    while t <= t1 + 1e-9 {
+        let now = ClusterTime::from_secs_f64(t);
+        r.render(&targets, t, now, &mut f);
+        out.extend(node.on_frame(now, &f));
+        t += 0.2;
+    }
+    out
+}
+
+fn truth(s: &Scenario, t: f64) -> proto::models::State {
+    world::targets(s).unwrap()[0].truth_at(t)
+}
+
+#[test]
+fn people_leave_as_ground_points_near_the_robot() {
+    let (s, mut node, r) = setup(Fusion::CentralizedEif);
+    assert!(node.tracks_people());
+    let out = run(&mut node, &s, &r, 0.0, 4.0);
+    let grounds: Vec<_> = out
+        .iter()
+        .filter_map(|o| match &o.body {
+            Message::Measurement(m) => m.observations.iter().find_map(|ob| match ob {
+                Observation::Ground(g) => Some(g.clone()),
+                _ => None,
+            }),
+            _ => None,
+        })
+        .collect();
+    assert!(grounds.len() >= 5, "{} ground measurements", grounds.len());
+    // Of the last frame's people, one is the robot (another may be the first frame's ghost in
+    // the background model, where the robot stood).
+    let last_t = grounds.last().unwrap().captured;
+    let x = truth(&s, last_t.secs_since(ClusterTime::ZERO));
+    let err = |g: &proto::observation::GroundPoint| {
+        ((g.position[0] - x[0]).powi(2) + (g.position[1] - x[1]).powi(2)).sqrt()
+    };
+    let last = grounds
+        .iter()
+        .filter(|g| g.captured == last_t)
+        .min_by(|a, b| err(a).total_cmp(&err(b)))
+        .unwrap();
+    assert!(err(last) < 0.6, "ground point {:?} vs truth {x:?}", last.position);
+    assert!(last.cov[0] > 0.0 && last.cov[2] > 0.0 && last.width_m > 0.0 && last.height_m > 0.0);
+    // The histogram goes with a person's first point, then at most once a second.
+    assert_eq!(grounds[0].histogram.len(), 110);
+    assert!(grounds.iter().filter(|g| g.histogram.is_empty()).count() >= grounds.len() / 2);
+    // Asked, the camera sends each person's sample set back to the asker.
+    let req = SampleRequest {
+        node: NodeId(CAM),
+        local: None,
+    };
+    let now = ClusterTime::from_secs_f64(4.0);
+    let sets = node.handle(now, Input::Message(env(Message::SampleRequest(req))));
+    assert!(!sets.is_empty());
+    assert!(
+        sets.iter()
+            .all(|o| o.to == NodeId(2) && matches!(&o.body, Message::SampleSet(s) if s.samples.len() == 100))
+    );
+    // Addressed to another camera: refused, counted.
+    let rejected = node.counters().rejected;
+    let other = SampleRequest {
+        node: NodeId(11),
+        local: None,
+    };
+    assert!(
+        node.handle(now, Input::Message(env(Message::SampleRequest(other))))
+            .is_empty()
+    );
+    assert_eq!(node.counters().rejected, rejected + 1);
+}
+
+#[test]
+fn a_prior_is_answered_with_the_ground_information() {
+    let (s, mut node, r) = setup(Fusion::DistributedEif);
+    run(&mut node, &s, &r, 0.0, 3.0);
+    let t = 3.0;
+    let prior = |offset: f64| {
+        let mut mean = truth(&s, t);
+        mean[0] += offset;
+        Prior {
+            target: TargetId(1),
+            step: 7,
+            mean: models::vec6_to_wire(&mean),
+            cov: models::mat6_to_wire(&(Matrix6::identity() * 0.09)),
+            deadline: ClusterTime::from_secs_f64(t + 0.08),
+        }
+    };
+    let now = ClusterTime::from_secs_f64(t + 0.01);
+    let answer = |node: &mut CameraNode, p: Prior| match &node
+        .handle(now, Input::Message(env(Message::Prior(p))))[..]
+    {
+        [o] => match &o.body {
+            Message::Contribution(c) => c.clone(),
+            other => panic!("{other:?}"),
+        },
+        other => panic!("{other:?}"),
+    };
+    let c = answer(&mut node, prior(0.0));
+    assert!(c.folded.contains(ObservationKind::Ground), "{:?}", c.folded);
+    // x, y and the centre height are informed; velocity only through the frame's age.
+    assert!(c.info_matrix[0][0] > 0.0 && c.info_matrix[1][1] > 0.0 && c.info_matrix[2][2] > 0.0);
+    // A prior metres away gates nothing: an empty contribution.
+    let far = answer(&mut node, prior(4.0));
+    assert!(far.folded.is_empty() && far.info_matrix.iter().flatten().all(|v| *v == 0.0));
+}

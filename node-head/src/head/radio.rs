@@ -1,0 +1,92 @@
+//! Radio-only clusters: a head whose members are all radio-only nodes (no camera can start a
+//! track there) keeps one *radio search* track while it has none, started wide at the centre of
+//! its up members with Mode CameraOff, so its priors ask them for the tags they hear. The track
+//! takes RSSI at once (it is confirmed: no camera can confirm it), is reported to the server
+//! only once a tag was heard for it, and is dropped like any track when nothing was heard for
+//! `track-timeout-ms`; the next step starts another. Clusters with a camera start tracks from
+//! cameras only, as before, and their radio-only members add RSSI to them.
+
+use super::HeadNode;
+use nalgebra::{Matrix6, Vector3};
+use proto::ClusterTime;
+use proto::models::State;
+use tracing::{info, warn};
+
+/// Standard deviation of a radio search track's horizontal position at its start, metres (a
+/// room's size: where the tag is is not known).
+pub const RADIO_SEARCH_SIGMA_M: f64 = 5.0;
+/// … of its height, and of the height a radio track is held at every step (the method's target
+/// plane: RSSI alone hardly tells height), metres.
+pub const RADIO_HEIGHT_SIGMA_M: f64 = 0.1;
+/// … of its horizontal velocity, m/s.
+const RADIO_SEARCH_SIGMA_V: f64 = 1.0;
+/// … of its vertical velocity, m/s.
+const RADIO_SEARCH_SIGMA_VZ: f64 = 0.1;
+
+impl HeadNode {
+    /// Whether this head tracks from radio alone: it fuses RSSI and has members, every one of
+    /// them radio-only.
+    pub(super) fn radio_only_cluster(&self) -> bool {
+        let mut members = self.nodes.iter().filter(|n| n.member).peekable();
+        members.peek().is_some()
+            && members.all(|n| n.info.radio_only)
+            && self.uses_rssi()
+            && self.fusion.fuses_rssi()
+    }
+
+    /// Start a radio search track if this is a radio-only cluster with no track and a member
+    /// up.
+    pub(super) fn radio_search(&mut self, now: ClusterTime) {
+        if !self.tracks.is_empty() || !self.radio_only_cluster() {
+            return;
+        }
+        let up: Vec<Vector3<f64>> = self
+            .nodes
+            .iter()
+            .filter(|n| n.member && n.up)
+            .map(|n| n.info.position)
+            .collect();
+        if up.is_empty() {
+            return;
+        }
+        let centre = up.iter().sum::<Vector3<f64>>() / up.len() as f64;
+        let z = self.cfg.method.target_plane_z();
+        let mean = State::new(centre.x, centre.y, z, 0.0, 0.0, 0.0);
+        let (p, pz, v, vz) = (
+            RADIO_SEARCH_SIGMA_M.powi(2),
+            RADIO_HEIGHT_SIGMA_M.powi(2),
+            RADIO_SEARCH_SIGMA_V.powi(2),
+            RADIO_SEARCH_SIGMA_VZ.powi(2),
+        );
+        let cov = Matrix6::from_diagonal(&nalgebra::Vector6::new(p, p, pz, v, v, vz));
+        let local = self.alloc_local();
+        match self.new_track(local, None, mean, cov, now) {
+            Ok(mut t) => {
+                t.confirmed = true;
+                info!(target = %local, x = centre.x, y = centre.y, nodes = up.len(), "radio search track");
+                self.counters.births += 1;
+                self.tracks.push(t);
+            }
+            Err(e) => {
+                self.counters.numeric_failures += 1;
+                warn!(error = %e, "radio search track with an unusable covariance");
+            }
+        }
+    }
+
+    /// In a radio-only cluster, hold track `t`'s height at the method's target plane (a
+    /// pseudo-measurement of σ [`RADIO_HEIGHT_SIGMA_M`] in this step's sums), as the BLE
+    /// experiment's RSSI-only filter does: ranges from sensors mounted at about one height
+    /// hardly tell the tag's, and the filter would wander up and down.
+    pub(super) fn hold_height(&mut self, t: usize) {
+        if !self.radio_only_cluster() {
+            return;
+        }
+        let w = RADIO_HEIGHT_SIGMA_M.powi(-2);
+        let mut omega = Matrix6::zeros();
+        omega[(2, 2)] = w;
+        let mut xi = State::zeros();
+        xi[2] = w * self.cfg.method.target_plane_z();
+        self.tracks[t].acc.add(&omega, &xi);
+    }
+}

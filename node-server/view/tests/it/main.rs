@@ -1,0 +1,3 @@
+//! The viewer's integration tests: the pages in a real browser.
+
+mod browser;
