@@ -32,6 +32,15 @@ pub struct Loaded {
 }
 
 impl Loaded {
+    /// The run's time origin and whether it has truth, if the recording says (the first
+    /// [`Record::Origin`]; recordings made before it existed say nothing).
+    pub fn origin(&self) -> Option<crate::Origin> {
+        self.records.iter().find_map(|s| match s.record {
+            Record::Origin(o) => Some(o),
+            _ => None,
+        })
+    }
+
     /// The server's node id: the scenario's server, else the source of its sent frames.
     pub fn server_id(&self) -> NodeId {
         self.scenario

@@ -180,7 +180,7 @@ impl ServerNode {
         let member = source.is_some_and(|s| self.members.member(s).is_some());
         self.viewers.rejected(source, member);
         if let Some(more) = self.log.admit(now.0, "message rejected") {
-            tracing::warn!(source = ?source, what, %reason, more, "message rejected");
+            tracing::warn!(source = %source.map_or_else(|| "unknown".to_string(), |s| s.to_string()), what, %reason, more, "message rejected");
         }
         self.decide(
             now,
@@ -598,7 +598,11 @@ impl ServerNode {
                 self.counters.rejected += 1;
                 self.journal(s.at, Record::Decision(d.clone()));
             }
-            Record::Decision(_) | Record::Scenario(_) | Record::Sent { .. } | Record::Measured(_) => {
+            Record::Decision(_)
+            | Record::Scenario(_)
+            | Record::Sent { .. }
+            | Record::Measured(_)
+            | Record::Origin(_) => {
                 return false;
             }
         }

@@ -29,5 +29,5 @@ pub mod tracks;
 
 pub use core::{Counters, RestoreStats, ServerConfig, ServerNode};
 pub use decision::{Decision, HandoverReason};
-pub use record::{MeasuredDetection, MeasuredFrame, Record, Stamped};
+pub use record::{MeasuredDetection, MeasuredFrame, Origin, Record, Stamped};
 pub use recording::{Reader, Recorder, RecordingError};

@@ -9,7 +9,7 @@
 //! A recording that fails stops the server: nothing may be lost silently.
 
 use crate::core::{RestoreStats, ServerConfig, ServerNode};
-use crate::record::{Record, Stamped};
+use crate::record::{Origin, Record, Stamped};
 use crate::recording::{Recorder, RecordingError};
 use proto::msg::Message;
 use proto::node::Outgoing;
@@ -34,6 +34,9 @@ pub struct ProcessConfig {
     pub tick: Duration,
     /// Period of `sync_data` on the recording.
     pub sync_every: Duration,
+    /// What a new recording says of the run's clock and truth (`ocelli launch` knows it; a
+    /// real deployment's server records none, so its report scores nothing).
+    pub origin: Option<Origin>,
 }
 
 /// Why the server process stopped with an error.
@@ -53,22 +56,26 @@ pub struct Summary {
     pub run: RunSummary,
 }
 
-/// Open the recording and build the core, resuming from the recording if it has records.
+/// Open the recording and build the core, resuming from the recording if it has records. A
+/// new recording starts with the scenario and, when known, the run's [`Origin`].
 ///
 /// # Errors
 /// A recording that cannot be opened or read.
 pub fn start(
-    scenario: &Scenario,
-    id: NodeId,
-    path: &std::path::Path,
+    cfg: &ProcessConfig,
     now: ClusterTime,
 ) -> Result<(ServerNode, Recorder, Option<RestoreStats>), ProcessError> {
-    let (mut rec, back) = Recorder::open(path, &scenario.name)?;
-    let cfg = ServerConfig::from_scenario(scenario.clone(), id);
+    let (scenario, id) = (&cfg.scenario, cfg.id);
+    let (mut rec, back) = Recorder::open(&cfg.record, &scenario.name)?;
+    let server_cfg = ServerConfig::from_scenario(scenario.clone(), id);
     if back.records.is_empty() {
         rec.append(&Stamped::new(now, Record::Scenario(scenario.to_toml())))?;
-        return Ok((ServerNode::new(cfg), rec, None));
+        if let Some(origin) = cfg.origin {
+            rec.append(&Stamped::new(now, Record::Origin(origin)))?;
+        }
+        return Ok((ServerNode::new(server_cfg), rec, None));
     }
+    let cfg = server_cfg;
     let (mut node, stats) = ServerNode::restore(cfg, &back.records);
     let skipped = back.skipped_bytes();
     tracing::info!(
@@ -148,7 +155,7 @@ impl Hooks<ServerNode> for Recording {
 /// be lost silently).
 pub async fn run(cfg: ProcessConfig, shutdown: CancellationToken) -> Result<Summary, ProcessError> {
     let clock = HostClock::leader();
-    let (mut node, rec, restored) = start(&cfg.scenario, cfg.id, &cfg.record, clock.now())?;
+    let (mut node, rec, restored) = start(&cfg, clock.now())?;
     tracing::info!(id = %cfg.id, record = %cfg.record.display(), "server starting");
     let mut recording = Recording {
         rec,

@@ -8,7 +8,8 @@
 //! decision as JSON, `u32 LE node` + `u8 up` for a link event, or a postcard-encoded
 //! [`MeasuredFrame`] (a logging run's camera measurement, written by the simulation or mapped
 //! from a camera process's `Message::MeasuredFrame`; kind 6, added later: recordings
-//! without it read as before).
+//! without it read as before), or the run's [`Origin`] (`i64 LE t0 | u8 simulated`; kind 7,
+//! added later still).
 
 use crate::decision::Decision;
 use proto::{ClusterTime, Envelope, NodeId, WireError};
@@ -32,6 +33,20 @@ pub enum Record {
     /// One camera frame of a logging run: everything the camera measured, whatever its mode,
     /// so the run can be processed again offline with another method and policy.
     Measured(MeasuredFrame),
+    /// Where the run's scenario clock starts and whether its world was simulated: written once,
+    /// right after the scenario, by whoever starts a recording that knows it (`ocelli sim`,
+    /// `ocelli launch`), so a report scores against truth only when there is truth.
+    Origin(Origin),
+}
+
+/// The time origin of a run and whether it has a truth to score against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Origin {
+    /// Cluster time of scenario time 0 (where the scenario's target trajectories start).
+    pub t0: ClusterTime,
+    /// The cameras sensed the simulated world, so the scenario's targets are the truth. A real
+    /// deployment records `false`: nothing there knows where a target truly was.
+    pub simulated: bool,
 }
 
 /// What one camera measured in one frame (paper 002 logged every camera's measurements once
@@ -104,6 +119,7 @@ const KIND_TICK: u8 = 3;
 const KIND_DECISION: u8 = 4;
 const KIND_LINK: u8 = 5;
 const KIND_MEASURED: u8 = 6;
+const KIND_ORIGIN: u8 = 7;
 
 /// A record payload that could not be encoded or decoded.
 #[derive(Debug, Error)]
@@ -137,6 +153,7 @@ impl Stamped {
             Record::Decision(_) => KIND_DECISION,
             Record::Link { .. } => KIND_LINK,
             Record::Measured(_) => KIND_MEASURED,
+            Record::Origin(_) => KIND_ORIGIN,
         };
         out.push(kind);
         out.extend_from_slice(&self.at.0.to_le_bytes());
@@ -158,6 +175,10 @@ impl Stamped {
                     return Err(RecordError::Measured(p));
                 }
                 out = postcard::to_extend(m, out).map_err(|e| RecordError::Measured(e.to_string()))?;
+            }
+            Record::Origin(o) => {
+                out.extend_from_slice(&o.t0.0.to_le_bytes());
+                out.push(u8::from(o.simulated));
             }
         }
         Ok(out)
@@ -210,6 +231,17 @@ impl Stamped {
                 }
                 Record::Measured(m)
             }
+            KIND_ORIGIN => {
+                let Ok(bytes) = <[u8; 9]>::try_from(body) else {
+                    return Err(RecordError::Short(payload.len()));
+                };
+                let mut t0 = [0u8; 8];
+                t0.copy_from_slice(&bytes[..8]);
+                Record::Origin(Origin {
+                    t0: ClusterTime(i64::from_le_bytes(t0)),
+                    simulated: bytes[8] != 0,
+                })
+            }
             k => return Err(RecordError::UnknownKind(k)),
         };
         Ok(Stamped { at, record })
@@ -254,6 +286,14 @@ mod tests {
                 detections: Vec::new(),
                 rssi: Vec::new(),
                 ..frame()
+            }),
+            Record::Origin(Origin {
+                t0: ClusterTime(1_700_000_000_123_456_789),
+                simulated: true,
+            }),
+            Record::Origin(Origin {
+                t0: ClusterTime(0),
+                simulated: false,
             }),
         ];
         for r in all {

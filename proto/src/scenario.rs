@@ -204,6 +204,16 @@ pub enum Fusion {
 }
 
 impl Fusion {
+    /// The scenario file's spelling (`distributed-eif`, …), for messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Fusion::DistributedEif => "distributed-eif",
+            Fusion::CentralizedEif => "centralized-eif",
+            Fusion::Ml => "ml",
+            Fusion::Grid => "grid",
+        }
+    }
+
     /// Whether nodes answer the head's priors with their information contribution Ω_i, ξ_i
     /// (otherwise they send measurements and the head models them).
     pub fn distributed(self) -> bool {
@@ -224,6 +234,18 @@ pub enum Activation {
     /// Active / CameraOff / Inactive (paper 002's proposed method).
     #[default]
     ThreeMode,
+}
+
+impl Activation {
+    /// The scenario file's spelling (`three-mode`, …), for messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Activation::AllOn => "all-on",
+            Activation::CameraEntropy => "camera-entropy",
+            Activation::FullNode => "full-node",
+            Activation::ThreeMode => "three-mode",
+        }
+    }
 }
 
 /// Which segmentation pipeline cameras run.

@@ -117,7 +117,8 @@ pub struct SimOutcome {
 
 impl SimOutcome {
     /// Write the run as a recording, as `ocelli sim --record` does: the scenario it used at
-    /// time 0, then every record.
+    /// time 0, its origin (scenario time 0 is cluster time 0, the world simulated), then every
+    /// record.
     ///
     /// # Errors
     /// The file cannot be created or written.
@@ -133,6 +134,11 @@ impl SimOutcome {
                 Record::Scenario(self.scenario.to_toml()),
             ))?;
         }
+        let origin = node_server::Origin {
+            t0: ClusterTime(0),
+            simulated: true,
+        };
+        rec.append(&Stamped::new(ClusterTime(0), Record::Origin(origin)))?;
         for r in &self.records {
             rec.append(r)?;
         }
@@ -362,11 +368,23 @@ impl Sim {
     }
 
     /// Run to the end of the duration.
-    pub fn run(mut self) -> SimOutcome {
+    pub fn run(self) -> SimOutcome {
+        self.run_telling(|_| {})
+    }
+
+    /// Run to the end of the duration, calling `simulated` with each whole simulated second
+    /// reached (for a progress bar; it changes nothing in the run).
+    pub fn run_telling(mut self, mut simulated: impl FnMut(u64)) -> SimOutcome {
         let end_ns = (self.opts.duration_s * 1e9).round() as i64;
+        let mut told = 0u64;
         while let Some(t) = self.queue.peek_time() {
             if t > end_ns {
                 break;
+            }
+            let second = u64::try_from(t / 1_000_000_000).unwrap_or(0);
+            if second > told {
+                told = second;
+                simulated(second);
             }
             let Some((t, event)) = self.queue.pop() else { break };
             match event {

@@ -5,7 +5,7 @@
 //! agree without sync; the synthetic world's t = 0 is `--epoch-ns` (default: start of this
 //! process), which `launch` sets to the same value for every camera.
 
-use super::common::{SecurityArgs, TransportArg, load_scenario, run_node, transport_or_scenario};
+use super::common::{ScenarioArg, SecurityArgs, TransportArg, node_of_role, run_node, transport_or_scenario};
 use anyhow::{Result, bail};
 use node_camera::process::{OpenFrames, ProcessConfig, run};
 use node_camera::source_spec::{Count, SharedStats, SourceSpec, SourceStats, SpecError, open_source};
@@ -14,7 +14,6 @@ use proto::sensor::{Frame, FrameSource, RadioSource, ReferencePoint, SourceError
 use proto::{ClusterTime, NodeId};
 use runtime::HostClock;
 use runtime::config::transport_config;
-use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
@@ -24,9 +23,8 @@ pub const SYNTHETIC_SEED: u64 = 1;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scenario file (default: the embedded default scenario).
-    #[arg(long)]
-    pub scenario: Option<PathBuf>,
+    #[command(flatten)]
+    pub scenario: ScenarioArg,
     /// This camera's node id.
     #[arg(long)]
     pub id: u32,
@@ -150,7 +148,8 @@ impl FrameSource for Forward {
 }
 
 pub fn run_cmd(args: Args) -> Result<ExitCode> {
-    let scenario = load_scenario(args.scenario.as_ref())?;
+    let scenario = args.scenario.load()?;
+    node_of_role(&scenario, args.id, proto::scenario::NodeRole::Camera)?;
     let kind = transport_or_scenario(args.transport, &scenario);
     let source = SourceSpec::parse(&args.source)?;
     let clock = HostClock::follower();

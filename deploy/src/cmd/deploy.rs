@@ -2,6 +2,7 @@
 //! units, `sysusers.d` snippet, `nodes.txt`, and over TCP the cluster's certificates) for
 //! installing a scenario on real machines.
 
+use super::common::ScenarioArg;
 use crate::deploy::{Options, certs, render, uses_tls, write_plan};
 use anyhow::{Context, Result};
 use proto::scenario::{DEFAULT_SCENARIO_TOML, Scenario};
@@ -10,8 +11,8 @@ use std::process::ExitCode;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scenario file (default: the embedded default scenario).
-    pub scenario: Option<PathBuf>,
+    #[command(flatten)]
+    pub scenario: ScenarioArg,
     /// Output directory: one subdirectory per host.
     #[arg(long)]
     pub out: PathBuf,
@@ -21,7 +22,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
-    let (scenario, text) = match &args.scenario {
+    let (scenario, text) = match &args.scenario.scenario {
         Some(p) => {
             let scenario = Scenario::load(p)?;
             let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;

@@ -15,12 +15,12 @@ pub struct Args {
     /// BLE data from shared/datasets/ble-rssi; not part of `all`).
     pub name: String,
     /// Seeded runs per method.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     pub runs: u32,
     /// Seed of the first run (run k uses seed + k).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Print JSON (`{"experiment", "rows": [...]}`; one object per line with `all`).
+    /// Print only JSON (`{"experiment", "rows": [...]}`; one object per line with `all`).
     #[arg(long)]
     pub json: bool,
     /// Print a Markdown section per experiment (for docs/results.md).
@@ -33,7 +33,7 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub level: Option<super::sim::LevelArg>,
     /// Override the simulated seconds per run.
-    #[arg(long)]
+    #[arg(long, value_parser = super::common::seconds)]
     pub duration: Option<f64>,
 }
 
@@ -52,39 +52,54 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }),
         duration_s: args.duration,
     };
+    let bar = super::bar::study_runs(&args.name);
     for name in names {
+        if let Some(b) = &bar {
+            b.set_prefix(name.to_string());
+        }
         let outcome = experiment::run(name, &opts)?;
         let figures = match &args.plot {
             Some(dir) => plot::write_all(&outcome, dir)?,
             None => Vec::new(),
         };
-        if args.json {
-            println!("{}", serde_json::to_string(&table::to_json(&outcome))?);
-        } else if args.markdown {
-            let mut command = format!(
-                "ocelli experiment {name} --runs {} --seed {}",
-                args.runs, args.seed
-            );
-            if let Some(d) = args.duration {
-                command.push_str(&format!(" --duration {d}"));
+        let print = || -> Result<()> {
+            if args.json {
+                println!("{}", serde_json::to_string(&table::to_json(&outcome))?);
+            } else if args.markdown {
+                let mut command = format!(
+                    "ocelli experiment {name} --runs {} --seed {}",
+                    args.runs, args.seed
+                );
+                if let Some(d) = args.duration {
+                    command.push_str(&format!(" --duration {d}"));
+                }
+                if args.level.is_some() {
+                    command.push_str(&format!(
+                        " --level {}",
+                        serde_json::to_value(outcome.level)?.as_str().unwrap_or("?")
+                    ));
+                }
+                let names: Vec<String> = figures
+                    .iter()
+                    .filter_map(|p| p.file_name().map(|f| format!("figures/{}", f.to_string_lossy())))
+                    .collect();
+                print!("{}", table::to_markdown(&outcome, &command, &names));
+            } else {
+                println!("{}", table::to_text(&outcome));
+                for f in &figures {
+                    println!("figure: {}", f.display());
+                }
             }
-            if args.level.is_some() {
-                command.push_str(&format!(
-                    " --level {}",
-                    serde_json::to_value(outcome.level)?.as_str().unwrap_or("?")
-                ));
-            }
-            let names: Vec<String> = figures
-                .iter()
-                .filter_map(|p| p.file_name().map(|f| format!("figures/{}", f.to_string_lossy())))
-                .collect();
-            print!("{}", table::to_markdown(&outcome, &command, &names));
-        } else {
-            println!("{}", table::to_text(&outcome));
-            for f in &figures {
-                println!("figure: {}", f.display());
-            }
+            Ok(())
+        };
+        // The table is printed with the bar cleared, then the bar comes back.
+        match &bar {
+            Some(b) => b.suspend(print)?,
+            None => print()?,
         }
+    }
+    if let Some(b) = bar {
+        b.finish_and_clear();
     }
     Ok(ExitCode::SUCCESS)
 }

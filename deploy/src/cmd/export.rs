@@ -2,10 +2,10 @@
 //! Earth (each global track a time-stamped `gx:Track`; needs `[world.geo]`) or as MCAP for
 //! Foxglove Studio (its well-known schemas; location fixes when `[world.geo]` is set).
 
+use super::common::{ScenarioArg, warn_damage};
 use anyhow::{Context, Result};
 use node_server::analysis::{Loaded, load};
 use node_server::export::{Format, track_rows, write_rows};
-use proto::scenario::Scenario;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -23,24 +23,23 @@ pub enum FormatArg {
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The server's recording file.
+    #[arg(value_name = "RECORDING")]
     pub recording: PathBuf,
     #[arg(long, value_enum, default_value = "csv")]
     pub format: FormatArg,
     /// Write here instead of standard output.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
-    /// Scenario to replay with (default: the one stored in the recording); its `[world.geo]`
-    /// places the KML and MCAP exports.
-    #[arg(long)]
-    pub scenario: Option<PathBuf>,
+    /// Replaces the scenario stored in the recording; its `[world.geo]` places the KML and MCAP
+    /// exports.
+    #[command(flatten)]
+    pub scenario: ScenarioArg,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
-    let scenario = args.scenario.as_deref().map(Scenario::load).transpose()?;
+    let scenario = args.scenario.load_given()?;
     let loaded = load(&args.recording, scenario)?;
-    for s in &loaded.skipped {
-        tracing::warn!(offset = s.offset, bytes = s.bytes, damage = ?s.damage, "recording: damaged stretch skipped; exported the records around it");
-    }
+    warn_damage(&args.recording, &loaded);
     let format = match args.format {
         FormatArg::Csv => Format::Csv,
         FormatArg::Jsonl => Format::JsonLines,

@@ -2,7 +2,7 @@
 //! own process until SIGINT/SIGTERM (a second signal aborts). Prints a JSON summary of what
 //! it did on standard output when it stops.
 
-use super::common::{SecurityArgs, TransportArg, load_scenario, run_node, transport_or_scenario};
+use super::common::{ScenarioArg, SecurityArgs, TransportArg, node_of_role, run_node, transport_or_scenario};
 use anyhow::Result;
 use node_head::HeadConfig;
 use node_head::process::run as run_head;
@@ -11,14 +11,12 @@ use runtime::HostClock;
 use runtime::config::transport_config;
 use serde_json::json;
 use std::net::SocketAddr;
-use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scenario file (the embedded default when omitted).
-    #[arg(long)]
-    pub scenario: Option<PathBuf>,
+    #[command(flatten)]
+    pub scenario: ScenarioArg,
     /// This head's node id in the scenario.
     #[arg(long)]
     pub id: u32,
@@ -33,7 +31,8 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
-    let scenario = load_scenario(args.scenario.as_ref())?;
+    let scenario = args.scenario.load()?;
+    node_of_role(&scenario, args.id, proto::scenario::NodeRole::Head)?;
     let kind = transport_or_scenario(args.transport, &scenario);
     let head_cfg = HeadConfig::from_scenario(&scenario, args.id)?;
     let clock = HostClock::follower();

@@ -1,8 +1,10 @@
-//! `ocelli launch [SCENARIO]`: the one-command local cluster (see `crate::launch`).
+//! `ocelli launch`: the one-command local cluster (see `crate::launch`).
 
-use super::common::{TransportArg, load_scenario};
+use super::common::{ScenarioArg, TransportArg, seconds};
 use crate::launch::{LaunchOptions, launch};
+use crate::supervisor::RestartPolicy;
 use anyhow::Result;
+use std::io::IsTerminal;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -10,26 +12,34 @@ use std::time::Duration;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scenario file (the embedded default when omitted).
-    pub scenario: Option<PathBuf>,
+    #[command(flatten)]
+    pub scenario: ScenarioArg,
     /// `ipc` (iceoryx2 shared memory) or `tcp` (loopback sockets).
     #[arg(long, value_enum, default_value = "ipc")]
     pub transport: TransportArg,
-    /// Stop after this many seconds (default: run until Ctrl-C).
-    #[arg(long)]
+    /// Stop after this many seconds (default: run until SIGINT, SIGTERM or SIGHUP).
+    #[arg(long, value_parser = seconds)]
     pub duration: Option<f64>,
-    /// Print the final report as JSON on standard output.
+    /// Print only the final report, as JSON, on standard output.
     #[arg(long)]
     pub json: bool,
-    /// Where the server's recording goes.
-    #[arg(long, default_value = "ocelli-recording.ocrec")]
-    pub record: PathBuf,
-    /// Directory for the effective scenario and each node's log.
-    #[arg(long, default_value = "ocelli-run")]
-    pub run_dir: PathBuf,
-    /// No live progress lines.
+    /// The run's folder: effective scenario, node list, logs and (by default) the recording.
+    /// Default: a new time-stamped folder under `ocelli-runs/`. It must be empty or absent.
+    #[arg(long, value_name = "DIR")]
+    pub run_dir: Option<PathBuf>,
+    /// Where the server's recording goes (default: `recording.ocrec` in the run's folder). It
+    /// must not exist.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
+    /// Write over a run folder that holds files and replace an existing recording.
+    #[arg(long)]
+    pub force: bool,
+    /// No live progress lines (they are shown only when standard error is a terminal).
     #[arg(long)]
     pub quiet: bool,
+    /// Leave a node that crashed down instead of restarting it with backoff.
+    #[arg(long)]
+    pub no_restart: bool,
     /// A logging run: every camera measures every frame whatever its mode and the server
     /// records it, so `ocelli replay` can re-run the recording with any method and policy.
     #[arg(long)]
@@ -47,8 +57,8 @@ pub struct Args {
     pub insecure: bool,
 }
 
-pub fn run(args: Args) -> Result<ExitCode> {
-    let mut scenario = load_scenario(args.scenario.as_ref())?;
+pub fn run(args: Args, log_json: bool) -> Result<ExitCode> {
+    let mut scenario = args.scenario.load()?;
     if args.insecure {
         scenario.network.insecure = true;
     }
@@ -57,16 +67,28 @@ pub fn run(args: Args) -> Result<ExitCode> {
         duration: args.duration.map(Duration::from_secs_f64),
         run_dir: args.run_dir,
         record: args.record,
-        progress: !args.quiet,
+        force: args.force,
+        progress: !args.quiet && std::io::stderr().is_terminal(),
         record_measurements: args.record_measurements,
+        log_json,
+        restart: (!args.no_restart).then(RestartPolicy::default),
         view: (!args.no_view).then(|| view_address(args.view)),
     };
-    let report = launch(scenario, &opts)?;
+    let launched = launch(scenario, &opts)?;
+    for (node, n) in &launched.restarts {
+        tracing::warn!(node = %node, restarts = n, "node was restarted during the run");
+    }
+    let report = &launched.report.report;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        println!("{}", serde_json::to_string_pretty(report)?);
     } else {
         print!("{}", report.to_table());
     }
+    tracing::info!(
+        run = %launched.run.dir.display(),
+        recording = %launched.run.recording.display(),
+        "run finished; `ocelli report RECORDING` prints this report again"
+    );
     Ok(ExitCode::SUCCESS)
 }
 

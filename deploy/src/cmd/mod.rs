@@ -1,12 +1,14 @@
 //! One module per `ocelli` subcommand.
 
 pub mod acoustic;
+pub mod bar;
 pub mod bench;
 pub mod camera;
 pub mod common;
 pub mod deploy;
 pub mod experiment;
 pub mod export;
+pub mod fuse;
 pub mod head;
 pub mod launch;
 pub mod peer;
@@ -15,6 +17,7 @@ pub mod replay;
 pub mod report;
 pub mod scenario;
 pub mod server;
+pub mod shell;
 pub mod sim;
 pub mod undistort;
 pub mod view;

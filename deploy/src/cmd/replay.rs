@@ -1,31 +1,18 @@
-//! `ocelli replay`: estimates as JSON Lines on standard output, from either
-//! - a logging run's recording (`ocelli replay RECORDING --fusion … --activation …`): its
-//!   recorded camera measurements re-run through the heads with any method and policy
-//!   (`lab::replay::rerun`), followed by the run report of the replay (`ocelli report`'s);
-//! - external detections (`--detections FILE`, JSON Lines, any detector) through a fusion
-//!   method, with cameras from a scenario (ids = node ids) or an OpenCV calibration folder (ids
-//!   from the file names).
+//! `ocelli replay RECORDING --fusion … --activation …`: a logging run's recorded camera
+//! measurements re-run through the heads with any method and policy (`lab::replay::rerun`):
+//! estimates as JSON Lines on standard output, then the run report of the replay (`ocelli
+//! report`'s). External detections are fused, not replayed: that is `ocelli fuse`.
 
-use super::common::NetArgs;
+use super::common::{NetArgs, ScenarioArg, warn_damage};
 use anyhow::{Context, Result};
-use lab::replay::fuse::{CameraSource, FuseMethod, FuseOptions, fuse};
 use lab::replay::rerun::{RerunOptions, recording_t0, replay_recording};
 use proto::ClusterTime;
 use proto::scenario::{Activation, Fusion};
 use sim::SimOptions;
 use sim::net::NetworkModel;
-use std::io::{BufReader, Write};
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
-
-/// Fusion method of a replay.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ReplayMethod {
-    /// Paper 000's maximum-likelihood fusion: one estimate per person per `t`.
-    Ml,
-    /// ML estimates tracked by one EIF per target: adds a track id.
-    Eif,
-}
 
 /// `--fusion` of a recording's replay.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -88,9 +75,10 @@ pub struct RecordingArgs {
     /// reproduce it.
     #[arg(long, value_enum, default_value = "pixel")]
     pub recorded_level: super::sim::LevelArg,
-    /// Cluster time (ns) of scenario time 0 in the recording (default: its first record's
-    /// time — 0 for `ocelli sim`, the server's start for `ocelli launch`).
-    #[arg(long)]
+    /// Cluster time (ns) of scenario time 0 in the recording, and score the replay against the
+    /// scenario's simulated targets from there (default: what the recording says — `ocelli
+    /// sim` and `ocelli launch` record it; a real deployment's replay is not scored).
+    #[arg(long, value_name = "NS")]
     pub t0_ns: Option<i64>,
     /// Print the report as one JSON line (`{"report": …}`) after the estimates instead of a
     /// table on standard error.
@@ -111,83 +99,22 @@ impl Default for RecordingArgs {
 }
 
 #[derive(clap::Args, Debug)]
-#[command(group(clap::ArgGroup::new("input").required(true).args(["recording", "detections"])))]
 pub struct Args {
     /// A logging run's recording (`ocelli sim --record-measurements --record FILE`, or
     /// `ocelli launch --record-measurements`) to re-run through the heads.
+    #[arg(value_name = "RECORDING", required_unless_present = "detections")]
     pub recording: Option<PathBuf>,
-    /// JSON Lines detections, `-` for standard input.
-    #[arg(long)]
+    /// Replaces the recorded scenario.
+    #[command(flatten)]
+    pub scenario: ScenarioArg,
+    /// External detections are fused, not replayed: use `ocelli fuse DETECTIONS`.
+    #[arg(long, hide = true, value_name = "FILE")]
     pub detections: Option<String>,
-    /// Cameras from this scenario (detections name cameras by node id); with a recording,
-    /// replaces the recorded scenario.
-    #[arg(long)]
-    pub scenario: Option<PathBuf>,
-    /// Cameras from an OpenCV calibration folder (`intrinsic/intr_<ID>.xml`,
-    /// `extrinsic/extr_<ID>.xml`).
-    #[arg(long)]
-    pub opencv_calibration: Option<PathBuf>,
-    /// Image size `WIDTHxHEIGHT` for OpenCV files that do not state it.
-    #[arg(long, default_value = "1920x1080", value_parser = parse_size)]
-    pub image_size: (u32, u32),
-    #[arg(long, value_enum, default_value = "ml")]
-    pub method: ReplayMethod,
-    /// Targets move on the plane z = H (m), e.g. 0 for people's foot points.
-    #[arg(long)]
-    pub plane_z: Option<f64>,
-    /// Pixel noise of a detection (px).
-    #[arg(long, default_value_t = 2.0)]
-    pub pixel_sigma: f64,
-    /// Largest ground distance (m) between two cameras' views of one person.
-    #[arg(long, default_value_t = 1.0)]
-    pub gate: f64,
-    /// Report only people seen by at least this many cameras.
-    #[arg(long, default_value_t = 1)]
-    pub min_cameras: usize,
     #[command(flatten)]
     pub rec: RecordingArgs,
 }
 
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s
-        .split_once('x')
-        .ok_or_else(|| format!("`{s}`: expected WIDTHxHEIGHT"))?;
-    let n = |x: &str| {
-        x.parse::<u32>()
-            .ok()
-            .filter(|v| *v > 0)
-            .ok_or_else(|| format!("`{s}`: `{x}` is not a positive whole number"))
-    };
-    Ok((n(w)?, n(h)?))
-}
-
 impl Args {
-    /// The fusion options these flags ask for.
-    ///
-    /// # Errors
-    /// Neither `--scenario` nor `--opencv-calibration`.
-    pub fn fuse_options(&self) -> Result<FuseOptions> {
-        let cameras = match (&self.scenario, &self.opencv_calibration) {
-            (Some(path), _) => CameraSource::Scenario(path.clone()),
-            (None, Some(dir)) => CameraSource::OpenCv {
-                dir: dir.clone(),
-                image_size: self.image_size,
-            },
-            (None, None) => anyhow::bail!("give --scenario or --opencv-calibration"),
-        };
-        Ok(FuseOptions {
-            cameras,
-            method: match self.method {
-                ReplayMethod::Ml => FuseMethod::Ml,
-                ReplayMethod::Eif => FuseMethod::Eif,
-            },
-            plane_z: self.plane_z,
-            pixel_sigma: self.pixel_sigma,
-            gate: self.gate,
-            min_cameras: self.min_cameras,
-        })
-    }
-
     /// The re-run options these flags ask for, for a loaded recording.
     fn rerun_options(&self, loaded: &node_server::analysis::Loaded) -> RerunOptions {
         let rec = &self.rec;
@@ -222,35 +149,27 @@ fn write_lines<T: serde::Serialize>(items: &[T], out: &mut impl Write) -> Result
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
+    if let Some(file) = &args.detections {
+        anyhow::bail!(
+            "external detections are fused, not replayed: run `ocelli fuse {file} --scenario FILE` (or --opencv-calibration DIR)"
+        );
+    }
+    let recording = args.recording.as_deref().context("a recording is required")?;
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
-    if let Some(path) = &args.recording {
-        let scenario = args
-            .scenario
-            .as_deref()
-            .map(proto::scenario::Scenario::load)
-            .transpose()?;
-        let (rows, report) = replay_recording(path, scenario, |loaded| args.rerun_options(loaded))?;
-        if !write_lines(&rows, &mut out)? {
-            return Ok(ExitCode::SUCCESS);
-        }
-        if args.rec.json {
-            write_lines(&[serde_json::json!({ "report": report })], &mut out)?;
-        } else {
-            eprint!("{}", report.to_table());
-        }
+    let scenario = args.scenario.load_given()?;
+    let given_t0 = args.rec.t0_ns.map(ClusterTime);
+    let (rows, report) = replay_recording(recording, scenario, given_t0, |loaded| {
+        warn_damage(recording, loaded);
+        args.rerun_options(loaded)
+    })?;
+    if !write_lines(&rows, &mut out)? {
+        return Ok(ExitCode::SUCCESS);
+    }
+    if args.rec.json {
+        write_lines(&[serde_json::json!({ "report": report })], &mut out)?;
     } else {
-        let opts = args.fuse_options()?;
-        let estimates = match args.detections.as_deref() {
-            Some("-") | None => fuse(&opts, std::io::stdin().lock())?,
-            Some(p) => {
-                let file = std::fs::File::open(p).with_context(|| format!("cannot open {p}"))?;
-                fuse(&opts, BufReader::new(file))?
-            }
-        };
-        if !write_lines(&estimates, &mut out)? {
-            return Ok(ExitCode::SUCCESS);
-        }
+        eprint!("{}", report.to_table());
     }
     match out.flush() {
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(ExitCode::SUCCESS),

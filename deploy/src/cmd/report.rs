@@ -1,50 +1,55 @@
 //! `ocelli report`: the run report of a recording (error against ground truth when the
-//! scenario has targets, sensors per step, energy, messages, sync), as a table or JSON.
+//! recording says its world was simulated, sensors per step, energy, messages, sync), as a
+//! table or JSON — the same report `ocelli launch` printed for it (`lab::report`).
 
+use super::common::{ScenarioArg, warn_damage};
 use anyhow::{Context, Result};
-use node_server::analysis::load;
-use node_server::report::compute;
+use lab::report::{Scoring, of_recording};
 use proto::ClusterTime;
-use proto::scenario::Scenario;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The server's recording file.
+    #[arg(value_name = "RECORDING")]
     pub recording: PathBuf,
-    /// Scenario with the ground truth (default: the one stored in the recording).
-    #[arg(long)]
-    pub scenario: Option<PathBuf>,
-    /// Print JSON instead of the table.
+    /// Replaces the scenario stored in the recording.
+    #[command(flatten)]
+    pub scenario: ScenarioArg,
+    /// Print only JSON instead of the table.
     #[arg(long)]
     pub json: bool,
     /// Also write the JSON report to this file.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     pub write: Option<PathBuf>,
-    /// Cluster time (ns) at which the scenario's trajectories start.
-    #[arg(long, default_value_t = 0)]
-    pub t0_ns: i64,
+    /// Score against the scenario's simulated targets as if they started at this cluster time
+    /// (ns), whatever the recording says (default: the recording's own time origin, and no
+    /// score at all for a real deployment's recording).
+    #[arg(long, value_name = "NS")]
+    pub t0_ns: Option<i64>,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
-    let scenario = args.scenario.as_deref().map(Scenario::load).transpose()?;
-    let loaded = load(&args.recording, scenario)?;
-    // Scored against the scenario's simulated targets when it has any, as they were at
-    // `--t0-ns` on the recording's clock.
-    let truth = sim::WorldTruth::of(&loaded.scenario, ClusterTime(args.t0_ns))?;
-    let report = compute(
-        &loaded,
-        truth.as_ref().map(|t| t as &dyn node_server::report::Truth),
-    );
-    let json = serde_json::to_string_pretty(&report)?;
+    let scenario = args.scenario.load_given()?;
+    let r = of_recording(&args.recording, scenario, args.t0_ns.map(ClusterTime))?;
+    warn_damage(&args.recording, &r.loaded);
+    match r.scoring {
+        Scoring::NoTruth if !r.loaded.scenario.targets.is_empty() => tracing::info!(
+            "not scored: the recording does not say its world was simulated (give --t0-ns to \
+             score against the scenario's targets anyway)"
+        ),
+        Scoring::Given(t0) => tracing::info!(t0_ns = t0.0, "scored from the given time origin"),
+        _ => {}
+    }
+    let json = serde_json::to_string_pretty(&r.report)?;
     if let Some(p) = &args.write {
         std::fs::write(p, &json).with_context(|| format!("writing {}", p.display()))?;
     }
     if args.json {
         println!("{json}");
     } else {
-        print!("{}", report.to_table());
+        print!("{}", r.report.to_table());
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -18,13 +18,18 @@ pub struct Args {
 pub enum Action {
     /// Print the embedded default scenario (TOML).
     Default,
-    /// Parse and validate a scenario file; print a summary.
-    Check { path: PathBuf },
+    /// Check a scenario file as deeply as a deployment would (fields, addresses, calibration
+    /// files, what each camera sees, targets inside the world); print a summary.
+    Check {
+        /// The scenario file to check.
+        #[arg(value_name = "FILE")]
+        path: PathBuf,
+    },
     /// Survey the scenario's simulated room (every RSSI node reads every other's beacon) and
     /// print the default RSSI model fitted to it, as paper 002 fitted its testbed's.
     Survey {
-        /// Scenario file (the embedded default when absent).
-        path: Option<PathBuf>,
+        #[command(flatten)]
+        scenario: super::common::ScenarioArg,
         /// Seed of the simulated room (a launch's cameras use 1; `ocelli sim --seed`).
         #[arg(long, default_value_t = super::camera::SYNTHETIC_SEED)]
         seed: u64,
@@ -59,26 +64,54 @@ pub enum Action {
     },
 }
 
+/// Every check a deployment would otherwise fail on later.
+///
+/// # Errors
+/// The first problem, naming the file and the field.
+pub fn check(path: &std::path::Path) -> Result<Scenario> {
+    let s = Scenario::load(path)?;
+    s.check_deployment()?;
+    // The simulated world's part: targets parse and drive inside the room.
+    let targets = world::targets(&s)?;
+    let (lo, hi) = (s.world.min, s.world.max);
+    for t in &targets {
+        if let Some(w) = t
+            .trajectory
+            .waypoints()
+            .iter()
+            .find(|w| !(lo[0]..=hi[0]).contains(&w[0]) || !(lo[1]..=hi[1]).contains(&w[1]))
+        {
+            anyhow::bail!(
+                "scenario {}: targets[id={}].trajectory.waypoints: [{}, {}] is outside the world [{}, {}] x [{}, {}]",
+                path.display(),
+                t.id,
+                w[0],
+                w[1],
+                lo[0],
+                hi[0],
+                lo[1],
+                hi[1]
+            );
+        }
+    }
+    Ok(s)
+}
+
 pub fn run(args: Args) -> Result<ExitCode> {
     match args.action {
         Action::Default => print!("{DEFAULT_SCENARIO_TOML}"),
         Action::Check { path } => {
-            let s = Scenario::load(&path)?;
-            // The simulated world's part (targets) is checked too.
-            let targets = world::targets(&s)?;
+            let s = check(&path)?;
             println!(
                 "{}: {} cameras, {} heads, {} targets — ok",
                 s.name,
                 s.cameras().count(),
                 s.heads().count(),
-                targets.len()
+                s.targets.len()
             );
         }
-        Action::Survey { path, seed } => {
-            let s = match path {
-                Some(p) => Scenario::load(&p)?,
-                None => Scenario::default_scenario(),
-            };
+        Action::Survey { scenario, seed } => {
+            let s = scenario.load()?;
             let pairs = survey(&s, seed, SURVEY_READINGS_PER_PAIR);
             let Some(RssiModel::LogDistance { a, b, variance }) = fit_log_distance(&pairs) else {
                 anyhow::bail!(

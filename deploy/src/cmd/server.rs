@@ -1,10 +1,12 @@
 //! `ocelli server`: run the server process (membership, handover, global ids, time leader,
 //! recording) from a scenario, over iceoryx2 or TCP. Restarting it on the same recording resumes.
 
-use super::common::{SecurityArgs, TransportArg, load_scenario, run_node, transport_or_scenario};
+use super::common::{ScenarioArg, SecurityArgs, TransportArg, node_of_role, run_node, transport_or_scenario};
 use anyhow::{Context, Result};
+use node_server::Origin;
 use node_server::process::{ProcessConfig, run as run_server};
-use proto::NodeId;
+use proto::scenario::NodeRole;
+use proto::{ClusterTime, NodeId};
 use runtime::HostClock;
 use runtime::config::transport_config;
 use std::path::PathBuf;
@@ -13,9 +15,8 @@ use std::time::Duration;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scenario file (default: the embedded default scenario).
-    #[arg(long)]
-    pub scenario: Option<PathBuf>,
+    #[command(flatten)]
+    pub scenario: ScenarioArg,
     /// This server's node id (default: the scenario's server).
     #[arg(long)]
     pub id: Option<u32>,
@@ -25,24 +26,33 @@ pub struct Args {
     #[command(flatten)]
     pub security: SecurityArgs,
     /// Recording file; resumed if it exists.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     pub record: PathBuf,
     /// Tick period, ms.
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u64).range(1..=10_000))]
     pub tick_ms: u64,
+    /// Cluster time (ns since the Unix epoch) of scenario time 0, stored in a new recording
+    /// (`ocelli launch` gives its cameras' epoch).
+    #[arg(long, value_name = "NS")]
+    pub epoch_ns: Option<i64>,
+    /// The cameras sense the simulated world (`ocelli launch`): the recording says so, and its
+    /// report is scored against the scenario's targets. Needs `--epoch-ns`.
+    #[arg(long, requires = "epoch_ns")]
+    pub simulated: bool,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
-    let scenario = load_scenario(args.scenario.as_ref())?;
+    let scenario = args.scenario.load()?;
     let id = match args.id {
         Some(i) => i,
         None => {
             scenario
                 .server()
-                .context("the scenario declares no server; pass --id")?
+                .with_context(|| format!("scenario {} declares no server; pass --id", scenario.name))?
                 .id
         }
     };
+    node_of_role(&scenario, id, NodeRole::Server)?;
     let kind = transport_or_scenario(args.transport, &scenario);
     // The leader's clock stamps the transport's own frames.
     let transport = transport_config(
@@ -58,8 +68,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
         id: NodeId(id),
         transport,
         record: args.record,
-        tick: Duration::from_millis(args.tick_ms.max(1)),
+        tick: Duration::from_millis(args.tick_ms),
         sync_every: Duration::from_millis(500),
+        origin: args.epoch_ns.map(|ns| Origin {
+            t0: ClusterTime(ns),
+            simulated: args.simulated,
+        }),
     };
     let summary = run_node(|shutdown| async move { Ok(run_server(cfg, shutdown).await?) })?;
     tracing::info!(

@@ -1,8 +1,8 @@
 //! `ocelli sim`: the scenario's nodes in one process on a virtual clock (see `sim::runtime`).
 //! Same seed, same bytes out.
 
-use super::common::{NetArgs, load_scenario};
-use anyhow::Result;
+use super::common::{NetArgs, ScenarioArg, seconds};
+use anyhow::{Context, Result};
 use node_server::analysis::Loaded;
 use node_server::report;
 use proto::ClusterTime;
@@ -12,14 +12,15 @@ use std::process::ExitCode;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scenario file (the embedded default when omitted).
-    pub scenario: Option<PathBuf>,
+    #[command(flatten)]
+    pub scenario: ScenarioArg,
+    /// Seed of everything random in the run (world noise, network, clocks).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Simulated seconds.
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = 20.0, value_parser = seconds)]
     pub duration: f64,
-    /// Print the report as JSON on standard output.
+    /// Print only JSON on standard output (the report, level, network counters).
     #[arg(long)]
     pub json: bool,
     /// `pixel` (rendered and segmented frames) or `measurement` (truth projected plus noise).
@@ -27,9 +28,12 @@ pub struct Args {
     pub level: LevelArg,
     #[command(flatten)]
     pub net: NetArgs,
-    /// Write the server's recording here.
-    #[arg(long)]
+    /// Write the server's recording here (it must not exist, unless --force).
+    #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
+    /// Replace an existing recording.
+    #[arg(long, requires = "record")]
+    pub force: bool,
     /// A logging run: every camera measures every frame whatever its mode, and the
     /// measurements go into the recording, for `ocelli replay RECORDING --fusion … --activation …`.
     #[arg(long, requires = "record")]
@@ -52,7 +56,16 @@ impl LevelArg {
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
-    let scenario = load_scenario(args.scenario.as_ref())?;
+    let scenario = args.scenario.load()?;
+    if let Some(path) = &args.record
+        && path.exists()
+        && !args.force
+    {
+        anyhow::bail!(
+            "recording {} already exists; name another with --record, or --force to replace it",
+            path.display()
+        );
+    }
     let opts = SimOptions {
         seed: args.seed,
         duration_s: args.duration,
@@ -61,8 +74,19 @@ pub fn run(args: Args) -> Result<ExitCode> {
         record_measurements: args.record_measurements,
         ..SimOptions::default()
     };
-    let outcome = Sim::new(scenario, opts)?.run();
+    let bar = super::bar::simulated_seconds(args.duration);
+    let outcome = Sim::new(scenario, opts)?.run_telling(|s| {
+        if let Some(b) = &bar {
+            b.set_position(s);
+        }
+    });
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
     if let Some(path) = &args.record {
+        if path.exists() {
+            std::fs::remove_file(path).with_context(|| format!("replacing {}", path.display()))?;
+        }
         outcome.write_recording(path)?;
     }
     let truth = WorldTruth::of(&outcome.scenario, ClusterTime(0))?;

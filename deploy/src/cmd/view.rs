@@ -1,7 +1,7 @@
 //! `ocelli view RECORDING`: a server's recording played back in the viewer's pages, with play,
 //! pause, a time slider and speed (paper 004's log playback).
 
-use super::common::run_node;
+use super::common::{ScenarioArg, run_node};
 use anyhow::{Context, Result};
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -11,20 +11,18 @@ use std::time::Duration;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The server's recording file.
+    #[arg(value_name = "RECORDING")]
     pub recording: PathBuf,
     /// Serve HTTP here.
     #[arg(long, default_value = super::viewer::DEFAULT_LISTEN)]
     pub listen: SocketAddr,
     /// A scenario whose `[world.geo]` places a recording that has none on Earth.
-    #[arg(long)]
-    pub scenario: Option<PathBuf>,
+    #[command(flatten)]
+    pub scenario: ScenarioArg,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
-    let geo = match &args.scenario {
-        Some(p) => proto::scenario::Scenario::load(p)?.world.geo,
-        None => None,
-    };
+    let geo = args.scenario.load_given()?.and_then(|s| s.world.geo);
     let (recording, listen) = (args.recording, args.listen);
     run_node(|shutdown| async move {
         let listener = tokio::net::TcpListener::bind(listen)

@@ -2,13 +2,12 @@
 //! server over its transport, serving the live map, the 3D view, `/api/state`, `/metrics` and
 //! KML on `--listen` (see `view`).
 
-use super::common::{TransportArg, load_scenario, run_node, transport_or_scenario};
+use super::common::{ScenarioArg, TransportArg, run_node, transport_or_scenario};
 use anyhow::{Context, Result};
 use proto::NodeId;
 use runtime::HostClock;
 use runtime::config::client_transport_config;
 use std::net::SocketAddr;
-use std::path::PathBuf;
 use std::process::ExitCode;
 use view::node::ViewerConfig;
 
@@ -17,9 +16,8 @@ pub const DEFAULT_LISTEN: &str = "127.0.0.1:8080";
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scenario file (default: the embedded default scenario).
-    #[arg(long)]
-    pub scenario: Option<PathBuf>,
+    #[command(flatten)]
+    pub scenario: ScenarioArg,
     /// This viewer's node id: one the scenario does not use (default: the first free from 900).
     #[arg(long)]
     pub id: Option<u32>,
@@ -37,7 +35,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
-    let scenario = load_scenario(args.scenario.as_ref())?;
+    let scenario = args.scenario.load()?;
     let id = NodeId(args.id.unwrap_or_else(|| view::node::free_id(&scenario).0));
     let kind = transport_or_scenario(args.transport, &scenario);
     let transport = client_transport_config(

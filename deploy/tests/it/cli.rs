@@ -50,9 +50,11 @@ fn the_cli_prints_the_issue_json_labelled_with_its_level_and_writes_figures() {
 }
 
 /// The default scenario's cameras see a point on the floor: detections made by projecting it
-/// come back as one estimate at that point, one per `t`; a bad line is named.
+/// come back from `ocelli fuse` as one estimate at that point, one per `t`; a bad line is
+/// skipped and named by its number; nothing fused exits non-zero and says why; `replay
+/// --detections` points to `fuse`.
 #[test]
-fn binary_writes_json_lines_and_names_a_bad_line() {
+fn binary_fuses_json_lines_and_names_a_bad_line() {
     let scenario_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../proto/scenarios/default.toml");
     let scenario = proto::scenario::Scenario::load(&scenario_path).expect("default scenario");
     let w = &scenario.world;
@@ -75,17 +77,9 @@ fn binary_writes_json_lines_and_names_a_bad_line() {
         }
     }
     assert!(seen >= 2, "the scenario centre is seen by {seen} cameras");
-    let run_with = |input: &str, method: &str| {
+    let run_args = |input: &str, args: &[&str]| {
         let mut child = Command::new(env!("CARGO_BIN_EXE_ocelli"))
-            .args([
-                "replay",
-                "--detections",
-                "-",
-                "--method",
-                method,
-                "--plane-z",
-                "0",
-            ])
+            .args(args)
             .arg("--scenario")
             .arg(&scenario_path)
             .stdin(Stdio::piped())
@@ -101,6 +95,8 @@ fn binary_writes_json_lines_and_names_a_bad_line() {
             .expect("write detections");
         child.wait_with_output().expect("ocelli finishes")
     };
+    let run_with =
+        |input: &str, method: &str| run_args(input, &["fuse", "-", "--method", method, "--plane-z", "0"]);
     let run = |input: &str| run_with(input, "ml");
     let out = run(&lines);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -134,12 +130,29 @@ fn binary_writes_json_lines_and_names_a_bad_line() {
         })
         .collect();
     assert_eq!(tracks, [1, 1], "one target, one track");
+    // A malformed line is skipped, counted and named; the good lines still give their estimates.
     let bad = format!("{lines}{{\"t\": 1, \"camera\": \"1\", \"u\": 3}}\n");
     let out = run(&bad);
-    assert!(!out.status.success());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 2);
     let err = String::from_utf8_lossy(&out.stderr);
     let want = format!("line {}", lines.lines().count() + 1);
-    assert!(err.contains(&want), "error should name {want}: {err}");
+    assert!(
+        err.contains("1 line(s) skipped") && err.contains(&want),
+        "should name {want}: {err}"
+    );
+    // One camera, two people at one time stamp, no plane: nothing can be placed, and it says so.
+    let first = lines.lines().next().expect("a detection");
+    let two = format!("{first}\n{}\n", first.replace("\"u\": ", "\"u\": 1"));
+    let out = run_args(&two, &["fuse", "-"]);
+    assert!(!out.status.success(), "no estimate is a failure");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--plane-z"), "the hint names --plane-z: {err}");
+    // External detections are fused, not replayed.
+    let out = run_args(&lines, &["replay", "--detections", "-"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("ocelli fuse"), "points to ocelli fuse: {err}");
 }
 
 /// The commands as a user runs them: `ocelli sim --record-measurements --record F`, then
@@ -214,4 +227,19 @@ fn binary_replays_a_sim_recording_to_its_own_estimates() {
         .unwrap();
     assert!(three < all_on, "three-mode {three} vs all-on {all_on} cameras");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Piped, a long command stays quiet: no progress bar, no colour codes.
+#[test]
+fn piped_output_has_no_progress_bar_and_no_colour_codes() {
+    let out = Command::new(env!("CARGO_BIN_EXE_ocelli"))
+        .args(["sim", "--duration", "2", "--level", "measurement", "--json"])
+        .env_remove("RUST_LOG")
+        .output()
+        .expect("ocelli runs");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("simulated s"), "no bar when piped: {err}");
+    assert!(!err.contains('\u{1b}'), "no escape codes when piped: {err}");
+    serde_json::from_slice::<serde_json::Value>(&out.stdout).expect("--json prints only JSON");
 }

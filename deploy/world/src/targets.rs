@@ -102,6 +102,11 @@ pub fn set_targets(scenario: &mut Scenario, targets: &[Target]) {
 }
 
 impl Trajectory {
+    /// The floor waypoints `[x, y]` it drives through.
+    pub fn waypoints(&self) -> &[[f64; 2]] {
+        self.parts().0
+    }
+
     fn parts(&self) -> (&[[f64; 2]], f64, bool) {
         match self {
             Trajectory::Loop { waypoints, speed } => (waypoints, *speed, true),

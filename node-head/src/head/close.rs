@@ -14,7 +14,7 @@ use proto::node::Outgoing;
 use proto::observation::{Kinds, ObservationKind};
 use proto::scenario::Activation;
 use proto::{ClusterTime, Message, Mode};
-use tracing::{info, warn};
+use tracing::{debug, info, warn};
 
 impl HeadNode {
     pub(super) fn close_step(&mut self, now: ClusterTime, out: &mut Vec<Outgoing>) {
@@ -336,7 +336,7 @@ impl HeadNode {
         if to == self.nodes[slot].mode {
             return Some(decision);
         }
-        info!(node = %decision.node, from = ?decision.from, to = ?decision.to, reward = decision.reward, cost = decision.cost, "activation");
+        debug!(node = %decision.node, from = ?decision.from, to = ?decision.to, reward = decision.reward, cost = decision.cost, "activation");
         self.command(slot, to, out);
         Some(decision)
     }

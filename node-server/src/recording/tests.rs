@@ -460,7 +460,21 @@ fn the_server_resumes_a_damaged_recording_and_records_the_skip() {
     let path = tmp("server-start");
     let scenario = crate::testkit::scenario();
     let id = NodeId(1);
-    let (_, rec, stats) = crate::process::start(&scenario, id, &path, ClusterTime(0)).unwrap();
+    let cfg = crate::process::ProcessConfig {
+        scenario,
+        id,
+        transport: runtime::transport::TransportConfig::InProcess {
+            hub: runtime::transport::InProcessHub::default(),
+            me: id,
+            role: proto::Role::Server,
+            queue_len: 16,
+        },
+        record: path.clone(),
+        tick: std::time::Duration::from_millis(10),
+        sync_every: std::time::Duration::from_millis(50),
+        origin: None,
+    };
+    let (_, rec, stats) = crate::process::start(&cfg, ClusterTime(0)).unwrap();
     assert!(stats.is_none());
     let mut rec = rec;
     for s in sample(10) {
@@ -472,7 +486,7 @@ fn the_server_resumes_a_damaged_recording_and_records_the_skip() {
     let last = bytes.len() - 3;
     bytes[last] ^= 0x20; // inside the last record
     std::fs::write(&path, &bytes).unwrap();
-    let (_, rec, stats) = crate::process::start(&scenario, id, &path, ClusterTime(20_000)).unwrap();
+    let (_, rec, stats) = crate::process::start(&cfg, ClusterTime(20_000)).unwrap();
     assert!(stats.is_some());
     drop(rec);
     let after = read_all(&path).unwrap();

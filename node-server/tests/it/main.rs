@@ -51,6 +51,7 @@ fn config(hub: &InProcessHub, record: PathBuf) -> ProcessConfig {
         record,
         tick: Duration::from_millis(10),
         sync_every: Duration::from_millis(50),
+        origin: None,
     }
 }
 

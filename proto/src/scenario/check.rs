@@ -1,301 +1,500 @@
 //! Semantic checks of a parsed scenario: what serde's types cannot say (unique ids, cameras
-//! naming an existing head, finite geometry, positive rates, deadline inside the step).
+//! naming an existing head, finite geometry, positive rates, deadline inside the step, listen
+//! addresses that parse and do not collide). [`Scenario::validate`] runs one check per section
+//! on every load; [`Scenario::check_deployment`] adds what needs files or geometry (calibration
+//! files that read, cameras that see part of the world), for `ocelli scenario check`.
 
-use super::{NodeRole, PowerFigures, Scenario, ScenarioError};
-use std::collections::BTreeSet;
+use super::{CameraSpec, NodeRole, NodeSpec, PowerFigures, Scenario, ScenarioError};
+use std::collections::{BTreeMap, BTreeSet};
 
 fn all_finite(xs: &[f64]) -> bool {
     xs.iter().all(|x| x.is_finite())
 }
 
-impl Scenario {
-    /// Check what the types cannot. `origin` names the file in errors.
-    ///
-    /// # Errors
-    /// The first problem, naming the field and what was expected.
-    pub fn validate(&self, origin: &str, _unused: Option<()>) -> Result<(), ScenarioError> {
-        let bad = |field: String, problem: String| ScenarioError::Invalid {
-            path: origin.into(),
-            field,
-            problem,
-        };
-        let positive = |field: String, x: f64| {
-            if x.is_finite() && x > 0.0 {
-                Ok(())
-            } else {
-                Err(bad(field, format!("expected a positive number, got {x}")))
-            }
-        };
-        let power = |field: String, p: &PowerFigures| {
-            let xs = [p.camera_mw, p.node_active_mw, p.node_low_power_mw];
-            if xs.iter().all(|x| x.is_finite() && *x >= 0.0) {
-                Ok(())
-            } else {
-                Err(bad(
-                    field,
-                    format!("expected finite, non-negative mW, got {xs:?}"),
-                ))
-            }
-        };
+/// Builds the errors of one file.
+struct Checker<'a> {
+    origin: &'a str,
+}
 
-        // World.
-        for (i, (lo, hi)) in self.world.min.iter().zip(&self.world.max).enumerate() {
+type Checked = Result<(), ScenarioError>;
+
+impl Checker<'_> {
+    fn bad(&self, field: impl Into<String>, problem: impl Into<String>) -> ScenarioError {
+        ScenarioError::Invalid {
+            path: self.origin.into(),
+            field: field.into(),
+            problem: problem.into(),
+        }
+    }
+
+    fn fail(&self, field: impl Into<String>, problem: impl Into<String>) -> Checked {
+        Err(self.bad(field, problem))
+    }
+
+    fn positive(&self, field: impl Into<String>, x: f64) -> Checked {
+        if x.is_finite() && x > 0.0 {
+            Ok(())
+        } else {
+            self.fail(field, format!("expected a positive number, got {x}"))
+        }
+    }
+
+    fn non_negative(&self, field: impl Into<String>, x: f64) -> Checked {
+        if x.is_finite() && x >= 0.0 {
+            Ok(())
+        } else {
+            self.fail(field, format!("expected a non-negative number, got {x}"))
+        }
+    }
+
+    fn power(&self, field: String, p: &PowerFigures) -> Checked {
+        let xs = [p.camera_mw, p.node_active_mw, p.node_low_power_mw];
+        if xs.iter().all(|x| x.is_finite() && *x >= 0.0) {
+            Ok(())
+        } else {
+            self.fail(
+                field,
+                format!(
+                    "expected finite, non-negative mW, got camera-mw = {}, node-active-mw = {}, node-low-power-mw = {}",
+                    xs[0], xs[1], xs[2]
+                ),
+            )
+        }
+    }
+
+    fn world(&self, s: &Scenario) -> Checked {
+        for (i, (lo, hi)) in s.world.min.iter().zip(&s.world.max).enumerate() {
             if !(lo.is_finite() && hi.is_finite() && lo < hi) {
-                return Err(bad(
+                return self.fail(
                     format!("world.min/max[{i}]"),
                     format!("expected finite min < max, got {lo} and {hi}"),
-                ));
+                );
             }
         }
-        for (i, w) in self.world.walls.iter().enumerate() {
+        for (i, w) in s.world.walls.iter().enumerate() {
             if !all_finite(&[w.from[0], w.from[1], w.to[0], w.to[1]]) || w.from == w.to {
-                return Err(bad(
+                return self.fail(
                     format!("world.walls[{i}]"),
-                    "expected two distinct, finite end points".into(),
-                ));
+                    "expected two distinct, finite end points",
+                );
             }
-            positive(format!("world.walls[{i}].height"), w.height)?;
-            if !(w.attenuation_db.is_finite() && w.attenuation_db >= 0.0) {
-                return Err(bad(
-                    format!("world.walls[{i}].attenuation-db"),
-                    format!("expected a non-negative number, got {}", w.attenuation_db),
-                ));
-            }
+            self.positive(format!("world.walls[{i}].height"), w.height)?;
+            self.non_negative(format!("world.walls[{i}].attenuation-db"), w.attenuation_db)?;
         }
-        if let Some(g) = &self.world.geo {
-            g.validate().map_err(|e| bad("world.geo".into(), e.to_string()))?;
+        if let Some(g) = &s.world.geo {
+            g.validate().map_err(|e| self.bad("world.geo", e.to_string()))?;
         }
-        let r = &self.world.radio;
-        if !all_finite(&[
-            r.tx_power_dbm,
-            r.path_loss_exponent,
-            r.multipath_db,
-            r.noise_db,
-            r.node_offset_db,
-        ]) || r.multipath_db < 0.0
-            || r.noise_db < 0.0
-            || r.node_offset_db < 0.0
-        {
-            return Err(bad(
-                "world.radio".into(),
-                "expected finite numbers and non-negative multipath-db, noise-db, node-offset-db".into(),
-            ));
-        }
-        positive("world.radio.multipath-length-m".into(), r.multipath_length_m)?;
+        self.radio(s)
+    }
 
-        // Network.
-        let n = &self.network;
+    fn radio(&self, s: &Scenario) -> Checked {
+        let r = &s.world.radio;
+        if !all_finite(&[r.tx_power_dbm, r.path_loss_exponent]) {
+            return self.fail(
+                "world.radio",
+                "expected finite tx-power-dbm and path-loss-exponent",
+            );
+        }
+        self.non_negative("world.radio.multipath-db", r.multipath_db)?;
+        self.non_negative("world.radio.noise-db", r.noise_db)?;
+        self.non_negative("world.radio.node-offset-db", r.node_offset_db)?;
+        self.positive("world.radio.multipath-length-m", r.multipath_length_m)
+    }
+
+    fn network(&self, s: &Scenario) -> Checked {
+        let n = &s.network;
         if n.heartbeat_ms == 0 || n.liveness_timeout_ms <= n.heartbeat_ms {
-            return Err(bad(
-                "network.liveness-timeout-ms".into(),
-                "expected 0 < heartbeat-ms < liveness-timeout-ms".into(),
-            ));
+            return self.fail(
+                "network.liveness-timeout-ms",
+                format!(
+                    "expected 0 < heartbeat-ms < liveness-timeout-ms, got heartbeat-ms = {} and liveness-timeout-ms = {}",
+                    n.heartbeat_ms, n.liveness_timeout_ms
+                ),
+            );
         }
-        if n.sync_beacon_ms == 0 || n.queue_len == 0 {
-            return Err(bad(
-                "network".into(),
-                "expected positive sync-beacon-ms and queue-len".into(),
-            ));
+        if n.sync_beacon_ms == 0 {
+            return self.fail("network.sync-beacon-ms", "expected a positive period");
         }
+        if n.queue_len == 0 {
+            return self.fail("network.queue-len", "expected a positive length");
+        }
+        Ok(())
+    }
 
-        // Method.
-        let m = &self.method;
+    fn method(&self, s: &Scenario) -> Checked {
+        let m = &s.method;
         if m.step_ms == 0 || m.deadline_ms == 0 || m.deadline_ms >= m.step_ms {
-            return Err(bad(
-                "method.deadline-ms".into(),
+            return self.fail(
+                "method.deadline-ms",
                 format!(
                     "expected 0 < deadline-ms < step-ms, got deadline-ms = {} and step-ms = {}",
                     m.deadline_ms, m.step_ms
                 ),
-            ));
+            );
         }
-        positive("method.pixel-sigma".into(), m.pixel_sigma)?;
-        positive("method.gate-chi2".into(), m.gate_chi2)?;
-        positive("method.rssi-epsilon".into(), m.rssi_epsilon)?;
+        self.positive("method.pixel-sigma", m.pixel_sigma)?;
+        self.positive("method.gate-chi2", m.gate_chi2)?;
+        self.positive("method.rssi-epsilon", m.rssi_epsilon)?;
         if let Some(z) = m.target_plane_z
             && !z.is_finite()
         {
-            return Err(bad(
-                "method.target-plane-z".into(),
+            return self.fail(
+                "method.target-plane-z",
                 format!("expected a finite height in metres, got {z}"),
-            ));
+            );
         }
-        positive("method.rssi-default.variance".into(), m.rssi_default.variance())?;
+        self.positive("method.rssi-default.variance", m.rssi_default.variance())?;
         if m.rssi_window < 2 {
-            return Err(bad(
-                "method.rssi-window".into(),
+            return self.fail(
+                "method.rssi-window",
                 format!("expected at least 2 readings, got {}", m.rssi_window),
-            ));
+            );
         }
-        if !(m.energy_weight.is_finite() && m.energy_weight >= 0.0) {
-            return Err(bad(
-                "method.energy-weight".into(),
-                format!("expected a non-negative number, got {}", m.energy_weight),
-            ));
-        }
-        if !m.motion.accel_psd.iter().all(|q| q.is_finite() && *q >= 0.0) {
-            return Err(bad(
-                "method.motion.accel-psd".into(),
-                format!("expected non-negative numbers, got {:?}", m.motion.accel_psd),
-            ));
+        self.non_negative("method.energy-weight", m.energy_weight)?;
+        if let Some(q) = m.motion.accel_psd.iter().find(|q| !(q.is_finite() && **q >= 0.0)) {
+            return self.fail(
+                "method.motion.accel-psd",
+                format!("expected non-negative numbers, got {q}"),
+            );
         }
         if let Err(e) = m.particle.validate() {
-            return Err(bad(
+            return self.fail(
                 format!("method.particle.{}", e.field),
                 format!("expected {}, got {}", e.expected, e.value),
-            ));
+            );
         }
-        power("power".into(), &self.power)?;
+        self.power("power".into(), &s.power)
+    }
 
-        // Nodes.
-        if self.nodes.len() > crate::MAX_NODES {
-            return Err(bad(
-                "nodes".into(),
+    fn nodes(&self, s: &Scenario) -> Checked {
+        if s.nodes.len() > crate::MAX_NODES {
+            return self.fail(
+                "nodes",
                 format!(
                     "{} nodes exceed the maximum of {}",
-                    self.nodes.len(),
+                    s.nodes.len(),
                     crate::MAX_NODES
                 ),
-            ));
+            );
         }
         let mut ids = BTreeSet::new();
-        for n in &self.nodes {
+        for n in &s.nodes {
             if !ids.insert(n.id) {
-                return Err(bad(format!("nodes[id={}]", n.id), "duplicate node id".into()));
+                return self.fail(format!("nodes[id={}]", n.id), "duplicate node id");
             }
         }
-        let heads: BTreeSet<u32> = self.heads().map(|n| n.id).collect();
-        let servers = self.nodes.iter().filter(|n| n.role == NodeRole::Server).count();
+        let servers = s.nodes.iter().filter(|n| n.role == NodeRole::Server).count();
         if servers > 1 {
-            return Err(bad(
-                "nodes".into(),
-                format!("expected at most one server, found {servers}"),
-            ));
+            return self.fail("nodes", format!("expected at most one server, found {servers}"));
         }
-        for n in &self.nodes {
-            let field = |f: &str| format!("nodes[id={}].{f}", n.id);
-            if n.role != NodeRole::Camera {
-                if n.camera.is_some() {
-                    return Err(bad(
-                        field("camera"),
-                        "only camera nodes have camera geometry".into(),
-                    ));
-                }
-                if n.head.is_some() && n.role != NodeRole::Acoustic {
-                    return Err(bad(
-                        field("head"),
-                        "only camera and acoustic nodes report to a head".into(),
-                    ));
-                }
+        let heads: BTreeSet<u32> = s.heads().map(|n| n.id).collect();
+        for n in &s.nodes {
+            self.node(n, &heads)?;
+        }
+        s.check_acoustic(self.origin)?;
+        self.listen_addresses(s)
+    }
+
+    fn node(&self, n: &NodeSpec, heads: &BTreeSet<u32>) -> Checked {
+        let field = |f: &str| format!("nodes[id={}].{f}", n.id);
+        if n.role != NodeRole::Camera {
+            if n.camera.is_some() {
+                return self.fail(field("camera"), "only camera nodes have camera geometry");
             }
-            if let Some(region) = n.region {
-                if n.role != NodeRole::Head {
-                    return Err(bad(field("region"), "only heads cover a region".into()));
-                }
-                if !(all_finite(&region) && region[0] < region[2] && region[1] < region[3]) {
-                    return Err(bad(
-                        field("region"),
-                        format!("expected finite [xmin, ymin, xmax, ymax] with min < max, got {region:?}"),
-                    ));
-                }
+            if n.head.is_some() && n.role != NodeRole::Acoustic {
+                return self.fail(field("head"), "only camera and acoustic nodes report to a head");
             }
-            if let Some(p) = &n.power {
-                power(field("power"), p)?;
+        }
+        if let Some(region) = n.region {
+            if n.role != NodeRole::Head {
+                return self.fail(field("region"), "only heads cover a region");
             }
-            positive(field("cost-factor"), n.cost_factor)?;
-            if n.role != NodeRole::Camera {
-                if n.position.is_some() || n.radio.is_some() {
-                    return Err(bad(
-                        field(if n.radio.is_some() { "radio" } else { "position" }),
-                        "only camera nodes carry a radio".into(),
-                    ));
-                }
-                continue;
+            if !(all_finite(&region) && region[0] < region[2] && region[1] < region[3]) {
+                return self.fail(
+                    field("region"),
+                    format!(
+                        "expected finite [xmin, ymin, xmax, ymax] with min < max, got [{}, {}, {}, {}]",
+                        region[0], region[1], region[2], region[3]
+                    ),
+                );
             }
-            if let Some(p) = n.position
-                && !all_finite(&p)
-            {
-                return Err(bad(
-                    field("position"),
-                    format!("expected finite [x, y, z], got {p:?}"),
-                ));
+        }
+        if let Some(p) = &n.power {
+            self.power(field("power"), p)?;
+        }
+        self.positive(field("cost-factor"), n.cost_factor)?;
+        if let Some(addr) = &n.listen {
+            if n.role == NodeRole::Camera {
+                return self.fail(
+                    field("listen"),
+                    "cameras dial their head and the server; only heads and the server listen",
+                );
             }
-            if let Some(h) = n.head
-                && !heads.contains(&h)
-            {
-                return Err(bad(field("head"), format!("no head with id {h}")));
+            listen_port(addr).map_err(|problem| self.bad(field("listen"), problem))?;
+        }
+        if n.role != NodeRole::Camera {
+            if n.position.is_some() || n.radio.is_some() {
+                return self.fail(
+                    field(if n.radio.is_some() { "radio" } else { "position" }),
+                    "only camera nodes carry a radio",
+                );
             }
-            let Some(cam) = &n.camera else {
-                // A radio-only node: it needs a place and a radio.
-                if n.position.is_none() {
-                    return Err(bad(
-                        field("camera"),
-                        "a camera node needs camera geometry, or `position` (and rssi) to be a radio-only node"
-                            .into(),
-                    ));
-                }
-                if !n.rssi {
-                    return Err(bad(
-                        field("rssi"),
-                        "a node without a camera must hear radio (rssi = true)".into(),
-                    ));
-                }
-                continue;
+            return Ok(());
+        }
+        if let Some(p) = n.position
+            && !all_finite(&p)
+        {
+            return self.fail(
+                field("position"),
+                format!("expected finite [x, y, z], got [{}, {}, {}]", p[0], p[1], p[2]),
+            );
+        }
+        if let Some(h) = n.head
+            && !heads.contains(&h)
+        {
+            return self.fail(field("head"), format!("no head with id {h}"));
+        }
+        let Some(cam) = &n.camera else {
+            // A radio-only node: it needs a place and a radio.
+            if n.position.is_none() {
+                return self.fail(
+                    field("camera"),
+                    "a camera node needs camera geometry, or `position` (and rssi) to be a radio-only node",
+                );
+            }
+            if !n.rssi {
+                return self.fail(
+                    field("rssi"),
+                    "a node without a camera must hear radio (rssi = true)",
+                );
+            }
+            return Ok(());
+        };
+        self.camera(cam, &field)
+    }
+
+    fn camera(&self, cam: &CameraSpec, field: &dyn Fn(&str) -> String) -> Checked {
+        if cam.opencv_intrinsic.is_none() && cam.intrinsics.is_none() {
+            return self.fail(field("camera"), "expected `intrinsics` or `opencv-intrinsic`");
+        }
+        if cam.opencv_extrinsic.is_none() && cam.pose.is_none() {
+            return self.fail(field("camera"), "expected `pose` or `opencv-extrinsic`");
+        }
+        if let Some(k) = &cam.intrinsics {
+            if !(k.fx.is_finite() && k.fy.is_finite() && k.fx > 0.0 && k.fy > 0.0) {
+                return self.fail(
+                    field("camera.intrinsics"),
+                    format!(
+                        "expected positive focal lengths, got fx = {} and fy = {}",
+                        k.fx, k.fy
+                    ),
+                );
+            }
+            if !(k.cx.is_finite() && k.cy.is_finite()) || k.width == 0 || k.height == 0 {
+                return self.fail(
+                    field("camera.intrinsics"),
+                    "expected a finite principal point and a non-empty image",
+                );
+            }
+        }
+        let d = &cam.distortion;
+        if !all_finite(&[d.k1, d.k2, d.p1, d.p2, d.k3]) {
+            return self.fail(field("camera.distortion"), "expected finite coefficients");
+        }
+        if let Some(p) = &cam.pose {
+            let numbers = match p {
+                super::PoseSpec::LookAt { position, look_at } => [*position, *look_at],
+                super::PoseSpec::Rodrigues { rvec, tvec } => [*rvec, *tvec],
             };
-            if cam.opencv_intrinsic.is_none() && cam.intrinsics.is_none() {
-                return Err(bad(
-                    field("camera"),
-                    "expected `intrinsics` or `opencv-intrinsic`".into(),
-                ));
+            if !numbers.iter().all(|v| all_finite(v)) {
+                return self.fail(field("camera.pose"), "expected finite numbers");
             }
-            if cam.opencv_extrinsic.is_none() && cam.pose.is_none() {
-                return Err(bad(
-                    field("camera"),
-                    "expected `pose` or `opencv-extrinsic`".into(),
-                ));
+            if p.to_pose().is_none() {
+                return self.fail(
+                    field("camera.pose"),
+                    "degenerate pose (look-at equals position or is straight up/down)",
+                );
             }
-            if let Some(k) = &cam.intrinsics {
-                if !(k.fx.is_finite() && k.fy.is_finite() && k.fx > 0.0 && k.fy > 0.0) {
-                    return Err(bad(
-                        field("camera.intrinsics"),
-                        format!(
-                            "expected positive focal lengths, got fx = {} and fy = {}",
-                            k.fx, k.fy
-                        ),
-                    ));
-                }
-                if !(k.cx.is_finite() && k.cy.is_finite()) || k.width == 0 || k.height == 0 {
-                    return Err(bad(
-                        field("camera.intrinsics"),
-                        "expected a finite principal point and a non-empty image".into(),
-                    ));
-                }
-            }
-            let d = &cam.distortion;
-            if !all_finite(&[d.k1, d.k2, d.p1, d.p2, d.k3]) {
-                return Err(bad(
-                    field("camera.distortion"),
-                    "expected finite coefficients".into(),
-                ));
-            }
-            if let Some(p) = &cam.pose {
-                let numbers = match p {
-                    super::PoseSpec::LookAt { position, look_at } => [*position, *look_at],
-                    super::PoseSpec::Rodrigues { rvec, tvec } => [*rvec, *tvec],
-                };
-                if !numbers.iter().all(|v| all_finite(v)) {
-                    return Err(bad(field("camera.pose"), "expected finite numbers".into()));
-                }
-                if p.to_pose().is_none() {
-                    return Err(bad(
-                        field("camera.pose"),
-                        "degenerate pose (look-at equals position or is straight up/down)".into(),
-                    ));
-                }
-            }
-            positive(field("camera.fps"), cam.fps)?;
         }
-        self.check_acoustic(origin)?;
+        self.positive(field("camera.fps"), cam.fps)
+    }
+
+    /// No two nodes of one host listen on one port.
+    fn listen_addresses(&self, s: &Scenario) -> Checked {
+        let mut taken: BTreeMap<(&str, u16), u32> = BTreeMap::new();
+        for n in &s.nodes {
+            let Some(addr) = &n.listen else { continue };
+            let Ok(port) = listen_port(addr) else { continue };
+            if let Some(other) = taken.insert((n.host.as_str(), port), n.id) {
+                return self.fail(
+                    format!("nodes[id={}].listen", n.id),
+                    format!(
+                        "port {port} on host {} is already node {other}'s; each node of a host needs its own port",
+                        n.host
+                    ),
+                );
+            }
+        }
         Ok(())
+    }
+}
+
+/// The port of a `host:port` listen address (names are resolved later, by the transport).
+///
+/// # Errors
+/// Not `host:port`, or a port outside 1–65535.
+pub fn listen_port(addr: &str) -> Result<u16, String> {
+    let Some((host, port)) = addr.rsplit_once(':') else {
+        return Err(format!("expected `host:port`, got `{addr}`"));
+    };
+    if host.is_empty() {
+        return Err(format!("expected `host:port`, got `{addr}` (no host)"));
+    }
+    match port.parse::<u32>() {
+        Ok(p @ 1..=65535) => Ok(p as u16),
+        _ => Err(format!("port `{port}` of `{addr}` is not in 1–65535")),
+    }
+}
+
+impl Scenario {
+    /// Check what the types cannot, one section at a time. `origin` names the file in errors.
+    ///
+    /// # Errors
+    /// The first problem, naming the field and what was expected.
+    pub fn validate(&self, origin: &str, _unused: Option<()>) -> Result<(), ScenarioError> {
+        let c = Checker { origin };
+        c.world(self)?;
+        c.network(self)?;
+        c.method(self)?;
+        c.nodes(self)
+    }
+
+    /// What a deployment needs beyond [`Scenario::validate`]: every camera's model builds
+    /// (calibration files exist and parse) and every camera sees part of the world (a point of
+    /// its floor or volume lands in its image). `ocelli scenario check` runs it; a node would
+    /// fail on the same problem later, alone and at run time.
+    ///
+    /// # Errors
+    /// The first camera whose model does not build or that sees nothing of the world.
+    pub fn check_deployment(&self) -> Result<(), ScenarioError> {
+        let c = Checker { origin: &self.name };
+        for n in self.cameras().filter(|n| n.camera.is_some()) {
+            let model = self.camera_model(n.id)?;
+            if !sees_the_world(&model, self) {
+                let k = &model.intrinsics;
+                return c.fail(
+                    format!("nodes[id={}].camera", n.id),
+                    format!(
+                        "sees none of the world: no point of the room's floor or volume lands in its {}x{} image (check its pose)",
+                        k.width, k.height
+                    ),
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Whether any point of a grid over the world box lands inside the camera's image.
+fn sees_the_world(model: &crate::camera::CameraModel, s: &Scenario) -> bool {
+    const STEPS: usize = 24;
+    let (lo, hi) = (s.world.min, s.world.max);
+    let k = &model.intrinsics;
+    let at = |a: f64, b: f64, i: usize| a + (b - a) * i as f64 / STEPS as f64;
+    (0..=4).any(|iz| {
+        (0..=STEPS).any(|ix| {
+            (0..=STEPS).any(|iy| {
+                let p = nalgebra::Vector3::new(
+                    at(lo[0], hi[0], ix),
+                    at(lo[1], hi[1], iy),
+                    lo[2] + (hi[2] - lo[2]) * iz as f64 / 4.0,
+                );
+                model.project(&p).is_some_and(|px| {
+                    px.x >= 0.0 && px.y >= 0.0 && px.x < f64::from(k.width) && px.y < f64::from(k.height)
+                })
+            })
+        })
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn default_with(edit: impl FnOnce(&mut Scenario)) -> Result<(), ScenarioError> {
+        let mut s = Scenario::default_scenario();
+        edit(&mut s);
+        s.validate("t.toml", None)?;
+        s.check_deployment()
+    }
+
+    fn err(r: Result<(), ScenarioError>) -> String {
+        r.expect_err("should be refused").to_string()
+    }
+
+    #[test]
+    fn the_default_scenario_is_deployable() {
+        default_with(|_| {}).unwrap();
+    }
+
+    #[test]
+    fn bad_listen_addresses_are_refused_naming_the_node() {
+        let e = err(default_with(|s| {
+            s.nodes.iter_mut().find(|n| n.id == 2).unwrap().listen = Some("127.0.0.1:99999".into());
+        }));
+        assert!(e.contains("nodes[id=2].listen") && e.contains("99999"), "{e}");
+        let e = err(default_with(|s| {
+            s.nodes.iter_mut().find(|n| n.id == 2).unwrap().listen = Some("7400".into());
+        }));
+        assert!(e.contains("host:port"), "{e}");
+        let e = err(default_with(|s| {
+            s.nodes.iter_mut().find(|n| n.id == 3).unwrap().listen = Some("127.0.0.1:7402".into());
+        }));
+        assert!(e.contains("nodes[id=3].listen") && e.contains("node 2"), "{e}");
+        // Another host may use the same port.
+        default_with(|s| {
+            let n = s.nodes.iter_mut().find(|n| n.id == 3).unwrap();
+            n.listen = Some("10.0.0.3:7402".into());
+            n.host = "pi-3".into();
+        })
+        .unwrap();
+    }
+
+    #[test]
+    fn a_camera_that_sees_nothing_or_a_missing_calibration_is_refused() {
+        let e = err(default_with(|s| {
+            let cam = s
+                .nodes
+                .iter_mut()
+                .find(|n| n.id == 12)
+                .unwrap()
+                .camera
+                .as_mut()
+                .unwrap();
+            cam.pose = Some(super::super::PoseSpec::LookAt {
+                // At the ceiling, looking up: every point of the room is behind it or level.
+                position: [5.0, 4.0, 3.0],
+                look_at: [5.0, 4.0 - 1e-3, 10.0],
+            });
+        }));
+        assert!(
+            e.contains("nodes[id=12].camera") && e.contains("sees none of the world"),
+            "{e}"
+        );
+        let e = err(default_with(|s| {
+            let cam = s
+                .nodes
+                .iter_mut()
+                .find(|n| n.id == 12)
+                .unwrap()
+                .camera
+                .as_mut()
+                .unwrap();
+            cam.opencv_intrinsic = Some("/no/such/intr.xml".into());
+        }));
+        assert!(
+            e.contains("nodes[id=12].camera.opencv-intrinsic") && e.contains("/no/such/intr.xml"),
+            "{e}"
+        );
     }
 }

@@ -6,6 +6,7 @@ mod fuzz_seeds;
 mod harness;
 mod layering;
 mod netns;
+mod operations;
 mod radio;
 mod transport;
 mod viewer;

@@ -36,6 +36,7 @@ fn ble_dataset_through_real_processes_tracks_the_beacon() {
     std::fs::write(&scenario, &made.stdout).expect("writing the scenario");
     let mut child = Command::new(EXE)
         .arg("launch")
+        .arg("--scenario")
         .arg(&scenario)
         .args(["--duration", &SECONDS.to_string(), "--json", "--quiet"])
         .arg("--run-dir")

@@ -8,7 +8,8 @@
 //! one CPU and runs single-threaded. Prints JSON, with paper 004's particle-filter and
 //! background-model figures ([`super::particle`]).
 
-use anyhow::{Context, Result};
+use crate::Result;
+use crate::error::OrFailed as _;
 use node_camera::config::CameraConfig;
 use node_camera::core::{CameraInput, CameraNode};
 use node_camera::segment::{SegmentParams, Segmenter, recommended_step};
@@ -64,9 +65,9 @@ pub fn memory_kib() -> (u64, u64) {
 fn bench_scenario(width: u32, height: u32) -> Result<Scenario> {
     let mut s = Scenario::default_scenario();
     s.method.fusion = Fusion::DistributedEif;
-    let node = s.nodes.iter_mut().find(|n| n.id == 10).context("camera 10")?;
-    let cam = node.camera.as_mut().context("camera 10 geometry")?;
-    let k = cam.intrinsics.as_mut().context("intrinsics")?;
+    let node = s.nodes.iter_mut().find(|n| n.id == 10).or_failed("camera 10")?;
+    let cam = node.camera.as_mut().or_failed("camera 10 geometry")?;
+    let k = cam.intrinsics.as_mut().or_failed("intrinsics")?;
     let scale = width as f64 / k.width as f64;
     (k.fx, k.fy, k.cx, k.cy) = (k.fx * scale, k.fy * scale, k.cx * scale, k.cy * scale);
     (k.width, k.height) = (width, height);
@@ -231,8 +232,8 @@ pub fn run(args: &Options) -> Result<serde_json::Value> {
         }
     }
     let (rss, hwm) = memory_kib();
-    let (best_ms, best_name, best_step) = best_recommended.context("no 640x480 result")?;
-    let (full_ms, full_name) = best_full.context("no full-resolution result")?;
+    let (best_ms, best_name, best_step) = best_recommended.or_failed("no 640x480 result")?;
+    let (full_ms, full_name) = best_full.or_failed("no full-resolution result")?;
     let mut out = json!({
         "bench": "camera",
         "what": "segmentation + undistortion + gating + contribution per frame (CameraNode::on_frame + one Prior per target), rendering excluded",

@@ -22,7 +22,8 @@
 //! Contributions are real ones: a ring of N cameras looking at the room centre, each linearized
 //! with `proto::models::camera_contribution`. The timed loops allocate nothing.
 
-use anyhow::{Context, Result};
+use crate::Result;
+use crate::error::OrFailed as _;
 use nalgebra::{DMatrix, DVector, Matrix6, Vector2, Vector3, Vector6};
 use node_head::activation::{Candidate, Expected, Planner, Variant};
 use node_head::config::NodeInfo;
@@ -115,7 +116,7 @@ pub fn run(args: &Options) -> Result<serde_json::Value> {
     let motion = MotionModel::default();
     let truth = State::new(6.2, 3.9, 0.3, 0.4, -0.2, 0.0);
     let prior_cov = Matrix6::from_diagonal(&Vector6::new(0.05, 0.05, 0.02, 0.1, 0.1, 0.01));
-    let base = Eif::from_gaussian(truth, prior_cov).context("prior")?;
+    let base = Eif::from_gaussian(truth, prior_cov).or_failed("prior")?;
     let sigma_px = 18.0;
     let mut update = serde_json::Map::new();
     let mut per_contribution = serde_json::Map::new();
@@ -123,7 +124,7 @@ pub fn run(args: &Options) -> Result<serde_json::Value> {
     let mut ekf_update = serde_json::Map::new();
     for n in SIZES {
         let cams = ring(n);
-        let predicted = base.predicted(&motion, 0.2).context("predict")?;
+        let predicted = base.predicted(&motion, 0.2).or_failed("predict")?;
         let mean_bar = *predicted.mean();
         // Real contributions, linearized at the predicted mean, in wire form.
         let mut wire: Vec<(Mat6, Vec6)> = Vec::with_capacity(n);
@@ -132,9 +133,9 @@ pub fn run(args: &Options) -> Result<serde_json::Value> {
             let (p, _) = cam.normalized(&truth.fixed_rows::<3>(0).into_owned());
             let p = p + Vector2::new(0.002, -0.001);
             let cov = cam.normalized_covariance(&p, sigma_px);
-            let (o, x) = camera_contribution(cam, &p, &cov, &mean_bar).context("contribution")?;
+            let (o, x) = camera_contribution(cam, &p, &cov, &mean_bar).or_failed("contribution")?;
             wire.push((mat6_to_wire(&o), vec6_to_wire(&x)));
-            let (h, jac) = pinhole(cam, &mean_bar).context("pinhole")?;
+            let (h, jac) = pinhole(cam, &mean_bar).or_failed("pinhole")?;
             blocks.push(Block {
                 z: DVector::from_column_slice(p.as_slice()),
                 predicted: DVector::from_column_slice(h.as_slice()),
@@ -277,7 +278,7 @@ fn head_step_us(n: usize, scale: f64, rssi: bool) -> Result<f64> {
             }),
         },
     );
-    let target = head.tracks().first().context("handover made no track")?.local;
+    let target = head.tracks().first().or_failed("handover made no track")?.local;
     // Contributions linearized at the truth (close to every prior): realistic numbers.
     let envs: Vec<Envelope> = cams
         .iter()
@@ -285,7 +286,7 @@ fn head_step_us(n: usize, scale: f64, rssi: bool) -> Result<f64> {
         .map(|(i, cam)| {
             let (p, _) = cam.normalized(&truth.fixed_rows::<3>(0).into_owned());
             let c = cam.normalized_covariance(&p, 18.0);
-            let (o, x) = camera_contribution(cam, &p, &c, &truth).context("contribution")?;
+            let (o, x) = camera_contribution(cam, &p, &c, &truth).or_failed("contribution")?;
             Ok(Envelope {
                 source: NodeId(10 + i as u32),
                 seq: 0,
@@ -334,19 +335,26 @@ fn head_step_us(n: usize, scale: f64, rssi: bool) -> Result<f64> {
         }
     });
     let c = head.counters();
-    anyhow::ensure!(
-        c.applied as usize >= n * reps && c.late == 0 && c.duplicate == 0,
-        "bench steps did not apply every contribution: {c:?}"
-    );
+    if !(c.applied as usize >= n * reps && c.late == 0 && c.duplicate == 0) {
+        return Err(crate::LabError::failed(
+            "head bench",
+            format!("bench steps did not apply every contribution: {c:?}"),
+        ));
+    }
     // The closing tick fuses the last step's readings.
     head.tick(ClusterTime::from_millis((k + 1) * 200));
     let c = head.counters();
-    anyhow::ensure!(
-        c.commands == 0
-            && c.stale_measurements == 0
-            && head.last_step().rssi_nodes == if rssi { n } else { 0 },
-        "bench steps switched nodes or did not fuse every reading: {c:?}, {} RSSI nodes",
-        head.last_step().rssi_nodes
-    );
+    if !(c.commands == 0
+        && c.stale_measurements == 0
+        && head.last_step().rssi_nodes == if rssi { n } else { 0 })
+    {
+        return Err(crate::LabError::failed(
+            "head bench",
+            format!(
+                "bench steps switched nodes or did not fuse every reading: {c:?}, {} RSSI nodes",
+                head.last_step().rssi_nodes
+            ),
+        ));
+    }
     Ok(us)
 }

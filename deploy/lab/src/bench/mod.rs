@@ -2,6 +2,7 @@
 
 pub mod assign;
 pub mod camera;
+pub mod fuse;
 pub mod grid;
 pub mod head;
 pub mod particle;

@@ -8,7 +8,7 @@
 //!   `sync_ms`: one `sync_data` after 1000 appends;
 //! - `restore_records_per_s`: `ServerNode::restore` over a recording of the T = 100 run.
 
-use anyhow::Result;
+use crate::Result;
 use node_server::record::{Record, Stamped};
 use node_server::recording::Recorder;
 use node_server::{ServerConfig, ServerNode};

@@ -5,7 +5,8 @@
 //! encode/decode cost per message kind. Sender and receiver are two threads of this process,
 //! each with its own current-thread tokio runtime, so they share one clock.
 
-use anyhow::{Context, Result, anyhow};
+use crate::error::OrFailed as _;
+use crate::{LabError, Result};
 use proto::msg::*;
 use proto::node::Outgoing;
 use proto::{ClusterTime, Envelope, NodeId, Role, decode, encode};
@@ -159,14 +160,14 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
                 Kind::Ipc => TransportConfig::Ipc(IpcConfig::new(receiver_domain, NodeId(1), Role::Head, 2)),
                 Kind::Tcp | Kind::Tls => {
                     let mut c = tcp_config(kind, &receiver_ca, 1, Role::Head)?;
-                    c.listen = Some("127.0.0.1:0".parse()?);
+                    c.listen = Some(std::net::SocketAddr::from(([127, 0, 0, 1], 0)));
                     TransportConfig::Tcp(c)
                 }
             };
             let (ep, mut inbox, rstats, shutdown) = open(cfg).await?;
             addr_tx
                 .send(ep.local_addr())
-                .map_err(|_| anyhow!("sender gone"))?;
+                .map_err(|_| LabError::failed("transport bench", "sender gone"))?;
             let mut lat = Vec::with_capacity(count);
             let mut received = 0;
             let (mut first, mut last) = (None, 0i64);
@@ -202,7 +203,7 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
     });
     let addr = addr_rx
         .recv_timeout(Duration::from_secs(10))
-        .map_err(|_| anyhow!("receiver did not start"))?;
+        .map_err(|_| LabError::failed("transport bench", "receiver did not start"))?;
     let sender = std::thread::spawn(move || -> Result<(usize, u64, Duration, Vec<u64>)> {
         let rt = tokio::runtime::Builder::new_current_thread()
             .enable_all()
@@ -212,8 +213,10 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
                 Kind::Ipc => TransportConfig::Ipc(IpcConfig::new(domain, NodeId(2), Role::Camera, 2)),
                 Kind::Tcp | Kind::Tls => {
                     let mut c = tcp_config(kind, &ca, 2, Role::Camera)?;
-                    c.peers
-                        .insert(NodeId(1), addr.ok_or_else(|| anyhow!("no listen address"))?);
+                    c.peers.insert(
+                        NodeId(1),
+                        addr.ok_or_else(|| LabError::failed("transport bench", "no listen address"))?,
+                    );
                     TransportConfig::Tcp(c)
                 }
             };
@@ -223,7 +226,7 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
                     match tokio::time::timeout(Duration::from_secs(10), inbox.recv()).await {
                         Ok(Some(Event::PeerUp(_))) => break,
                         Ok(Some(_)) => {}
-                        _ => return Err(anyhow!("tcp link did not come up")),
+                        _ => return Err(LabError::failed("transport bench", "tcp link did not come up")),
                     }
                 }
             }
@@ -261,10 +264,13 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
             Ok((count, dropped, wall, calls))
         })
     });
-    let (sent, dropped, wall, send_call_ns) = sender.join().map_err(|_| anyhow!("sender panicked"))??;
+    let (sent, dropped, wall, send_call_ns) = sender
+        .join()
+        .map_err(|_| LabError::failed("transport bench", "sender panicked"))??;
     let _ = done_tx.send(());
-    let (latencies_ns, received, dropped_inbox, span) =
-        receiver.join().map_err(|_| anyhow!("receiver panicked"))??;
+    let (latencies_ns, received, dropped_inbox, span) = receiver
+        .join()
+        .map_err(|_| LabError::failed("transport bench", "receiver panicked"))??;
     Ok(Phase {
         sent,
         received,
@@ -333,7 +339,9 @@ fn tokio_wake_baseline(count: usize, interval: Duration) -> Result<Value> {
             }
         }
     });
-    let mut lat = waiter.join().map_err(|_| anyhow!("waiter panicked"))??;
+    let mut lat = waiter
+        .join()
+        .map_err(|_| LabError::failed("transport bench", "waiter panicked"))??;
     lat.sort_unstable();
     Ok(json!({"p50_us": percentile(&lat, 0.5), "p99_us": percentile(&lat, 0.99), "samples": lat.len()}))
 }
@@ -353,7 +361,7 @@ fn codec_costs(iterations: usize) -> Result<Vec<Value>> {
             time: ClusterTime(987_654_321),
             body,
         };
-        let frame = encode(&env).with_context(|| format!("encoding {kind}"))?;
+        let frame = encode(&env).or_failed(format!("encoding {kind}"))?;
         #[allow(clippy::disallowed_methods)] // a benchmark owns its clock
         let t = Instant::now();
         let mut bytes = 0usize;

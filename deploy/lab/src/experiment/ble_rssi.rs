@@ -25,7 +25,7 @@ pub mod track;
 use super::paper002_rssi_only::rssi_row;
 use super::runner::{Sample, mean_std};
 use super::{Check, Options, Outcome, Row, Trace};
-use anyhow::Context as _;
+use crate::error::OrFailed as _;
 use data::Dataset;
 use law::LogFit;
 use proto::models::RssiModel;
@@ -138,7 +138,7 @@ fn fold(ds: &Dataset, i: usize) -> Option<(LogFit, f64)> {
 /// # Errors
 /// The dataset is missing (the message names the path) or malformed, or has fewer than two
 /// trajectories.
-pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
+pub fn run(opts: &Options) -> crate::Result<Outcome> {
     run_from(&data::default_dir(), opts)
 }
 
@@ -146,53 +146,77 @@ pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
 ///
 /// # Errors
 /// As [`run`].
-pub fn run_from(dir: &std::path::Path, opts: &Options) -> anyhow::Result<Outcome> {
-    let ds = data::load(dir).with_context(|| format!("experiment {NAME}"))?;
+pub fn run_from(dir: &std::path::Path, opts: &Options) -> crate::Result<Outcome> {
+    let ds = data::load(dir)?;
     run_on(&ds, opts)
 }
 
-/// Run it on a loaded dataset.
+/// The laws every fold is compared with: the scenario's default, our simulated radio's, the
+/// one fitted to all packets and the structure of its residuals.
+struct Laws {
+    scenario: RssiModel,
+    sim: RssiModel,
+    all: LogFit,
+    structure: law::Structure,
+    method: Method,
+}
+
+impl Laws {
+    fn fit(ds: &Dataset) -> crate::Result<Laws> {
+        let all = law::fit_log(law::pairs(ds, ds.trajectories.iter().flat_map(|t| &t.packets)))
+            .or_failed("fitting the log-distance law to all packets")?;
+        let structure = law::structure(ds, &all.model()).or_failed("residual structure")?;
+        Ok(Laws {
+            scenario: RssiModel::default(),
+            sim: sim_law(&RadioWorld::default()),
+            all,
+            structure,
+            method: Method::default(),
+        })
+    }
+}
+
+/// What the leave-one-trajectory-out folds measured.
+#[derive(Default)]
+struct Folds {
+    held: HeldOut,
+    pred: Prediction,
+    /// Tracking samples per model: scenario default, fitted, trained, trained with the wide
+    /// stand-in; one entry per trajectory (and stand-in seed).
+    tracks: [Vec<Vec<Sample>>; 4],
+    notes: Vec<String>,
+    one_sse: f64,
+    one_n: usize,
+    one_slopes: Vec<f64>,
+}
+
+/// Each trajectory held out in turn: the law fitted without it, predicted and tracked on it.
 ///
 /// # Errors
-/// Fewer than two trajectories, or a law that cannot be fitted.
-pub fn run_on(ds: &Dataset, opts: &Options) -> anyhow::Result<Outcome> {
-    let n_traj = ds.trajectories.len();
-    anyhow::ensure!(
-        n_traj >= 2,
-        "{}: {n_traj} trajectories, need 2 to cross-validate",
-        ds.dir.display()
-    );
-    let scenario = RssiModel::default();
-    let sim = sim_law(&RadioWorld::default());
-    let method = Method::default();
-    let all = law::fit_log(law::pairs(ds, ds.trajectories.iter().flat_map(|t| &t.packets)))
-        .context("fitting the log-distance law to all packets")?;
-    let structure = law::structure(ds, &all.model()).context("residual structure")?;
+/// A fold whose law cannot be fitted.
+fn cross_validate(ds: &Dataset, laws: &Laws, opts: &Options) -> crate::Result<Folds> {
+    let (scenario, sim, method) = (laws.scenario, laws.sim, &laws.method);
+    let runs = opts.runs.max(1);
+    let mut f = Folds::default();
     let cx = ds.sensors.iter().map(|s| s.pos.x).sum::<f64>() / ds.sensors.len() as f64;
     let cy = ds.sensors.iter().map(|s| s.pos.y).sum::<f64>() / ds.sensors.len() as f64;
-    let runs = opts.runs.max(1);
 
-    let mut held = HeldOut::default();
-    let mut pred = Prediction::default();
-    let mut tracks: [Vec<Vec<Sample>>; 4] = Default::default();
-    let mut fold_notes = Vec::new();
-    let (mut one_sse, mut one_n, mut one_slopes) = (0.0, 0usize, Vec::new());
     for (i, traj) in ds.trajectories.iter().enumerate() {
-        let (fit, height) = fold(ds, i).with_context(|| format!("fitting without {}", traj.name))?;
-        let (one, sse, n) = calibrate_on_one(ds, i).with_context(|| format!("fitting on {}", traj.name))?;
-        one_sse += sse;
-        one_n += n;
-        one_slopes.push(one.a);
+        let (fit, height) = fold(ds, i).or_failed(format!("fitting without {}", traj.name))?;
+        let (one, sse, n) = calibrate_on_one(ds, i).or_failed(format!("fitting on {}", traj.name))?;
+        f.one_sse += sse;
+        f.one_n += n;
+        f.one_slopes.push(one.a);
         let fitted = fit.model();
         for (k, m) in [scenario, sim, fitted].iter().enumerate() {
-            held.sse[k] += law::pairs(ds, traj.packets.iter())
+            f.held.sse[k] += law::pairs(ds, traj.packets.iter())
                 .map(|(d, r)| (r - m.predict(d)).powi(2))
                 .sum::<f64>();
         }
-        held.n += traj.packets.len();
+        f.held.n += traj.packets.len();
         let (rmse, bias) =
             law::error_db(&fitted, law::pairs(ds, traj.packets.iter())).unwrap_or((f64::NAN, f64::NAN));
-        fold_notes.push(format!(
+        f.notes.push(format!(
             "{} held out: fit {} on {} packets, n = {:.2}; on {} packets RMSE {rmse:.2} dB, bias {bias:+.2} dB; height {height:.2} m.",
             traj.name,
             law_text(&fitted),
@@ -208,13 +232,13 @@ pub fn run_on(ds: &Dataset, opts: &Options) -> anyhow::Result<Outcome> {
             start_xy: [cx, cy],
             start_sigma_m: START_SIGMA_M,
         };
-        tracks[0].push(track::track(
+        f.tracks[0].push(track::track(
             &ds.sensors,
             traj,
             &Models::Fixed(scenario),
             &tracker,
         ));
-        tracks[1].push(track::track(&ds.sensors, traj, &Models::Fixed(fitted), &tracker));
+        f.tracks[1].push(track::track(&ds.sensors, traj, &Models::Fixed(fitted), &tracker));
         for r in 0..runs {
             let tr = Training {
                 window: method.rssi_window,
@@ -226,8 +250,9 @@ pub fn run_on(ds: &Dataset, opts: &Options) -> anyhow::Result<Outcome> {
                     .wrapping_mul(0x9E37_79B9)
                     .wrapping_add(i as u64),
             };
-            pred.add(&track::predict_next(&ds.sensors, traj, &scenario, &fitted, &tr));
-            tracks[2].push(track::track(
+            f.pred
+                .add(&track::predict_next(&ds.sensors, traj, &scenario, &fitted, &tr));
+            f.tracks[2].push(track::track(
                 &ds.sensors,
                 traj,
                 &Models::Trained(fitted, tr),
@@ -237,7 +262,7 @@ pub fn run_on(ds: &Dataset, opts: &Options) -> anyhow::Result<Outcome> {
                 sigma_m: STANDIN_WIDE_SIGMA_M,
                 ..tr
             };
-            tracks[3].push(track::track(
+            f.tracks[3].push(track::track(
                 &ds.sensors,
                 traj,
                 &Models::Trained(fitted, wide),
@@ -245,48 +270,65 @@ pub fn run_on(ds: &Dataset, opts: &Options) -> anyhow::Result<Outcome> {
             ));
         }
     }
+    Ok(f)
+}
 
-    let held_rmse = |k: usize| (held.n > 0).then(|| (held.sse[k] / held.n as f64).sqrt());
+/// The law and prediction rows (RMSE in dB, the law's parameters, the residual structure).
+fn parameter_rows(laws: &Laws, f: &Folds) -> Vec<Row> {
+    let held_rmse = |k: usize| (f.held.n > 0).then(|| (f.held.sse[k] / f.held.n as f64).sqrt());
     let mut rows = vec![
-        param_row(&format!("{LAW_DEFAULT} ({})", law_text(&scenario)), held_rmse(0)),
-        param_row(&format!("{LAW_SIM} ({})", law_text(&sim)), held_rmse(1)),
+        param_row(
+            &format!("{LAW_DEFAULT} ({})", law_text(&laws.scenario)),
+            held_rmse(0),
+        ),
+        param_row(&format!("{LAW_SIM} ({})", law_text(&laws.sim)), held_rmse(1)),
         param_row(LAW_FITTED, held_rmse(2)),
-        param_row(LAW_ONE, (one_n > 0).then(|| (one_sse / one_n as f64).sqrt())),
-        param_row("fitted law, all packets: slope a, dB/decade", Some(all.a)),
-        param_row("fitted law, all packets: b (dBm at 1 m)", Some(all.b)),
-        param_row("fitted law, all packets: residual sd dB", Some(all.sd_db)),
+        param_row(
+            LAW_ONE,
+            (f.one_n > 0).then(|| (f.one_sse / f.one_n as f64).sqrt()),
+        ),
+        param_row("fitted law, all packets: slope a, dB/decade", Some(laws.all.a)),
+        param_row("fitted law, all packets: b (dBm at 1 m)", Some(laws.all.b)),
+        param_row("fitted law, all packets: residual sd dB", Some(laws.all.sd_db)),
     ];
     let radio = RadioWorld::default();
     rows.extend([
         param_row(
             "residual: per-sensor offset sd dB (sim: 0)",
-            Some(structure.sensor_offset_db),
+            Some(laws.structure.sensor_offset_db),
         ),
         param_row(
             &format!("residual: smooth field sd dB (sim: {:.1})", radio.multipath_db),
-            Some(structure.smooth_db),
+            Some(laws.structure.smooth_db),
         ),
         param_row(
             &format!(
                 "residual: correlation length m (sim: {:.1})",
                 radio.multipath_length_m
             ),
-            Some(structure.length_m),
+            Some(laws.structure.length_m),
         ),
         param_row(
             &format!("residual: per-packet noise sd dB (sim: {:.1})", radio.noise_db),
-            Some(structure.noise_db),
+            Some(laws.structure.noise_db),
         ),
-        param_row(NEXT_DEFAULT, pred.rmse(pred.scenario)),
-        param_row(NEXT_FITTED, pred.rmse(pred.fitted)),
-        param_row(NEXT_LOCAL, pred.rmse(pred.local)),
-        param_row(NEXT_ALG1, pred.rmse(pred.algorithm1)),
+        param_row(NEXT_DEFAULT, f.pred.rmse(f.pred.scenario)),
+        param_row(NEXT_FITTED, f.pred.rmse(f.pred.fitted)),
+        param_row(NEXT_LOCAL, f.pred.rmse(f.pred.local)),
+        param_row(NEXT_ALG1, f.pred.rmse(f.pred.algorithm1)),
     ]);
+    rows
+}
+
+/// One tracking row per model (errors over trajectories), the share within
+/// [`WITHIN_M`] of each, and the first trajectory's trace of each.
+fn tracking_rows(ds: &Dataset, f: &Folds) -> (Vec<Row>, Vec<f64>, Vec<Trace>) {
+    let mut rows = Vec::new();
     let mut within = Vec::new();
     let mut traces = Vec::new();
     for (label, runs_k) in [TRACK_DEFAULT, TRACK_FITTED, TRACK_TRAINED, TRACK_TRAINED_WIDE]
         .into_iter()
-        .zip(&tracks)
+        .zip(&f.tracks)
     {
         let (row, frac) = rssi_row(label, runs_k, WITHIN_M);
         // Its "runs" are trajectories (and stand-in seeds of the same trajectories), not
@@ -304,6 +346,12 @@ pub fn run_on(ds: &Dataset, opts: &Options) -> anyhow::Result<Outcome> {
         });
     }
 
+    (rows, within, traces)
+}
+
+/// What the experiment expects of the room and of Algorithm 1, checked.
+fn shape_checks(laws: &Laws, f: &Folds, rows: &[Row], within: &[f64]) -> Vec<Check> {
+    let radio = RadioWorld::default();
     let row_param = |m: &str| {
         rows.iter()
             .find(|r| r.method.starts_with(m))
@@ -323,17 +371,21 @@ pub fn run_on(ds: &Dataset, opts: &Options) -> anyhow::Result<Outcome> {
         row_param(NEXT_LOCAL),
         row_param(NEXT_ALG1),
     );
-    let trained_share = pred.trained as f64 / pred.n.max(1) as f64;
-    let shape = vec![
+    let trained_share = f.pred.trained as f64 / f.pred.n.max(1) as f64;
+    vec![
         Check::new(
             "RSSI falls with distance (fitted slope a < 0)",
-            all.a < 0.0,
-            format!("a = {:.1} dB/decade, n = {:.2}", all.a, all.exponent()),
+            laws.all.a < 0.0,
+            format!("a = {:.1} dB/decade, n = {:.2}", laws.all.a, laws.all.exponent()),
         ),
         Check::new(
             "our sim radio's path-loss exponent (2.6) within ±0.5 of the room's",
-            (all.exponent() - radio.path_loss_exponent).abs() <= 0.5,
-            format!("room n = {:.2}, b = {:.1} dBm (sim −48.0)", all.exponent(), all.b),
+            (laws.all.exponent() - radio.path_loss_exponent).abs() <= 0.5,
+            format!(
+                "room n = {:.2}, b = {:.1} dBm (sim −48.0)",
+                laws.all.exponent(),
+                laws.all.b
+            ),
         ),
         Check::new(
             "the scenario default law is within 2 dB RMSE of the fitted law on held-out packets",
@@ -342,21 +394,24 @@ pub fn run_on(ds: &Dataset, opts: &Options) -> anyhow::Result<Outcome> {
         ),
         Check::new(
             "our sim radio's multipath sd (5 dB) within a factor 1.5 of the room's smooth part",
-            within_factor(structure.smooth_db, radio.multipath_db, 1.5),
+            within_factor(laws.structure.smooth_db, radio.multipath_db, 1.5),
             format!(
                 "smooth {:.2} dB over l = {:.2} m, per-packet {:.2} dB, sensor offsets {:.2} dB",
-                structure.smooth_db, structure.length_m, structure.noise_db, structure.sensor_offset_db
+                laws.structure.smooth_db,
+                laws.structure.length_m,
+                laws.structure.noise_db,
+                laws.structure.sensor_offset_db
             ),
         ),
         Check::new(
             "our sim radio's per-packet noise (2 dB) within a factor 1.5 of the room's",
-            within_factor(structure.noise_db, radio.noise_db, 1.5),
+            within_factor(laws.structure.noise_db, radio.noise_db, 1.5),
             format!(
                 "{:.2} dB (direct: ½ mean squared difference of same-sensor packets under 0.1 m apart {:.1} dB², of consecutive packets under {} s apart {:.1} dB²)",
-                structure.noise_db,
-                structure.close_semivariance_db2,
+                laws.structure.noise_db,
+                laws.structure.close_semivariance_db2,
                 law::CONSECUTIVE_S,
-                structure.consecutive_semivariance_db2
+                laws.structure.consecutive_semivariance_db2
             ),
         ),
         Check::new(
@@ -388,22 +443,27 @@ pub fn run_on(ds: &Dataset, opts: &Options) -> anyhow::Result<Outcome> {
                 100.0 * within[0]
             ),
         ),
-    ];
+    ]
+}
+
+/// The notes under the table: the data, the laws, the stand-in, each fold.
+fn notes(ds: &Dataset, laws: &Laws, f: &Folds) -> Vec<String> {
+    let trained_share = f.pred.trained as f64 / f.pred.n.max(1) as f64;
     let mut notes = vec![
         format!(
             "Real data: {} ({} sensors, {} trajectories, {} packets). No simulation level; runs = seeds of the camera stand-in noise; duration = seconds of data.",
             ds.dir.display(),
             ds.sensors.len(),
-            n_traj,
-            held.n
+            ds.trajectories.len(),
+            f.held.n
         ),
         "param: dB for the RSSI rows, m for the correlation length, dB/decade and dBm for the law, the fraction of samples with a horizontal error below 0.9 m for the tracking rows.".into(),
         format!(
             "Law over all packets: {} (n = {:.2}); scenario default {}; sim radio {}. d is the 3-D sensor–beacon distance.",
-            law_text(&all.model()),
-            all.exponent(),
-            law_text(&scenario),
-            law_text(&sim)
+            law_text(&laws.all.model()),
+            laws.all.exponent(),
+            law_text(&laws.scenario),
+            law_text(&laws.sim)
         ),
         "Residual structure (residuals of the all-packet law, pairs of packets of the same sensor across all trajectories): per-sensor offset = sd of the sensors' mean residuals; the same-sensor semivariogram vs horizontal separation (0.1 m bins to 6 m) fitted with τ² + σ²(1 − exp(−r²/2l²)), our sim radio's field covariance: σ = smooth part, l = correlation length, τ = per-packet noise.".into(),
         format!(
@@ -412,30 +472,55 @@ pub fn run_on(ds: &Dataset, opts: &Options) -> anyhow::Result<Outcome> {
         ),
         format!(
             "Algorithm 1: M = {}, ε = {}, default = the fold's fitted law with σ²_D = its residual variance; the trained line is chosen when σ²_tm ≤ σ²_D (chosen for {:.0}% of scored packets). Next-packet rows score {} packets whose sensor already had M pairs, every model on the same packets.",
-            method.rssi_window,
-            method.rssi_epsilon,
+            laws.method.rssi_window,
+            laws.method.rssi_epsilon,
             100.0 * trained_share,
-            pred.n
+            f.pred.n
         ),
         format!(
             "Tracking: EIF (node_head::eif, scenario motion model) at {:.0} Hz, every packet of the step one contribution linearized at the prior; start at the sensors' centroid with σ = {START_SIGMA_M} m (no warm-up excluded); height held by a pseudo-measurement at the calibration trajectories' mean beacon height (σ = {HEIGHT_SIGMA_M} m); error horizontal, against the truth of the step's last packet.",
             1.0 / STEP_S
         ),
     ];
-    notes.extend(fold_notes);
+    notes.extend(f.notes.iter().cloned());
     notes.push(format!(
         "Calibrated on one trajectory alone, the slope a is {} dB/decade (in file order).",
-        one_slopes
+        f.one_slopes
             .iter()
             .map(|a| format!("{a:.1}"))
             .collect::<Vec<_>>()
             .join(", ")
     ));
+    notes
+}
+
+/// Run it on a loaded dataset.
+///
+/// # Errors
+/// Fewer than two trajectories, or a law that cannot be fitted.
+pub fn run_on(ds: &Dataset, opts: &Options) -> crate::Result<Outcome> {
+    let n_traj = ds.trajectories.len();
+    if n_traj < 2 {
+        return Err(crate::LabError::failed(
+            "ble-rssi",
+            format!(
+                "{}: {n_traj} trajectories, need 2 to cross-validate",
+                ds.dir.display()
+            ),
+        ));
+    }
+    let laws = Laws::fit(ds)?;
+    let folds = cross_validate(ds, &laws, opts)?;
+    let mut rows = parameter_rows(&laws, &folds);
+    let (tracking, within, traces) = tracking_rows(ds, &folds);
+    rows.extend(tracking);
+    let shape = shape_checks(&laws, &folds, &rows, &within);
+    let notes = notes(ds, &laws, &folds);
     let duration_s = ds.trajectories.iter().map(data::Trajectory::duration_s).sum();
     Ok(Outcome {
         experiment: NAME.into(),
         level: Level::Measurement,
-        runs,
+        runs: opts.runs.max(1),
         seed: opts.seed,
         duration_s,
         rows,
@@ -450,145 +535,4 @@ pub fn run_on(ds: &Dataset, opts: &Options) -> anyhow::Result<Outcome> {
 }
 
 #[cfg(test)]
-mod tests {
-    //! These read the real dataset; absent, they fail naming its path.
-    use super::*;
-    use std::sync::OnceLock;
-
-    fn dataset() -> &'static Dataset {
-        static DS: OnceLock<Dataset> = OnceLock::new();
-        DS.get_or_init(|| {
-            let dir = data::default_dir();
-            data::load(&dir).unwrap_or_else(|e| panic!("the ble-rssi tests need the dataset: {e}"))
-        })
-    }
-
-    fn outcome() -> &'static Outcome {
-        static OUT: OnceLock<Outcome> = OnceLock::new();
-        OUT.get_or_init(|| {
-            let opts = Options {
-                runs: 2,
-                ..Options::default()
-            };
-            run_on(dataset(), &opts).unwrap_or_else(|e| panic!("{e:#}"))
-        })
-    }
-
-    fn param(prefix: &str) -> f64 {
-        let o = outcome();
-        o.rows
-            .iter()
-            .find(|r| r.method.starts_with(prefix))
-            .and_then(|r| r.param)
-            .unwrap_or_else(|| panic!("no {prefix} row: {:?}", o.rows))
-    }
-
-    fn error(method: &str) -> f64 {
-        outcome()
-            .row(method)
-            .and_then(|r| r.mean_error_m)
-            .unwrap_or_else(|| panic!("no error for {method}"))
-    }
-
-    #[test]
-    fn a_missing_dataset_fails_naming_its_path() {
-        let e = run_from(
-            std::path::Path::new("/nonexistent/ble-rssi-dir"),
-            &Options::default(),
-        )
-        .expect_err("no dataset there");
-        let msg = format!("{e:#}");
-        assert!(
-            msg.contains("/nonexistent/ble-rssi-dir") && msg.contains(NAME),
-            "{msg}"
-        );
-    }
-
-    #[test]
-    fn the_dataset_is_what_its_readme_says() {
-        let ds = dataset();
-        assert_eq!(ds.sensors.len(), 12);
-        assert_eq!(ds.trajectories.len(), 4);
-        let packets: Vec<&data::Packet> = ds.trajectories.iter().flat_map(|t| &t.packets).collect();
-        assert!(packets.len() > 6000, "{}", packets.len());
-        // Carried at a roughly constant height: what the 2-D tracking assumes.
-        assert!(packets.iter().all(|p| (1.5..2.1).contains(&p.truth.z)));
-        for t in &ds.trajectories {
-            assert!(
-                t.packets.windows(2).all(|w| w[0].t <= w[1].t),
-                "{} in time order",
-                t.name
-            );
-        }
-    }
-
-    #[test]
-    fn rssi_falls_with_distance_in_every_fold() {
-        let ds = dataset();
-        for i in 0..ds.trajectories.len() {
-            let (fit, height) = fold(ds, i).expect("fits");
-            assert!(fit.a < -8.0, "fold {i}: {fit:?}");
-            assert!((3.0..10.0).contains(&fit.sd_db), "fold {i}: {fit:?}");
-            assert!((1.6..2.0).contains(&height), "fold {i}: {height}");
-        }
-    }
-
-    #[test]
-    fn the_fitted_law_beats_both_invented_laws_on_held_out_trajectories() {
-        let (fitted, sim, default) = (param(LAW_FITTED), param(LAW_SIM), param(LAW_DEFAULT));
-        assert!(fitted + 1.0 < sim, "{fitted} vs sim {sim}");
-        assert!(sim + 2.0 < default, "{sim} vs default {default}");
-        // One trajectory is enough to calibrate: the law is the room's, not the path's.
-        let one = param(LAW_ONE);
-        assert!((one - fitted).abs() < 0.5, "{one} vs {fitted}");
-    }
-
-    #[test]
-    fn residual_parts_add_up_to_the_total_residual() {
-        let s = law::structure(
-            dataset(),
-            &law::fit_log(law::pairs(
-                dataset(),
-                dataset().trajectories.iter().flat_map(|t| &t.packets),
-            ))
-            .expect("fits")
-            .model(),
-        )
-        .expect("structure");
-        let parts = s.sensor_offset_db.powi(2) + s.smooth_db.powi(2) + s.noise_db.powi(2);
-        assert!((parts.sqrt() - s.total_db).abs() < 0.1 * s.total_db, "{s:?}");
-        // The nugget seen in space and in time agree.
-        assert!(
-            (s.close_semivariance_db2 - s.consecutive_semivariance_db2).abs()
-                < 0.25 * s.close_semivariance_db2,
-            "{s:?}"
-        );
-        assert!(s.length_m > 0.2 && s.length_m < 5.0, "{s:?}");
-    }
-
-    #[test]
-    fn trained_models_predict_held_out_packets_better_than_the_scenario_default() {
-        let (alg1, local, fitted, default) = (
-            param(NEXT_ALG1),
-            param(NEXT_LOCAL),
-            param(NEXT_FITTED),
-            param(NEXT_DEFAULT),
-        );
-        assert!(alg1 + 3.0 < default, "{alg1} vs {default}");
-        assert!(local + 0.3 < fitted, "{local} vs {fitted}");
-        assert!(alg1 < fitted, "{alg1} vs {fitted}");
-    }
-
-    #[test]
-    fn trained_models_track_better_than_the_fitted_law_which_beats_the_default() {
-        let (trained, fitted, default) = (error(TRACK_TRAINED), error(TRACK_FITTED), error(TRACK_DEFAULT));
-        assert!(trained < 0.7 * fitted, "{trained} vs {fitted}");
-        assert!(fitted < 0.5 * default, "{fitted} vs {default}");
-        // A worse stand-in makes the trained models worse: they lean on it.
-        assert!(
-            error(TRACK_TRAINED_WIDE) > trained,
-            "{} vs {trained}",
-            error(TRACK_TRAINED_WIDE)
-        );
-    }
-}
+mod tests;

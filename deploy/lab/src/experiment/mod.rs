@@ -187,7 +187,7 @@ impl Outcome {
 ///
 /// # Errors
 /// An unknown name, or a scenario the simulation cannot build.
-pub fn run(name: &str, opts: &Options) -> anyhow::Result<Outcome> {
+pub fn run(name: &str, opts: &Options) -> crate::Result<Outcome> {
     match name {
         "paper000-table1" => paper000_table1::run(opts),
         paper001::NAME => paper001::run(opts),
@@ -196,11 +196,10 @@ pub fn run(name: &str, opts: &Options) -> anyhow::Result<Outcome> {
         "paper002-rssi-only" => paper002_rssi_only::run(opts),
         "paper002-robustness" => paper002_robustness::run(opts),
         ble_rssi::NAME => ble_rssi::run(opts),
-        other => anyhow::bail!(
-            "unknown experiment {other:?}; known: {}, {}",
-            NAMES.join(", "),
-            REAL_DATA.join(", ")
-        ),
+        other => Err(crate::LabError::UnknownExperiment {
+            name: other.into(),
+            known: format!("{}, {}", NAMES.join(", "), REAL_DATA.join(", ")),
+        }),
     }
 }
 

@@ -69,7 +69,7 @@ pub fn paper() -> Vec<Row> {
 ///
 /// # Errors
 /// The shipped file does not parse (a build defect).
-pub fn scenario() -> anyhow::Result<Scenario> {
+pub fn scenario() -> crate::Result<Scenario> {
     Ok(Scenario::from_toml(SCENARIO_TOML, "paper000.toml")?)
 }
 
@@ -118,7 +118,7 @@ pub fn mean_depth(s: &Scenario) -> DepthHandling {
 ///
 /// # Errors
 /// The shipped scenario does not parse.
-pub fn methods() -> anyhow::Result<Vec<Method>> {
+pub fn methods() -> crate::Result<Vec<Method>> {
     let base = scenario()?;
     let three = |mut s: Scenario| {
         s.nodes
@@ -169,7 +169,7 @@ pub fn methods() -> anyhow::Result<Vec<Method>> {
 ///
 /// # Errors
 /// A scenario the simulation cannot build.
-pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
+pub fn run(opts: &Options) -> crate::Result<Outcome> {
     let level = opts.level_or(Level::Pixel);
     let duration_s = opts.duration_s.unwrap_or(DURATION_S);
     let mut rows = Vec::new();

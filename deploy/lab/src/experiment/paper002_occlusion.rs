@@ -112,7 +112,7 @@ pub fn hidden_windows(s: &Scenario, duration_s: f64) -> Vec<(f64, f64)> {
 ///
 /// # Errors
 /// A scenario the simulation cannot build.
-pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
+pub fn run(opts: &Options) -> crate::Result<Outcome> {
     let level = opts.level_or(Level::Pixel);
     let duration_s = opts.duration_s.unwrap_or(DURATION_S);
     let base = scenario();
@@ -231,7 +231,7 @@ fn scored(
     opts: &Options,
     level: Level,
     duration_s: f64,
-) -> anyhow::Result<(Row, Row, Trace, f64)> {
+) -> crate::Result<(Row, Row, Trace, f64)> {
     let mut m = method(base, label, activation, Faults::default());
     // One robot: every track is its track, however far it strays during the occlusion.
     m.gate_m = f64::INFINITY;

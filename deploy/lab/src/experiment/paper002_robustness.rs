@@ -53,7 +53,7 @@ pub const SWEEPS: [Sweep; 3] = [
 ///
 /// # Errors
 /// A scenario the simulation cannot build.
-pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
+pub fn run(opts: &Options) -> crate::Result<Outcome> {
     let level = opts.level_or(Level::Measurement);
     let duration_s = opts.duration_s.unwrap_or(DURATION_S);
     let base = testbed();

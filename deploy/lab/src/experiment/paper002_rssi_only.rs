@@ -130,7 +130,7 @@ pub(crate) fn rssi_row(label: &str, runs: &[Vec<Sample>], within_m: f64) -> (Row
 ///
 /// # Errors
 /// A scenario the simulation cannot build.
-pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
+pub fn run(opts: &Options) -> crate::Result<Outcome> {
     let level = opts.level_or(Level::Pixel);
     let duration_s = opts.duration_s.unwrap_or(DURATION_S);
     let s = testbed();

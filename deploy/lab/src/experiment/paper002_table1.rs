@@ -85,7 +85,7 @@ pub fn method(base: &Scenario, label: &str, activation: Activation, faults: Faul
 ///
 /// # Errors
 /// A scenario the simulation cannot build.
-pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
+pub fn run(opts: &Options) -> crate::Result<Outcome> {
     let level = opts.level_or(Level::Pixel);
     let duration_s = opts.duration_s.unwrap_or(DURATION_S);
     let base = testbed();

@@ -7,7 +7,6 @@
 //! - **active sensors over time** (s, count): cameras in blue, RSSI readings in green.
 
 use super::{Outcome, Trace};
-use anyhow::Context;
 use image::{Rgb, RgbImage};
 use std::path::{Path, PathBuf};
 
@@ -263,14 +262,17 @@ pub fn slug(s: &str) -> String {
 ///
 /// # Errors
 /// The directory cannot be created or a file cannot be written.
-pub fn write_all(o: &Outcome, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+pub fn write_all(o: &Outcome, dir: &Path) -> crate::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).map_err(|source| crate::LabError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
     let mut out = Vec::new();
     for t in &o.traces {
         let path = dir.join(format!("{}-{}.png", o.experiment, slug(&t.method)));
         render(t)
             .save(&path)
-            .with_context(|| format!("writing {}", path.display()))?;
+            .map_err(|e| crate::LabError::failed(format!("writing {}", path.display()), e.to_string()))?;
         out.push(path);
     }
     Ok(out)

@@ -181,7 +181,7 @@ pub fn run_once(
     seed: u64,
     level: Level,
     duration_s: f64,
-) -> anyhow::Result<(Report, Vec<Sample>)> {
+) -> crate::Result<(Report, Vec<Sample>)> {
     let opts = SimOptions {
         seed,
         duration_s,
@@ -229,6 +229,10 @@ pub fn run_once(
             })
         })
         .collect();
+    crate::progress::tell(&crate::progress::Step::Run {
+        method: &m.label,
+        seed,
+    });
     Ok((report, samples))
 }
 
@@ -236,7 +240,7 @@ pub fn run_once(
 ///
 /// # Errors
 /// A scenario the simulation cannot build.
-pub fn run_method(m: &Method, opts: &Options, level: Level, duration_s: f64) -> anyhow::Result<Runs> {
+pub fn run_method(m: &Method, opts: &Options, level: Level, duration_s: f64) -> crate::Result<Runs> {
     let runs = opts.runs.max(1);
     let (mut cams, mut rssi, mut meas, mut power) = (0.0, 0.0, 0.0, 0.0);
     let mut samples = Vec::new();

@@ -1,7 +1,12 @@
-//! External detections for `ocelli replay`: JSON Lines, one detection per line,
+//! External detections for `ocelli fuse`: JSON Lines, one detection per line,
 //! `{"t": <seconds>, "camera": "<id>", "u": <px>, "v": <px>}` with optional
 //! `"box": [xmin, ymin, xmax, ymax]` and optional `"rssi": {"<node id>": <dBm>}`.
 //! Any detector can feed Ocelli this way.
+//!
+//! Data from outside is read, not trusted: a line that does not parse, or that holds a value no
+//! detector can produce (a time before 0 or centuries ahead, a pixel a million pixels off, an
+//! RSSI outside [`RSSI_DBM`]), is skipped and counted with its line number, and reading goes
+//! on ([`SkippedLines`]).
 
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -25,54 +30,85 @@ pub struct ExternalDetection {
     pub rssi: Option<BTreeMap<String, f64>>,
 }
 
-/// A line that is not a valid detection.
+/// Detections that could not be read at all.
 #[derive(Debug, Error)]
 pub enum DetectionError {
-    #[error("line {line}: {problem}")]
-    Line { line: usize, problem: String },
-    #[error("reading detections: {0}")]
-    Io(#[from] std::io::Error),
+    #[error("reading detections, line {line}: {source}")]
+    Io { line: usize, source: std::io::Error },
 }
 
+/// The RSSI a receiver can report, dBm.
+pub const RSSI_DBM: std::ops::RangeInclusive<f64> = -130.0..=0.0;
+/// The latest time a detection may carry, seconds (Unix time in the year 2286).
+pub const MAX_T_S: f64 = 1e10;
+/// How far outside any image a pixel may be, px.
+pub const MAX_PIXEL: f64 = 1e6;
+
 impl ExternalDetection {
-    fn check(&self) -> Result<(), String> {
-        if !(self.t.is_finite() && self.u.is_finite() && self.v.is_finite()) {
-            return Err("t, u and v must be finite numbers".into());
+    /// What makes this detection impossible, if anything.
+    pub fn problem(&self) -> Option<String> {
+        if !(self.t.is_finite() && (0.0..=MAX_T_S).contains(&self.t)) {
+            return Some(format!("time {} s is not in [0, {MAX_T_S:e}]", self.t));
+        }
+        if self.camera.is_empty() {
+            return Some("the camera id is empty".into());
+        }
+        let pixel = |x: f64| x.is_finite() && x.abs() <= MAX_PIXEL;
+        if !(pixel(self.u) && pixel(self.v)) {
+            return Some(format!(
+                "pixel ({}, {}) is not a finite image position",
+                self.u, self.v
+            ));
         }
         if let Some(b) = self.pixel_box
-            && (b.iter().any(|x| !x.is_finite()) || b[2] < b[0] || b[3] < b[1])
+            && (!b.iter().all(|x| pixel(*x)) || b[2] < b[0] || b[3] < b[1])
         {
-            return Err(format!(
-                "box {b:?} must be finite with xmax ≥ xmin and ymax ≥ ymin"
+            return Some(format!(
+                "box [{}, {}, {}, {}] must be finite with xmax ≥ xmin and ymax ≥ ymin",
+                b[0], b[1], b[2], b[3]
             ));
         }
         if let Some(r) = &self.rssi
-            && let Some((node, dbm)) = r.iter().find(|(_, d)| !d.is_finite())
+            && let Some((node, dbm)) = r.iter().find(|(_, d)| !RSSI_DBM.contains(*d))
         {
-            return Err(format!("rssi of node {node} is not finite ({dbm})"));
+            return Some(format!(
+                "RSSI {dbm} dBm of node {node} is not in [{}, {}] dBm",
+                RSSI_DBM.start(),
+                RSSI_DBM.end()
+            ));
         }
-        Ok(())
+        None
     }
 }
 
-/// Read every detection; blank lines are skipped, the first bad line is an error naming it.
+pub use crate::skipped::SkippedLines;
+
+/// What a reading kept and skipped.
+#[derive(Clone, Debug, Default)]
+pub struct ReadDetections {
+    pub detections: Vec<ExternalDetection>,
+    pub skipped: SkippedLines,
+}
+
+/// Read every detection; blank lines are passed over, malformed or impossible ones skipped
+/// and counted.
 ///
 /// # Errors
-/// IO errors, or the first malformed line with its 1-based number.
-pub fn read_detections(input: impl BufRead) -> Result<Vec<ExternalDetection>, DetectionError> {
-    let mut out = Vec::new();
+/// Only when the input itself cannot be read.
+pub fn read_detections(input: impl BufRead) -> Result<ReadDetections, DetectionError> {
+    let mut out = ReadDetections::default();
     for (i, line) in input.lines().enumerate() {
-        let line = line?;
+        let line = line.map_err(|source| DetectionError::Io { line: i + 1, source })?;
         if line.trim().is_empty() {
             continue;
         }
-        let det: ExternalDetection = serde_json::from_str(&line).map_err(|e| DetectionError::Line {
-            line: i + 1,
-            problem: e.to_string(),
-        })?;
-        det.check()
-            .map_err(|problem| DetectionError::Line { line: i + 1, problem })?;
-        out.push(det);
+        match serde_json::from_str::<ExternalDetection>(&line) {
+            Err(e) => out.skipped.add(i + 1, e.to_string()),
+            Ok(det) => match det.problem() {
+                Some(problem) => out.skipped.add(i + 1, problem),
+                None => out.detections.push(det),
+            },
+        }
     }
     Ok(out)
 }
@@ -87,7 +123,9 @@ mod tests {
 
 {"t": 1, "camera": "7", "u": 1, "v": 2, "box": [0, 0, 4, 5], "rssi": {"12": -61.5}}
 "#;
-        let d = read_detections(text.as_bytes()).unwrap();
+        let read = read_detections(text.as_bytes()).unwrap();
+        assert_eq!(read.skipped, SkippedLines::default());
+        let d = read.detections;
         assert_eq!(d.len(), 2);
         assert_eq!(d[0].camera, "Camera1");
         assert_eq!(d[1].pixel_box, Some([0.0, 0.0, 4.0, 5.0]));
@@ -95,24 +133,43 @@ mod tests {
     }
 
     #[test]
-    fn bad_lines_are_named() {
-        for (text, want) in [
-            ("{\"t\": 0, \"camera\": \"a\", \"u\": 1}\n", "line 1"),
+    fn bad_and_impossible_lines_are_skipped_counted_and_named() {
+        let good = r#"{"t": 0, "camera": "a", "u": 1, "v": 2}"#;
+        let bad = [
+            (r#"{"t": 0, "camera": "a", "u": 1}"#, "missing field `v`"),
+            ("not json", "expected"),
             (
-                "{\"t\": 0, \"camera\": \"a\", \"u\": 1, \"v\": 2}\nnot json\n",
-                "line 2",
-            ),
-            (
-                "{\"t\": 0, \"camera\": \"a\", \"u\": 1, \"v\": 2, \"box\": [5, 0, 1, 1]}\n",
+                r#"{"t": 0, "camera": "a", "u": 1, "v": 2, "box": [5, 0, 1, 1]}"#,
                 "xmax",
             ),
             (
-                "{\"t\": 0, \"camera\": \"a\", \"u\": 1, \"v\": 2, \"extra\": 1}\n",
+                r#"{"t": 0, "camera": "a", "u": 1, "v": 2, "extra": 1}"#,
                 "unknown field",
             ),
-        ] {
-            let e = read_detections(text.as_bytes()).unwrap_err().to_string();
-            assert!(e.contains(want), "{e:?} should mention {want:?}");
+            (r#"{"t": -3, "camera": "a", "u": 1, "v": 2}"#, "time -3 s"),
+            (r#"{"t": 1e300, "camera": "a", "u": 1, "v": 2}"#, "not in [0"),
+            (
+                r#"{"t": 0, "camera": "a", "u": 1, "v": 2, "rssi": {"7": 20}}"#,
+                "RSSI 20 dBm of node 7",
+            ),
+            (r#"{"t": 0, "camera": "a", "u": 1e9, "v": 2}"#, "pixel"),
+            (r#"{"t": 0, "camera": "", "u": 1, "v": 2}"#, "camera id is empty"),
+        ];
+        for (line, want) in bad {
+            let text = format!("{good}\n{line}\n{good}\n");
+            let read = read_detections(text.as_bytes()).unwrap();
+            assert_eq!(read.detections.len(), 2, "{line}");
+            assert_eq!(read.skipped.count, 1, "{line}");
+            let said = read.skipped.to_string();
+            assert!(said.starts_with("1 line(s) skipped (first: line 2: "), "{said}");
+            assert!(said.contains(want), "{said:?} should mention {want:?}");
         }
+        let many: String = (0..10).map(|_| "x\n").collect();
+        let read = read_detections(many.as_bytes()).unwrap();
+        assert_eq!(read.skipped.count, 10);
+        assert_eq!(
+            read.skipped.first.iter().map(|(l, _)| *l).collect::<Vec<_>>(),
+            [1, 2, 3]
+        );
     }
 }

@@ -15,7 +15,7 @@
 //! same, at the same virtual time, in the same order.
 //!
 //! Recorded times map onto the replay's virtual clock by subtracting `t0`, the cluster time
-//! of scenario time 0 ([`recording_t0`]: the first record's time, 0 for `ocelli sim`). The
+//! of scenario time 0 ([`recording_t0`]: the recording's origin, 0 for `ocelli sim`). The
 //! replay's own records, estimates and report are in virtual time, i.e. seconds since `t0`.
 //!
 //! A logging run of real processes (`ocelli launch --record-measurements`) replays only
@@ -24,12 +24,10 @@
 //! and re-quantized onto its own frame ticks (a recorded frame is used at the first replayed
 //! frame event of that camera at or after it; two in one period supersede each other); the
 //! heads step on the replay's simulated network and clocks rather than the run's; frames the
-//! run's transport dropped under backpressure are missing; and `t0` (the server's start) is
-//! a little later than the launch's epoch for the synthetic world, so truth is compared a few
-//! tens of milliseconds off. The live run's decisions are not reproduced record for record —
+//! run's transport dropped under backpressure are missing. The live run's decisions are not reproduced record for record —
 //! the methods and policies are compared on the same measurements, which is what matters.
 
-use anyhow::{Context, Result};
+use crate::Result;
 use node_server::analysis::{Loaded, measured_frames};
 use node_server::export::{TrackRow, track_rows};
 use node_server::report::Report;
@@ -85,11 +83,15 @@ impl Rerun {
 /// Longest recording a replay re-runs, ns (a week): more means a wrong `t0`.
 pub const MAX_REPLAY_NS: i64 = 7 * 24 * 3600 * 1_000_000_000;
 
-/// The cluster time of scenario time 0 in a recording when nobody says otherwise: its first
-/// record's (the scenario, written at 0 by `ocelli sim` and at the server's start, wall-clock
-/// ns, by `ocelli launch`).
+/// The cluster time of scenario time 0 in a recording when nobody says otherwise: the one its
+/// origin record states (`ocelli sim`: 0; `ocelli launch`: the epoch its cameras' synthetic
+/// world started at), else its first record's (older recordings).
 pub fn recording_t0(loaded: &Loaded) -> ClusterTime {
-    loaded.records.first().map_or(ClusterTime(0), |s| s.at)
+    loaded
+        .origin()
+        .map(|o| o.t0)
+        .or_else(|| loaded.records.first().map(|s| s.at))
+        .unwrap_or(ClusterTime(0))
 }
 
 /// Re-run `loaded`'s recorded measurements through fresh cores.
@@ -119,11 +121,13 @@ pub fn rerun(loaded: &Loaded, opts: &RerunOptions) -> Result<Rerun> {
         ok
     });
     let recorded = Recorded::new(known, opts.t0);
-    anyhow::ensure!(
-        frames > 0,
-        "the recording holds no camera measurements: make a logging run (`ocelli sim \
-         --record-measurements --record FILE` or `ocelli launch --record-measurements`)"
-    );
+    if frames == 0 {
+        return Err(crate::LabError::failed(
+            "replay",
+            "the recording holds no camera measurements: make a logging run (`ocelli sim \
+             --record-measurements --record FILE` or `ocelli launch --record-measurements`)",
+        ));
+    }
     if unknown > 0 {
         tracing::warn!(
             frames = unknown,
@@ -137,18 +141,22 @@ pub fn rerun(loaded: &Loaded, opts: &RerunOptions) -> Result<Rerun> {
         .max()
         .unwrap_or(0)
         .max(recorded.last_ns().unwrap_or(0));
-    anyhow::ensure!(
-        last_ns <= MAX_REPLAY_NS,
-        "the recording ends {:.0} s after t0 = {} ns: is t0 right? (default: the first \
+    if last_ns > MAX_REPLAY_NS {
+        return Err(crate::LabError::failed(
+            "replay",
+            format!(
+                "the recording ends {:.0} s after t0 = {} ns: is t0 right? (default: the first \
          record's time)",
-        last_ns as f64 * 1e-9,
-        opts.t0.0
-    );
+                last_ns as f64 * 1e-9,
+                opts.t0.0
+            ),
+        ));
+    }
     let sim_opts = SimOptions {
         duration_s: last_ns as f64 * 1e-9,
         ..opts.sim.clone()
     };
-    let sim = Sim::replaying(scenario.clone(), sim_opts, recorded).context("building the replay's nodes")?;
+    let sim = Sim::replaying(scenario.clone(), sim_opts, recorded)?;
     let outcome = sim.run();
     Ok(Rerun {
         scenario,
@@ -169,40 +177,38 @@ pub fn without_measurements(records: &[Stamped]) -> Vec<&Stamped> {
 }
 
 /// Re-run the recording at `path` (with `scenario` instead of the recorded one, if given):
-/// the replay's owner track rows (one per global track and step) and its report. `t0`: the
-/// option's, or the recording's first record (see [`recording_t0`]).
+/// the replay's owner track rows (one per global track and step) and its report, scored as
+/// `crate::report::Scoring` says (`given_t0`: a time origin the user gave). `t0` of the
+/// options: the option's, or the recording's (see [`recording_t0`]).
 ///
 /// # Errors
 /// An unreadable recording or scenario, or a recording without measurements.
 pub fn replay_recording(
     path: &std::path::Path,
     scenario: Option<Scenario>,
+    given_t0: Option<ClusterTime>,
     opts: impl FnOnce(&Loaded) -> RerunOptions,
 ) -> Result<(Vec<TrackRow>, Report)> {
-    let loaded =
-        node_server::analysis::load(path, scenario).with_context(|| format!("reading {}", path.display()))?;
-    for s in &loaded.skipped {
-        tracing::warn!(
-            offset = s.offset,
-            bytes = s.bytes,
-            damage = ?s.damage,
-            "replay: damaged stretch of the recording skipped"
-        );
-    }
+    let loaded = node_server::analysis::load(path, scenario)?;
+    let scored = crate::report::Scoring::of(&loaded, given_t0).t0().is_some();
     let opts = opts(&loaded);
     let replay = rerun(&loaded, &opts)?;
     tracing::info!(
         frames = replay.frames,
         unknown_camera_frames = replay.unknown_camera_frames,
         superseded_frames = replay.superseded_frames,
-        fusion = ?replay.scenario.method.fusion,
-        activation = ?replay.scenario.method.activation,
+        fusion = replay.scenario.method.fusion.name(),
+        activation = replay.scenario.method.activation.name(),
         "replay done"
     );
     let replayed = replay.loaded();
     let rows = track_rows(&replayed).into_iter().filter(|r| r.owner).collect();
     // The replay's records are on its own virtual clock, where scenario time 0 is 0.
-    let truth = sim::WorldTruth::of(&replayed.scenario, ClusterTime(0))?;
+    let truth = if scored {
+        sim::WorldTruth::of(&replayed.scenario, ClusterTime(0))?
+    } else {
+        None
+    };
     let report = node_server::report::compute(
         &replayed,
         truth.as_ref().map(|t| t as &dyn node_server::report::Truth),

@@ -45,7 +45,7 @@ fn rerun_with(
     fusion: Option<Fusion>,
     activation: Option<Activation>,
     o: &SimOptions,
-) -> anyhow::Result<Rerun> {
+) -> lab::Result<Rerun> {
     rerun(
         loaded,
         &RerunOptions {

@@ -98,8 +98,10 @@ fn replaying_a_sim_recording_gives_the_same_estimates() {
     outcome.write_recording(&path).expect("recording");
     let loaded = node_server::analysis::load(&path, None).expect("reads back with its scenario");
     let _ = std::fs::remove_file(&path);
+    // The file starts with the scenario and the run's origin (time 0, simulated world).
+    assert!(matches!(loaded.records[1].record, node_server::Record::Origin(_)));
     assert_eq!(
-        &loaded.records[1..],
+        &loaded.records[2..],
         &outcome.records[..],
         "the file holds exactly the run's records"
     );

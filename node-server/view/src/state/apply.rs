@@ -47,7 +47,11 @@ impl ViewState {
                 self.totals.decisions += 1;
                 self.decision(at, d, &mut out);
             }
-            Record::Sent { .. } | Record::Tick | Record::Link { .. } | Record::Measured(_) => {}
+            Record::Sent { .. }
+            | Record::Tick
+            | Record::Link { .. }
+            | Record::Measured(_)
+            | Record::Origin(_) => {}
         }
         out
     }

@@ -149,14 +149,63 @@ fn ipc_err(what: &str, e: impl std::fmt::Debug) -> TransportError {
 }
 
 fn iox_config(domain: &str) -> Result<Config, TransportError> {
+    quiet_iceoryx2();
     let mut config = Config::default();
     config.global.prefix =
         FileName::new(file_prefix(domain).as_bytes()).map_err(|e| ipc_err("file prefix", e))?;
     Ok(config)
 }
 
+/// iceoryx2 logs through its own logger to standard error (a warning that no config file was
+/// loaded, in every process). Ours is `tracing`: keep iceoryx2 to its errors unless
+/// `IOX2_LOG_LEVEL` asks for more.
+fn quiet_iceoryx2() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| set_log_level_from_env_or(LogLevel::Error));
+}
+
+/// The iceoryx2 node name of `me`'s inbox owner: one live process per node id and domain.
+fn owner_name(me: NodeId) -> String {
+    format!("inbox-owner-{}", me.0)
+}
+
+/// Refuse to own `me`'s inbox while another live process of the domain owns it (a second
+/// `ocelli head --id 2` beside the first). Dead owners were cleaned up just before.
+fn refuse_second_owner(config: &Config, domain: &str, me: NodeId) -> Result<(), TransportError> {
+    let name = owner_name(me);
+    let mut holder = None;
+    let listed = Node::<Svc>::list(config, |state| {
+        if let NodeState::Alive(view) = &state
+            && let Some(d) = iceoryx2::node::NodeView::details(view)
+            && d.name().as_str() == name
+        {
+            holder = Some(d.process_id().value());
+            return CallbackProgression::Stop;
+        }
+        CallbackProgression::Continue
+    });
+    if let Err(e) = listed {
+        tracing::debug!(error = ?e, "could not list the domain's iceoryx2 nodes");
+    }
+    match holder {
+        Some(pid) if pid != std::process::id() as i32 => Err(TransportError::IdInUse {
+            id: me,
+            detail: format!("process {pid} owns its iceoryx2 inbox in domain {domain}"),
+        }),
+        _ => Ok(()),
+    }
+}
+
 fn iox_node(config: &Config) -> Result<Node<Svc>, TransportError> {
-    let node = NodeBuilder::new()
+    iox_named_node(config, None)
+}
+
+fn iox_named_node(config: &Config, name: Option<&str>) -> Result<Node<Svc>, TransportError> {
+    let mut builder = NodeBuilder::new();
+    if let Some(name) = name {
+        builder = builder.name(&NodeName::new(name).map_err(|e| ipc_err("node name", e))?);
+    }
+    let node = builder
         .config(config)
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<Svc>()
@@ -323,7 +372,11 @@ pub(crate) fn start(
     handle: &mut ShutdownHandle,
 ) -> Result<(Sender, Receiver), TransportError> {
     check_domain(&cfg.domain)?;
-    let node = iox_node(&iox_config(&cfg.domain)?)?;
+    let config = iox_config(&cfg.domain)?;
+    // Dead owners are cleaned up by this first node, then a live one refuses us.
+    drop(iox_node(&config)?);
+    refuse_second_owner(&config, &cfg.domain, cfg.me)?;
+    let node = iox_named_node(&config, Some(&owner_name(cfg.me)))?;
     let receiver = Receiver::open(&node, &cfg, stats, handle.token())?;
     let domain = cfg.domain.clone();
     handle.after_join.push(Box::new(move || release_domain(&domain)));

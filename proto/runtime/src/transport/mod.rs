@@ -139,6 +139,10 @@ pub enum TransportError {
     Io(#[from] std::io::Error),
     #[error("iceoryx2: {0}")]
     Ipc(String),
+    /// Another live process already is this node (iceoryx2: it owns the inbox; TCP: the peer
+    /// refused a second connection for the id).
+    #[error("node {id} is already up ({detail}); stop it first, or start this one with another --id")]
+    IdInUse { id: NodeId, detail: String },
 }
 
 /// Which transport to open, and its settings.

@@ -1,7 +1,8 @@
 //! Reading the real BLE RSSI dataset (`shared/datasets/ble-rssi/`, Daniş et al. 2022): the
 //! sensors' positions from `cnf/tetam.dev` and one time-ordered packet list per trajectory from
-//! `trk/*_all_sensors.mbd`. A malformed line is an error naming the file, the line and what is
-//! wrong; nothing is skipped silently.
+//! `trk/*_all_sensors.mbd`. A malformed or physically impossible packet line is skipped and
+//! counted (the first few named by line and problem, [`Trajectory::skipped`]): one bad packet
+//! does not cost a whole trajectory, and nothing is skipped silently.
 
 use nalgebra::Vector3;
 use proto::TagId;
@@ -41,6 +42,8 @@ pub struct Packet {
 pub struct Trajectory {
     pub name: String,
     pub packets: Vec<Packet>,
+    /// Lines of its file that were skipped.
+    pub skipped: crate::skipped::SkippedLines,
 }
 
 impl Trajectory {
@@ -70,8 +73,6 @@ pub enum DataError {
     Io { path: PathBuf, source: std::io::Error },
     #[error("{path}: {msg}")]
     Devices { path: PathBuf, msg: String },
-    #[error("{path}:{line}: {msg}")]
-    Line { path: PathBuf, line: usize, msg: String },
     #[error("{0}: no trajectory files (*{TRACK_SUFFIX})")]
     NoTracks(PathBuf),
 }
@@ -115,39 +116,44 @@ pub fn parse_devices(text: &str) -> Result<Vec<Sensor>, String> {
     Ok(sensors)
 }
 
+/// One `.mbd` line as a packet (`None` for a blank line), or what is wrong with it. The line is
+/// read by `proto::sensor::mbd`, the parser the file radio source uses.
+fn parse_packet(line: &str, macs: &[Option<TagId>]) -> Result<Option<Packet>, String> {
+    let r = match mbd::parse_line(line) {
+        Ok(Some(r)) => r,
+        Ok(None) => return Ok(None),
+        Err(MbdError::Mac {
+            what: "sensor MAC",
+            field,
+        }) => return Err(format!("unknown sensor MAC {:?}", field.trim())),
+        Err(e) => return Err(e.to_string()),
+    };
+    let sensor = macs
+        .iter()
+        .position(|m| *m == Some(r.sensor))
+        .ok_or_else(|| format!("unknown sensor MAC {:?}", r.sensor.to_string()))?;
+    Ok(Some(Packet {
+        t: r.time_s,
+        sensor,
+        rssi: r.dbm,
+        truth: Vector3::from(r.position),
+    }))
+}
+
 /// Parse one `.mbd` file's text into packets sorted by time (the merged files are ordered up to
-/// a few sub-millisecond swaps), t relative to the first packet. Blank lines are allowed. Each
-/// line is read by `proto::sensor::mbd`, the parser the file radio source uses.
-///
-/// # Errors
-/// `(line number, what is wrong)`: a wrong field count, a non-numeric or non-finite number, an
-/// RSSI outside −127..=20 dBm, or a sensor MAC not in `sensors`.
-pub fn parse_track(text: &str, sensors: &[Sensor]) -> Result<Vec<Packet>, (usize, String)> {
+/// a few sub-millisecond swaps), t relative to the first packet. Blank lines are allowed; a
+/// line with a wrong field count, a non-numeric or non-finite number, an RSSI outside
+/// `proto::sensor::mbd::BLE_RSSI_DBM` or a sensor MAC not in `sensors` is skipped and counted.
+pub fn parse_track(text: &str, sensors: &[Sensor]) -> (Vec<Packet>, crate::skipped::SkippedLines) {
     let macs: Vec<Option<TagId>> = sensors.iter().map(|s| TagId::parse_mac(&s.mac)).collect();
     let mut raw = Vec::new();
+    let mut skipped = crate::skipped::SkippedLines::default();
     for (i, line) in text.lines().enumerate() {
-        let n = i + 1;
-        let r = match mbd::parse_line(line) {
-            Ok(Some(r)) => r,
-            Ok(None) => continue,
-            Err(MbdError::Mac {
-                what: "sensor MAC",
-                field,
-            }) => {
-                return Err((n, format!("unknown sensor MAC {:?}", field.trim())));
-            }
-            Err(e) => return Err((n, e.to_string())),
-        };
-        let sensor = macs
-            .iter()
-            .position(|m| *m == Some(r.sensor))
-            .ok_or_else(|| (n, format!("unknown sensor MAC {:?}", r.sensor.to_string())))?;
-        raw.push(Packet {
-            t: r.time_s,
-            sensor,
-            rssi: r.dbm,
-            truth: Vector3::from(r.position),
-        });
+        match parse_packet(line, &macs) {
+            Ok(Some(p)) => raw.push(p),
+            Ok(None) => {}
+            Err(problem) => skipped.add(i + 1, problem),
+        }
     }
     raw.sort_by(|a, b| a.t.total_cmp(&b.t));
     if let Some(t0) = raw.first().map(|p| p.t) {
@@ -155,7 +161,7 @@ pub fn parse_track(text: &str, sensors: &[Sensor]) -> Result<Vec<Packet>, (usize
             p.t -= t0;
         }
     }
-    Ok(raw)
+    (raw, skipped)
 }
 
 fn read(path: &Path) -> Result<String, DataError> {
@@ -196,18 +202,21 @@ pub fn load(dir: &Path) -> Result<Dataset, DataError> {
     paths.sort();
     let mut trajectories = Vec::with_capacity(paths.len());
     for path in paths {
-        let packets = parse_track(&read(&path)?, &sensors).map_err(|(line, msg)| DataError::Line {
-            path: path.clone(),
-            line,
-            msg,
-        })?;
+        let (packets, skipped) = parse_track(&read(&path)?, &sensors);
+        if skipped.count > 0 {
+            tracing::warn!(file = %path.display(), "BLE dataset: {skipped}");
+        }
         let name = path
             .file_name()
             .and_then(|n| n.to_str())
             .and_then(|n| n.strip_suffix(TRACK_SUFFIX))
             .unwrap_or("?")
             .to_string();
-        trajectories.push(Trajectory { name, packets });
+        trajectories.push(Trajectory {
+            name,
+            packets,
+            skipped,
+        });
     }
     if trajectories.is_empty() {
         return Err(DataError::NoTracks(trk));
@@ -252,7 +261,8 @@ Beacons:{"0000000000cc": [[], 3, "beacon1"] }"#;
         let text = format!(
             "10.5,0000000000aa,0000000000cc,-70,1,2,1.8,{ORIENT}\n\n10.0,0000000000bb,0000000000cc,-80,1.5,2,1.8,{ORIENT}\n"
         );
-        let p = parse_track(&text, &sensors()).expect("valid track");
+        let (p, skipped) = parse_track(&text, &sensors());
+        assert_eq!(skipped.count, 0);
         assert_eq!(p.len(), 2);
         assert_eq!(p[0].t, 0.0);
         assert_eq!(p[0].sensor, 0);
@@ -262,7 +272,7 @@ Beacons:{"0000000000cc": [[], 3, "beacon1"] }"#;
     }
 
     #[test]
-    fn track_rejects_malformed_lines_naming_line_and_problem() {
+    fn track_skips_malformed_and_impossible_lines_naming_line_and_problem() {
         let s = sensors();
         let (a, c) = ("0000000000aa", "0000000000cc");
         let ok = format!("1.0,{a},{c},-70,1,2,1.8,{ORIENT}");
@@ -288,8 +298,16 @@ Beacons:{"0000000000cc": [[], 3, "beacon1"] }"#;
             ),
         ];
         for (text, line, what) in cases {
-            let (n, msg) = parse_track(&text, &s).unwrap_err();
-            assert_eq!(n, line, "{msg}");
+            let text = format!("{text}\n2.0,0000000000bb,{c},-75,1,2,1.8,{ORIENT}\n");
+            let (packets, skipped) = parse_track(&text, &s);
+            assert_eq!(
+                packets.len(),
+                if line == 2 { 2 } else { 1 },
+                "{what}: the good lines stay"
+            );
+            assert_eq!(skipped.count, 1, "{what}");
+            let (n, msg) = &skipped.first[0];
+            assert_eq!(*n, line, "{msg}");
             assert!(msg.contains(what), "{msg} should mention {what}");
         }
     }

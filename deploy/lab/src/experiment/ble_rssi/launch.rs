@@ -9,7 +9,7 @@
 
 use super::data::{Dataset, TRACK_SUFFIX};
 use super::fold;
-use anyhow::{Context, Result};
+use crate::{LabError, Result};
 use proto::scenario::Scenario;
 use std::fmt::Write as _;
 
@@ -25,8 +25,16 @@ pub const STEP_MS: u64 = 500;
 /// # Errors
 /// No such trajectory, or the other trajectories cannot be fitted.
 pub fn scenario_toml(ds: &Dataset, i: usize) -> Result<String> {
-    let traj = ds.trajectories.get(i).context("no such trajectory")?;
-    let (fit, height) = fold(ds, i).with_context(|| format!("fitting without {}", traj.name))?;
+    let traj = ds
+        .trajectories
+        .get(i)
+        .ok_or_else(|| LabError::failed("the BLE launch scenario", format!("no trajectory {i}")))?;
+    let (fit, height) = fold(ds, i).ok_or_else(|| {
+        LabError::failed(
+            "the BLE launch scenario",
+            format!("no law fits the trajectories without {}", traj.name),
+        )
+    })?;
     let file = ds.dir.join("trk").join(format!("{}{TRACK_SUFFIX}", traj.name));
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for s in &ds.sensors {

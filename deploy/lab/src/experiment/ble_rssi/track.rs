@@ -303,6 +303,7 @@ mod tests {
         Trajectory {
             name: "synthetic".into(),
             packets,
+            skipped: Default::default(),
         }
     }
 

@@ -14,7 +14,8 @@
 //! (distance from the truth to the nearest local maximum above half the highest one) and the
 //! differential entropy of the normalised likelihood.
 
-use anyhow::{Context, Result};
+use crate::Result;
+use crate::error::OrFailed;
 use node_acoustic::ild::IldAnalyzer;
 use node_head::grid::acoustic::{AcousticParams as Likelihood, AcousticSensor};
 use node_head::grid::belief::Belief;
@@ -141,7 +142,7 @@ pub fn evaluate(walls: u32, distance: f64, length: f64, sources: usize, seed: u6
     let settings = low_band();
     let node = TwoMicNode::ears([0.3, 2.5, 1.2], 0.0, 0.2);
     let params = AcousticParams::default();
-    let mut analyzer = IldAnalyzer::new(&settings)?;
+    let mut analyzer = IldAnalyzer::new(&settings).or_failed("paper001")?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let rate = settings.sample_rate;
     let listen = |p: [f64; 2], secs: f64, rng: &mut ChaCha8Rng, a: &mut IldAnalyzer| {
@@ -157,14 +158,16 @@ pub fn evaluate(walls: u32, distance: f64, length: f64, sources: usize, seed: u6
     for j in 0..ny {
         for i in 0..nx {
             let p = [ARRAY[0] + SPACING_M * i as f64, ARRAY[1] + SPACING_M * j as f64];
-            let values = listen(p, SURVEY_S, &mut rng, &mut analyzer)?.values;
+            let values = listen(p, SURVEY_S, &mut rng, &mut analyzer)
+                .or_failed("paper001")?
+                .values;
             fingerprints.push(Fingerprint { position: p, values });
         }
     }
     let area = array_world();
-    let db = FingerprintDb::new(&area, settings, fingerprints).context("fingerprints")?;
-    let grid = Arc::new(Grid::new(&area, GRID_CELL_M)?);
-    let sensor = AcousticSensor::new(&grid, db, Likelihood::default())?;
+    let db = FingerprintDb::new(&area, settings, fingerprints).or_failed("fingerprints")?;
+    let grid = Arc::new(Grid::new(&area, GRID_CELL_M).or_failed("paper001")?);
+    let sensor = AcousticSensor::new(&grid, db, Likelihood::default()).or_failed("paper001")?;
     let mut cell = Cell {
         walls,
         distance_m: distance,
@@ -177,11 +180,11 @@ pub fn evaluate(walls: u32, distance: f64, length: f64, sources: usize, seed: u6
             rng.random_range(ARRAY[0] + 0.05..ARRAY[2] - 0.05),
             rng.random_range(ARRAY[1] + 0.05..ARRAY[3] - 0.05),
         ];
-        let ild = listen(p, TEST_S, &mut rng, &mut analyzer)?;
-        let map = sensor.likelihood_map(&ild)?;
+        let ild = listen(p, TEST_S, &mut rng, &mut analyzer).or_failed("paper001")?;
+        let map = sensor.likelihood_map(&ild).or_failed("paper001")?;
         cell.errors_m.push(nearest_peak_error(&grid, &map, p));
         let mut b = Belief::uniform(grid.clone());
-        b.correct(&map)?;
+        b.correct(&map).or_failed("paper001")?;
         cell.entropies.push(b.differential_entropy());
     }
     Ok(cell)

@@ -14,7 +14,7 @@ pub mod acoustic;
 pub mod tracking;
 
 use super::{Check, Options, Outcome, Row, Trace};
-use anyhow::Result;
+use crate::Result;
 use sim::Level;
 
 pub const NAME: &str = "paper001";

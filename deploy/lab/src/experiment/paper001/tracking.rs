@@ -17,7 +17,8 @@
 
 use super::super::paper002_occlusion::{hidden_windows, scenario as occlusion_room};
 use super::super::runner::Sample;
-use anyhow::{Context, Result};
+use crate::Result;
+use crate::error::OrFailed;
 use nalgebra::Vector3;
 use node_acoustic::ild::IldAnalyzer;
 use node_head::grid::acoustic::{AcousticParams as Likelihood, AcousticSensor};
@@ -126,31 +127,31 @@ pub const SHARPENED: f64 = 8.0;
 /// A scenario, survey or likelihood the estimator refuses.
 pub fn run_once(seed: u64, duration_s: f64) -> Result<[Vec<Step>; 3]> {
     let s = scenario();
-    let target = world::targets(&s)?.into_iter().next().context("a target")?;
-    let grid = Arc::new(Grid::new(&s.world, CELL_M)?);
+    let target = world::targets(&s)?.into_iter().next().or_failed("a target")?;
+    let grid = Arc::new(Grid::new(&s.world, CELL_M).or_failed("paper001")?);
     let params = OpticalParams::default();
     let mut cams = Vec::new();
     for c in s.cameras() {
         let model = s.camera_model(c.id)?;
-        let sensor = OpticalSensor::new(c.id, &model, &grid, &s.world, &params)?;
+        let sensor = OpticalSensor::new(c.id, &model, &grid, &s.world, &params).or_failed("paper001")?;
         cams.push((model, sensor));
     }
-    let db = sim::acoustic::survey(&s, ACOUSTIC_ID).map_err(anyhow::Error::msg)?;
-    let acoustic = AcousticSensor::new(&grid, (*db).clone(), Likelihood::default())?;
+    let db = sim::acoustic::survey(&s, ACOUSTIC_ID).or_failed("acoustic survey")?;
+    let acoustic = AcousticSensor::new(&grid, (*db).clone(), Likelihood::default()).or_failed("paper001")?;
     let sharp = Likelihood {
         sharpness: SHARPENED,
         ..Likelihood::default()
     };
-    let sharpened = AcousticSensor::new(&grid, (*db).clone(), sharp)?;
+    let sharpened = AcousticSensor::new(&grid, (*db).clone(), sharp).or_failed("paper001")?;
     let spec = s
         .node(ACOUSTIC_ID)
         .and_then(|n| n.acoustic.clone())
-        .context("acoustic node")?;
+        .or_failed("acoustic node")?;
     let mics = TwoMicNode::from_spec(&spec);
     let room = AcousticParams::default();
-    let mut analyzer = IldAnalyzer::new(&spec.ild)?;
+    let mut analyzer = IldAnalyzer::new(&spec.ild).or_failed("paper001")?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let noise = Normal::new(0.0, NOISE)?;
+    let noise = Normal::new(0.0, NOISE).or_failed("paper001")?;
     let motion = RandomWalk {
         sigma_per_sqrt_s: DIFFUSION,
     };
@@ -177,7 +178,9 @@ pub fn run_once(seed: u64, duration_s: f64) -> Result<[Vec<Step>; 3]> {
                 });
                 seen_by += 1;
             }
-            sensor.apply(Mode::Active, &dets, &mut lik)?;
+            sensor
+                .apply(Mode::Active, &dets, &mut lik)
+                .or_failed("paper001")?;
         }
         let (l, r) = render_stereo(
             &s.world,
@@ -188,19 +191,19 @@ pub fn run_once(seed: u64, duration_s: f64) -> Result<[Vec<Step>; 3]> {
             spec.ild.sample_rate,
             &mut rng,
         );
-        let ild = analyzer.analyze(&l, &r)?;
+        let ild = analyzer.analyze(&l, &r).or_failed("paper001")?;
         let mut joint = lik.clone();
-        acoustic.apply(&ild, &mut joint)?;
+        acoustic.apply(&ild, &mut joint).or_failed("paper001")?;
         let mut joint_sharp = lik.clone();
-        sharpened.apply(&ild, &mut joint_sharp)?;
+        sharpened.apply(&ild, &mut joint_sharp).or_failed("paper001")?;
         let [a, b, c] = &mut out;
         for (belief, l, out) in [
             (&mut optical_only, &lik, a),
             (&mut fused, &joint, b),
             (&mut fused_sharp, &joint_sharp, c),
         ] {
-            belief.predict(&motion, STEP_S)?;
-            belief.correct(l)?;
+            belief.predict(&motion, STEP_S).or_failed("paper001")?;
+            belief.correct(l).or_failed("paper001")?;
             let e = belief.estimate();
             out.push(Step {
                 t,

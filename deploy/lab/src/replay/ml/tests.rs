@@ -134,3 +134,71 @@ fn a_mirrored_world_is_reported_back_in_the_users_coordinates() {
     assert_eq!(est.len(), 1);
     assert!((Vector3::new(est[0].x, est[0].y, est[0].z) - user).norm() < 1e-6);
 }
+
+/// The grouping before it was made sparse: every pair's distance in an n × n matrix.
+fn dense_cluster(points: &[(usize, Vector3<f64>, Matrix3<f64>)], gate: f64) -> Vec<Vec<usize>> {
+    let n = points.len();
+    let mut members: Vec<Vec<usize>> = (0..n).map(|i| vec![i]).collect();
+    let mut alive = vec![true; n];
+    let mut d = vec![f64::INFINITY; n * n];
+    for i in 0..n {
+        for j in 0..n {
+            if i != j && points[i].0 != points[j].0 {
+                d[i * n + j] = (points[i].1.xy() - points[j].1.xy()).norm();
+            }
+        }
+    }
+    loop {
+        let mut best = (f64::INFINITY, 0, 0);
+        for i in (0..n).filter(|&i| alive[i]) {
+            for j in (i + 1..n).filter(|&j| alive[j]) {
+                if d[i * n + j] < best.0 {
+                    best = (d[i * n + j], i, j);
+                }
+            }
+        }
+        let (dist, i, j) = best;
+        if dist > gate {
+            break;
+        }
+        let moved = std::mem::take(&mut members[j]);
+        members[i].extend(moved);
+        alive[j] = false;
+        for k in 0..n {
+            let m = d[i * n + k].max(d[j * n + k]);
+            d[i * n + k] = m;
+            d[k * n + i] = m;
+        }
+    }
+    members.into_iter().filter(|m| !m.is_empty()).collect()
+}
+
+/// The sparse grouping is the dense one, on crowds of every density.
+#[test]
+fn sparse_grouping_equals_the_dense_one() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    for case in 0..60 {
+        let n = rng.random_range(0..120);
+        let side = rng.random_range(0.5..20.0);
+        let cameras = rng.random_range(1..7);
+        let gate = rng.random_range(0.2..2.0);
+        let points: Vec<_> = (0..n)
+            .map(|_| {
+                // Coarse coordinates make equal distances (ties) common.
+                let q = |x: f64| (x * 4.0).round() / 4.0;
+                let p = Vector3::new(
+                    q(rng.random_range(0.0..side)),
+                    q(rng.random_range(0.0..side)),
+                    0.0,
+                );
+                (rng.random_range(0..cameras), p, Matrix3::identity())
+            })
+            .collect();
+        assert_eq!(
+            cluster(&points, gate),
+            dense_cluster(&points, gate),
+            "case {case}"
+        );
+    }
+}

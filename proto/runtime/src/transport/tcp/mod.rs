@@ -356,7 +356,14 @@ pub(crate) async fn start(
     });
     let mut local = None;
     if let Some(addr) = cfg.listen {
-        let listener = TcpListener::bind(addr).await?;
+        let listener = TcpListener::bind(addr).await.map_err(|e| {
+            let hint = if e.kind() == std::io::ErrorKind::AddrInUse {
+                " (another process listens there: is this node already up?)"
+            } else {
+                ""
+            };
+            std::io::Error::new(e.kind(), format!("cannot listen on {addr}: {e}{hint}"))
+        })?;
         local = Some(listener.local_addr()?);
         handle.tracker.spawn(accept::accept_loop(ctx.clone(), listener));
     }

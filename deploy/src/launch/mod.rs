@@ -1,0 +1,411 @@
+//! `ocelli launch`: every node of a scenario on this host, each its own OS process, supervised.
+//!
+//! A launch claims its own run folder ([`run_dir`]), writes the effective scenario there (a
+//! domain of its own, free TCP ports), starts the server, the heads and the cameras as
+//! `ocelli server|head|camera` children and the visualization node as `ocelli viewer` (its URL
+//! printed), each tied to the launcher's life, each logging to its own file, each restarted with
+//! backoff if it crashes, shows live progress read from the server's recording as it grows
+//! ([`progress`]), and stops in order on SIGINT, SIGTERM or SIGHUP or after the duration.
+//! Whatever happened to the children, it reaps them all, removes the domain's iceoryx2 files
+//! from `/dev/shm` and reports on the recording exactly as `ocelli report` does. Over TCP the
+//! nodes speak mutual TLS with a CA and certificates made for the run (`run-dir/tls`), or plain
+//! TCP if the scenario (or `--insecure`) says `insecure`.
+
+mod acoustic;
+pub mod progress;
+pub mod run_dir;
+
+use crate::supervisor::{Event, MakeCommand, RestartPolicy, Supervisor};
+use anyhow::{Context, Result};
+use lab::report::RecordingReport;
+use progress::Progress;
+use proto::ClusterTime;
+use proto::scenario::{NodeRole, Scenario, TransportKind};
+use run_dir::RunDir;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// What to launch and how.
+#[derive(Clone, Debug)]
+pub struct LaunchOptions {
+    pub transport: TransportKind,
+    pub duration: Option<Duration>,
+    /// The run's folder (default: a new time-stamped one under `ocelli-runs/`).
+    pub run_dir: Option<PathBuf>,
+    /// The server's recording (default: `recording.ocrec` in the run's folder).
+    pub record: Option<PathBuf>,
+    /// Write over an existing run folder or recording.
+    pub force: bool,
+    /// Print live progress lines on standard error.
+    pub progress: bool,
+    /// A logging run: every camera measures every frame and the server records it.
+    pub record_measurements: bool,
+    /// Children log JSON lines (the launcher's `--log-json`).
+    pub log_json: bool,
+    /// Restart crashed nodes (none: leave them down).
+    pub restart: Option<RestartPolicy>,
+    /// Start the viewer serving here (`None`: no viewer).
+    pub view: Option<std::net::SocketAddr>,
+}
+
+/// What a launch leaves behind.
+#[derive(Debug)]
+pub struct Launched {
+    pub run: RunDir,
+    /// The recording's report, as `ocelli report` computes it.
+    pub report: RecordingReport,
+    /// Restarts per node that needed any.
+    pub restarts: BTreeMap<String, u32>,
+}
+
+/// A free loopback port (bound then released; the child binds it right after).
+fn free_port() -> Result<u16> {
+    Ok(std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
+}
+
+/// The scenario as this launch runs it: its own iceoryx2 domain and, over TCP, free ports.
+///
+/// # Errors
+/// No free loopback port.
+pub fn effective_scenario(mut s: Scenario, transport: TransportKind) -> Result<Scenario> {
+    s.network.transport = transport;
+    s.network.domain = format!("ocelli-{}", std::process::id());
+    if transport == TransportKind::Tcp {
+        for n in &mut s.nodes {
+            if matches!(n.role, NodeRole::Head | NodeRole::Server) {
+                n.listen = Some(format!("127.0.0.1:{}", free_port()?));
+            }
+        }
+    }
+    Ok(s)
+}
+
+/// How to start one node process.
+#[derive(Clone)]
+struct Spawn {
+    exe: PathBuf,
+    scenario_path: PathBuf,
+    epoch: ClusterTime,
+    opts: LaunchOptions,
+    recording: PathBuf,
+    /// The run's certificates (TCP with TLS).
+    tls_dir: Option<PathBuf>,
+}
+
+impl Spawn {
+    /// The command that starts node `id` as `role`, logging to `log` (appended to, so a
+    /// restarted node's log follows its previous run's).
+    fn command(&self, role: &'static str, id: u32, log: PathBuf) -> MakeCommand {
+        let how = self.clone();
+        Box::new(move || {
+            let mut cmd = how.base(role);
+            cmd.arg("--id").arg(id.to_string());
+            match role {
+                // The recording says where scenario time 0 is and that the world is simulated.
+                "server" => {
+                    cmd.arg("--record").arg(&how.recording);
+                    cmd.arg("--epoch-ns")
+                        .arg(how.epoch.0.to_string())
+                        .arg("--simulated");
+                }
+                "acoustic" => {
+                    cmd.arg("--epoch-ns").arg(how.epoch.0.to_string());
+                }
+                // Scenario time 0 for the synthetic world, the same for every camera.
+                "camera" => {
+                    cmd.arg("--epoch-ns").arg(how.epoch.0.to_string());
+                    if how.opts.record_measurements {
+                        cmd.arg("--record-measurements");
+                    }
+                }
+                _ => {}
+            }
+            let file = std::fs::OpenOptions::new().create(true).append(true).open(&log)?;
+            cmd.stdout(Stdio::null()).stderr(file);
+            Ok(cmd)
+        })
+    }
+
+    /// `ocelli [--log-json] ROLE --scenario … --transport … [--tls-dir …]`: what every child
+    /// is started with.
+    fn base(&self, role: &str) -> Command {
+        let mut cmd = Command::new(&self.exe);
+        if self.opts.log_json {
+            cmd.arg("--log-json");
+        }
+        cmd.arg(role)
+            .arg("--scenario")
+            .arg(&self.scenario_path)
+            .arg("--transport")
+            .arg(match self.opts.transport {
+                TransportKind::Ipc => "ipc",
+                TransportKind::Tcp => "tcp",
+            });
+        if let Some(dir) = &self.tls_dir {
+            cmd.arg("--tls-dir").arg(dir);
+        }
+        cmd
+    }
+
+    /// The viewer, a client of the server over the launch's transport, serving `addr`, logging
+    /// to `log`.
+    fn viewer_command(&self, addr: std::net::SocketAddr, log: PathBuf) -> MakeCommand {
+        let how = self.clone();
+        Box::new(move || {
+            let mut cmd = how.base("viewer");
+            cmd.arg("--listen").arg(addr.to_string());
+            let file = std::fs::OpenOptions::new().create(true).append(true).open(&log)?;
+            cmd.stdout(Stdio::null()).stderr(file);
+            Ok(cmd)
+        })
+    }
+}
+
+#[allow(clippy::disallowed_methods)] // the launcher is a runtime: it owns the clock
+fn instant_now() -> Instant {
+    Instant::now()
+}
+
+#[allow(clippy::disallowed_methods)] // the launcher is a runtime: it owns the clock
+fn wall_now() -> ClusterTime {
+    ClusterTime::wall_clock()
+}
+
+/// Who runs where (`name pid` per line), for operators and tests that stop one node on purpose;
+/// rewritten when a node restarts.
+fn write_pids(sup: &mut Supervisor, path: &Path) -> Result<()> {
+    let pids: String = sup
+        .children_mut()
+        .iter()
+        .map(|c| format!("{} {}\n", c.name, c.pid()))
+        .collect();
+    std::fs::write(path, pids).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Start every node: the server, then heads, then cameras, then acoustic nodes.
+fn spawn_all(sup: &mut Supervisor, scenario: &Scenario, how: &Spawn, run: &RunDir) -> Result<()> {
+    for (role, name) in [
+        (NodeRole::Server, "server"),
+        (NodeRole::Head, "head"),
+        (NodeRole::Camera, "camera"),
+        (NodeRole::Acoustic, "acoustic"),
+    ] {
+        for n in scenario.nodes.iter().filter(|n| n.role == role) {
+            let node = format!("{name}-{}", n.id);
+            let make = how.command(name, n.id, run.log(&node));
+            sup.spawn(node, make, instant_now())?;
+        }
+    }
+    // The viewer's URL is printed: it is what a person opens.
+    if let Some(addr) = how.opts.view {
+        let make = how.viewer_command(addr, run.log("viewer"));
+        sup.spawn("viewer", make, instant_now())?;
+        eprintln!("viewer: http://{addr}");
+    }
+    Ok(())
+}
+
+/// Over TCP every link is mutual TLS with certificates made for this run (a CA of its own, one
+/// certificate per node and one for the viewer), unless the scenario says insecure; where they
+/// are.
+fn issue_certificates(scenario: &Scenario, opts: &LaunchOptions, run: &RunDir) -> Result<Option<PathBuf>> {
+    if opts.transport != TransportKind::Tcp || scenario.network.insecure {
+        return Ok(None);
+    }
+    let dir = run.dir.join("tls");
+    let viewer = opts
+        .view
+        .map(|_| (view::node::free_id(scenario), proto::Role::Viewer));
+    crate::deploy::certs::issue_all_in(scenario, viewer.as_slice(), &dir)
+        .context("making the run's certificates")?;
+    Ok(Some(dir))
+}
+
+/// The stop signals a launch obeys: SIGINT (Ctrl-C), SIGTERM (systemd, docker, `timeout`),
+/// SIGHUP (a closed terminal).
+struct StopSignals {
+    int: tokio::signal::unix::Signal,
+    term: tokio::signal::unix::Signal,
+    hup: tokio::signal::unix::Signal,
+}
+
+impl StopSignals {
+    fn new() -> Result<Self> {
+        use tokio::signal::unix::{SignalKind, signal};
+        Ok(StopSignals {
+            int: signal(SignalKind::interrupt()).context("handling SIGINT")?,
+            term: signal(SignalKind::terminate()).context("handling SIGTERM")?,
+            hup: signal(SignalKind::hangup()).context("handling SIGHUP")?,
+        })
+    }
+
+    /// The name of the next stop signal.
+    async fn next(&mut self) -> &'static str {
+        tokio::select! {
+            _ = self.int.recv() => "SIGINT",
+            _ = self.term.recv() => "SIGTERM",
+            _ = self.hup.recv() => "SIGHUP",
+        }
+    }
+}
+
+/// Say what the supervisor saw; restarted nodes get a fresh line in the pids file.
+fn tell(events: &[Event], sup: &mut Supervisor, pids: &Path) {
+    for e in events {
+        match e {
+            Event::Restarted { .. } => tracing::warn!("{e}"),
+            Event::GaveUp { .. } | Event::RestartFailed { .. } => tracing::error!("{e}"),
+            Event::Ended { .. } => tracing::warn!("{e}"),
+        }
+    }
+    if events.iter().any(|e| matches!(e, Event::Restarted { .. }))
+        && let Err(e) = write_pids(sup, pids)
+    {
+        tracing::warn!("{e:#}");
+    }
+}
+
+/// Supervise until a stop signal or the duration; then stop every child in order (a second
+/// signal kills them all at once).
+async fn supervise(
+    sup: Supervisor,
+    opts: &LaunchOptions,
+    mut progress: Option<(Progress, Vec<world::Target>, ClusterTime)>,
+    pids: &Path,
+) -> Result<Supervisor> {
+    let mut signals = StopSignals::new()?;
+    let mut sup = sup;
+    let started = instant_now();
+    loop {
+        tokio::select! {
+            sig = signals.next() => {
+                tracing::info!(signal = sig, "stopping every node (a second signal kills them at once)");
+                break;
+            }
+            () = tokio::time::sleep(Duration::from_millis(500)) => {}
+        }
+        let events = sup.watch(instant_now());
+        tell(&events, &mut sup, pids);
+        if let Some((p, targets, epoch)) = progress.as_mut() {
+            p.update();
+            for line in p.lines(targets, *epoch, wall_now()) {
+                eprintln!("{line}");
+            }
+        }
+        if opts.duration.is_some_and(|d| started.elapsed() >= d) {
+            break;
+        }
+    }
+    let groups = sup.running_groups();
+    let stop = tokio::task::spawn_blocking(move || {
+        let killed = sup.stop_all();
+        (sup, killed)
+    });
+    tokio::pin!(stop);
+    loop {
+        tokio::select! {
+            r = &mut stop => {
+                let (sup, killed) = r.context("the stopping thread failed")?;
+                if !killed.is_empty() {
+                    tracing::warn!(nodes = killed.join(", "), "nodes ignored SIGTERM and were killed");
+                }
+                return Ok(sup);
+            }
+            sig = signals.next() => {
+                tracing::warn!(signal = sig, "second stop signal: killing every node");
+                crate::supervisor::kill_groups(&groups);
+            }
+        }
+    }
+}
+
+/// Remove every iceoryx2 file of `domain` from `/dev/shm` (the domain is this launch's own,
+/// and every process of it has been reaped).
+fn remove_domain_files(domain: &str) -> usize {
+    let prefix = runtime::transport::file_prefix(domain);
+    let Ok(dir) = std::fs::read_dir("/dev/shm") else {
+        return 0;
+    };
+    dir.flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
+        .filter(|e| std::fs::remove_file(e.path()).is_ok())
+        .count()
+}
+
+/// Run a scenario until a stop signal or the duration; the run's folder and report.
+///
+/// # Errors
+/// The run folder or recording cannot be claimed, a child cannot be started, or the recording
+/// cannot be read at the end.
+pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<Launched> {
+    let scenario = effective_scenario(scenario, opts.transport)?;
+    // The cameras' synthetic world is the room the scenario is prepared for (its default RSSI
+    // model surveyed in it, what the method needs of the targets filled in); every node reads
+    // the prepared file.
+    let scenario = world::prepare(&scenario, crate::cmd::camera::SYNTHETIC_SEED)?;
+    let targets = world::targets(&scenario)?;
+    // Cluster time is the wall clock; one epoch for every camera's synthetic world.
+    let epoch = wall_now();
+    let run = RunDir::claim(
+        opts.run_dir.as_deref(),
+        opts.record.as_deref(),
+        opts.force,
+        epoch.0.div_euclid(1_000_000_000),
+    )?;
+    let scenario = acoustic::with_fingerprints(scenario, &run.dir)?;
+    let scenario_path = run.dir.join("scenario.toml");
+    std::fs::write(&scenario_path, scenario.to_toml())
+        .with_context(|| format!("writing {}", scenario_path.display()))?;
+    let how = Spawn {
+        exe: std::env::current_exe().context("locating the ocelli binary")?,
+        scenario_path,
+        epoch,
+        opts: opts.clone(),
+        recording: run.recording.clone(),
+        tls_dir: issue_certificates(&scenario, opts, &run)?,
+    };
+    let mut sup = Supervisor::new(Duration::from_secs(5), opts.restart);
+    spawn_all(&mut sup, &scenario, &how, &run)?;
+    let pids = run.dir.join("pids");
+    write_pids(&mut sup, &pids)?;
+    // The synthetic world's time 0 (cluster nanoseconds), for tests that score a run as it goes.
+    let epoch_file = run.dir.join("epoch-ns");
+    std::fs::write(&epoch_file, epoch.0.to_string())
+        .with_context(|| format!("writing {}", epoch_file.display()))?;
+    tracing::info!(
+        nodes = scenario.nodes.len(),
+        run = %run.dir.display(),
+        recording = %run.recording.display(),
+        "launched; Ctrl-C, SIGTERM or SIGHUP stops"
+    );
+    let progress = opts
+        .progress
+        .then(|| (Progress::new(&run.recording, &scenario), targets, epoch));
+    // A current-thread runtime: restarts spawn from this (the main) thread, which lives as long
+    // as the children's parent-death signal must not fire.
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("starting the launcher's runtime")?;
+    let mut sup = rt.block_on(supervise(sup, opts, progress, &pids))?;
+    let restarts = sup
+        .children_mut()
+        .iter()
+        .filter(|c| c.restarts > 0)
+        .map(|c| (c.name.clone(), c.restarts))
+        .collect();
+    drop(sup);
+    let removed = remove_domain_files(&scenario.network.domain);
+    if removed > 0 {
+        tracing::info!(files = removed, "removed iceoryx2 files left by crashed nodes");
+    }
+    let report = lab::report::of_recording(&run.recording, None, None)
+        .with_context(|| format!("reporting on {}", run.recording.display()))?;
+    Ok(Launched {
+        run,
+        report,
+        restarts,
+    })
+}
