@@ -51,7 +51,7 @@ readings green). Axes in m and s.
 
 HEAD
   rm -f "$FIG"/paper*.png "$FIG"/ble-rssi*.png
-  for name in paper000-table1 paper001 paper002-table1 paper002-occlusion paper002-rssi-only paper002-robustness; do
+  for name in paper000-table1 paper001 paper002-table1 paper002-occlusion paper002-rssi-only paper002-robustness paper004; do
     "$OCELLI" experiment "$name" --runs "$(runs_for "$name")" --seed 1 --markdown --plot "$FIG"
   done
   # Real data (shared/datasets/ble-rssi; not part of `experiment all`): fails, naming the path,

@@ -17,6 +17,7 @@ pub mod paper002_occlusion;
 pub mod paper002_robustness;
 pub mod paper002_rssi_only;
 pub mod paper002_table1;
+pub mod paper004;
 pub mod plot;
 pub mod runner;
 pub mod table;
@@ -26,13 +27,14 @@ use serde::Serialize;
 use sim::Level;
 
 /// Every simulated experiment, in priority order: what `ocelli experiment all` runs.
-pub const NAMES: [&str; 6] = [
+pub const NAMES: [&str; 7] = [
     "paper000-table1",
     "paper001",
     "paper002-table1",
     "paper002-occlusion",
     "paper002-rssi-only",
     "paper002-robustness",
+    paper004::NAME,
 ];
 
 /// Experiments on real data from `shared/datasets/`: run by name only, never by `all`, so that
@@ -99,6 +101,30 @@ pub struct Row {
     /// Each run's mean total power of the camera nodes, mW, in run order.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub run_power_mw: Vec<f64>,
+    /// Figures of an experiment's own, outside the common columns (each a column of its
+    /// table, in order of first appearance).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub extra: Vec<Extra>,
+}
+
+/// One named figure of a row outside the common columns.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Extra {
+    pub name: String,
+    pub value: Option<f64>,
+    /// Decimals shown in the tables.
+    #[serde(skip)]
+    pub digits: usize,
+}
+
+impl Extra {
+    pub fn new(name: &str, value: Option<f64>, digits: usize) -> Extra {
+        Extra {
+            name: name.to_string(),
+            value,
+            digits,
+        }
+    }
 }
 
 impl Row {
@@ -195,6 +221,7 @@ pub fn run(name: &str, opts: &Options) -> crate::Result<Outcome> {
         "paper002-occlusion" => paper002_occlusion::run(opts),
         "paper002-rssi-only" => paper002_rssi_only::run(opts),
         "paper002-robustness" => paper002_robustness::run(opts),
+        paper004::NAME => paper004::run(opts),
         ble_rssi::NAME => ble_rssi::run(opts),
         other => Err(crate::LabError::UnknownExperiment {
             name: other.into(),

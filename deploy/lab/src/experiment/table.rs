@@ -31,8 +31,8 @@ const HEADERS: [&str; 9] = [
     "power mW",
 ];
 
-fn cells(r: &Row) -> [String; 9] {
-    [
+fn cells(r: &Row, extras: &[String]) -> Vec<String> {
+    let mut c = vec![
         r.method.clone(),
         cell(r.param, 3),
         cell(r.mean_error_m, 3),
@@ -42,30 +42,72 @@ fn cells(r: &Row) -> [String; 9] {
         cell(r.active_cameras, 2),
         cell(r.rssi_measurements, 2),
         cell(r.power_mw, 0),
-    ]
+    ];
+    for name in extras {
+        let e = r.extra.iter().find(|e| &e.name == name);
+        c.push(e.map_or_else(|| "–".to_string(), |e| cell(e.value, e.digits)));
+    }
+    c
+}
+
+/// The names of the rows' own columns ([`Row::extra`]), in order of first appearance.
+fn extra_names(rows: &[Row]) -> Vec<String> {
+    let mut names: Vec<String> = Vec::new();
+    for e in rows.iter().flat_map(|r| &r.extra) {
+        if !names.contains(&e.name) {
+            names.push(e.name.clone());
+        }
+    }
+    names
+}
+
+fn headers(extras: &[String]) -> Vec<String> {
+    HEADERS
+        .iter()
+        .map(|h| h.to_string())
+        .chain(extras.iter().cloned())
+        .collect()
 }
 
 /// The columns of `rows`' table: the param only if a row has one, the interval only if a row
-/// has one (the papers' rows never do).
+/// has one (the papers' rows never do). Rows with their own columns show a common column only
+/// where some row has a value in it.
 fn columns(rows: &[Row]) -> Vec<usize> {
     let param = rows.iter().any(|r| r.param.is_some());
     let ci = rows.iter().any(|r| r.mean_error_ci95_m.is_some());
+    let extras = extra_names(rows);
+    let sparse = !extras.is_empty();
+    let filled = |f: fn(&Row) -> Option<f64>| !sparse || rows.iter().any(|r| f(r).is_some());
+    let common: [bool; 9] = [
+        true,
+        param,
+        filled(|r| r.mean_error_m),
+        ci,
+        filled(|r| r.std_m),
+        filled(|r| r.measurements),
+        filled(|r| r.active_cameras),
+        filled(|r| r.rssi_measurements),
+        filled(|r| r.power_mw),
+    ];
     (0..HEADERS.len())
-        .filter(|&i| (i != 1 || param) && (i != 3 || ci))
+        .filter(|&i| common[i])
+        .chain(HEADERS.len()..HEADERS.len() + extras.len())
         .collect()
 }
 
 fn text_table(rows: &[Row], s: &mut String) {
     let idx = columns(rows);
-    let all: Vec<[String; 9]> = rows.iter().map(cells).collect();
+    let extras = extra_names(rows);
+    let heads = headers(&extras);
+    let all: Vec<Vec<String>> = rows.iter().map(|r| cells(r, &extras)).collect();
     let width = |i: usize| {
         all.iter()
             .map(|c| c[i].chars().count())
-            .chain([HEADERS[i].chars().count()])
+            .chain([heads[i].chars().count()])
             .max()
             .unwrap_or(0)
     };
-    let widths: Vec<usize> = (0..HEADERS.len()).map(width).collect();
+    let widths: Vec<usize> = (0..heads.len()).map(width).collect();
     let line = |c: &[String]| {
         let mut l = String::new();
         for &i in &idx {
@@ -77,7 +119,7 @@ fn text_table(rows: &[Row], s: &mut String) {
         }
         l.trim_end().to_string()
     };
-    let _ = writeln!(s, "{}", line(&HEADERS.map(String::from)));
+    let _ = writeln!(s, "{}", line(&heads));
     for c in &all {
         let _ = writeln!(s, "{}", line(c));
     }
@@ -144,14 +186,19 @@ pub fn to_json(o: &Outcome) -> serde_json::Value {
 
 fn md_table(rows: &[Row], s: &mut String) {
     let idx = columns(rows);
+    let extras = extra_names(rows);
+    let heads = headers(&extras);
     let _ = writeln!(
         s,
         "| {} |",
-        idx.iter().map(|&i| HEADERS[i]).collect::<Vec<_>>().join(" | ")
+        idx.iter()
+            .map(|&i| heads[i].as_str())
+            .collect::<Vec<_>>()
+            .join(" | ")
     );
     let _ = writeln!(s, "|{}", idx.iter().map(|_| "---|").collect::<String>());
     for r in rows {
-        let c = cells(r);
+        let c = cells(r, &extras);
         let _ = writeln!(
             s,
             "| {} |",
@@ -268,5 +315,25 @@ mod tests {
         // The paper's table has no interval column.
         assert!(m.contains("| method | mean err m | std m |"), "{m}");
         assert_eq!(to_json(&o)["rows"][0]["run_errors_m"][1], 0.3);
+    }
+
+    #[test]
+    fn rows_with_their_own_columns_show_them_and_only_the_common_columns_with_values() {
+        let mut o = outcome();
+        o.rows[0].extra = vec![crate::experiment::Extra::new("bytes/s", Some(812.4), 0)];
+        o.rows.push(Row {
+            method: "B".into(),
+            extra: vec![crate::experiment::Extra::new("ids", Some(2.0), 0)],
+            ..Row::default()
+        });
+        let m = to_markdown(&o, "c", &[]);
+        assert!(
+            m.contains("| method | mean err m | power mW | bytes/s | ids |"),
+            "{m}"
+        );
+        assert!(m.contains("| A | 0.250 | 100 | 812 | – |"), "{m}");
+        assert!(m.contains("| B | – | – | – | 2 |"), "{m}");
+        assert!(to_text(&o).contains("bytes/s"));
+        assert_eq!(to_json(&o)["rows"][0]["extra"][0]["name"], "bytes/s");
     }
 }

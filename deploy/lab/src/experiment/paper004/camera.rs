@@ -1,0 +1,418 @@
+//! One camera at pixel level, as paper 004's experiments need it: the scenario's world rendered
+//! (`world::render`) with people who walk in and out of view, an optional slow global
+//! illumination change laid over the rendered frames, the background model (`node_camera`'s
+//! segmenter), and then either segmentation alone (regions linked frame to frame by overlap)
+//! or the camera's particle filters (`node_camera::ground_people`, the camera core's paper 004
+//! mode). Per frame it records the truth (for scoring only), each method's people (image box
+//! and ground position with the method's id) and, for the particle filters, the bytes each
+//! mode would put on the wire.
+
+use nalgebra::Vector3;
+use node_camera::ground_people::{self, GroundPeople};
+use node_camera::segment::{SegmentParams, Segmenter};
+use node_camera::tracker::ground::ground_point;
+use node_camera::tracker::manager::Foreground;
+use node_camera::tracker::params::ParticleParams;
+use proto::camera::CameraModel;
+use proto::msg::{Envelope, Message, Mode, PixelBox};
+use proto::scenario::Scenario;
+use proto::sensor::{Detection, Frame};
+use proto::{ClusterTime, NodeId};
+use world::render::Renderer;
+use world::{Target, Trajectory};
+
+/// A person of a study: the target's size and colour, where they walk (`trajectory` from the
+/// moment they enter) and when they are in the room.
+#[derive(Clone, Debug)]
+pub struct Walker {
+    pub target: Target,
+    pub enter_s: f64,
+    pub leave_s: f64,
+}
+
+impl Walker {
+    /// The target frozen where it is at `t`, if it is in the room then.
+    fn at(&self, t: f64) -> Option<Target> {
+        if t < self.enter_s || t >= self.leave_s {
+            return None;
+        }
+        let (p, _) = self.target.trajectory.at(t - self.enter_s);
+        // A zero-length path: the renderer puts the target at its only point whatever `t`.
+        Some(Target {
+            trajectory: Trajectory::Path {
+                waypoints: vec![p, p],
+                speed: 1.0,
+            },
+            ..self.target.clone()
+        })
+    }
+}
+
+/// A slow global illumination change laid over the rendered frames: the gain of each colour
+/// channel goes linearly from 1 at `from_s` to `end_gain` at `to_s` (the renderer's own
+/// change, ±8% over 40 s, stays underneath).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Illumination {
+    pub end_gain: [f64; 3],
+    pub from_s: f64,
+    pub to_s: f64,
+}
+
+impl Illumination {
+    pub fn gain(&self, t: f64) -> [f64; 3] {
+        let f = ((t - self.from_s) / (self.to_s - self.from_s).max(1e-9)).clamp(0.0, 1.0);
+        self.end_gain.map(|g| 1.0 + f * (g - 1.0))
+    }
+
+    fn apply(&self, t: f64, frame: &mut Frame) {
+        let g = self.gain(t);
+        for px in frame.data.chunks_exact_mut(3) {
+            for (v, g) in px.iter_mut().zip(g) {
+                *v = (f64::from(*v) * g).round().clamp(0.0, 255.0) as u8;
+            }
+        }
+    }
+}
+
+/// What the camera does with its regions.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Tracker {
+    /// Segmentation alone: each region is a person; a region overlapping one of the previous
+    /// frame's keeps its id, any other gets a new one.
+    Segmentation,
+    /// The particle filters with these parameters.
+    Particle(ParticleParams),
+}
+
+/// One study's camera run.
+#[derive(Clone, Debug)]
+pub struct Setup {
+    /// The world (walls) and the camera node.
+    pub scenario: Scenario,
+    pub camera: u32,
+    pub walkers: Vec<Walker>,
+    pub fps: f64,
+    pub duration_s: f64,
+    pub illumination: Option<Illumination>,
+}
+
+/// A true person in a frame (scoring only).
+#[derive(Clone, Debug)]
+pub struct TruePerson {
+    pub id: u32,
+    pub ground: [f64; 2],
+    /// The solid's projected box.
+    pub bbox: PixelBox,
+    /// Its centre projects inside the image.
+    pub in_view: bool,
+    /// The view ray to its centre crosses a wall (partly hidden).
+    pub occluded: bool,
+}
+
+/// A person the camera reports in a frame.
+#[derive(Clone, Debug)]
+pub struct Reported {
+    pub id: u32,
+    pub bbox: PixelBox,
+    /// Ground position, m; `None` above the horizon.
+    pub ground: Option<[f64; 2]>,
+}
+
+/// One frame's record.
+#[derive(Clone, Debug)]
+pub struct FrameRecord {
+    pub t: f64,
+    pub truth: Vec<TruePerson>,
+    pub reported: Vec<Reported>,
+    /// Bytes of the ground observations the camera sends this frame (particle filters only).
+    pub observation_bytes: usize,
+    /// Bytes of every filter's sample set, were they asked for this frame.
+    pub sample_set_bytes: usize,
+    /// Bytes of the frame as a JPEG, when asked for.
+    pub jpeg_bytes: Option<usize>,
+}
+
+/// A camera run.
+#[derive(Clone, Debug)]
+pub struct CameraRun {
+    pub frames: Vec<FrameRecord>,
+    pub width: u32,
+    pub height: u32,
+    /// Filters alive after the last frame (particle filters only).
+    pub live_at_end: usize,
+}
+
+/// The quality of the JPEGs of the bandwidth study.
+pub const JPEG_QUALITY: u8 = 75;
+
+/// Run `tracker` on `setup`'s camera with seed `seed`; every `jpeg_every`-th frame is also
+/// compressed (0: none).
+///
+/// # Errors
+/// A camera the scenario cannot model, parameters out of range, or a frame the pipeline
+/// refuses.
+pub fn run(setup: &Setup, tracker: &Tracker, seed: u64, jpeg_every: usize) -> anyhow::Result<CameraRun> {
+    let s = &setup.scenario;
+    let camera = s.camera_model(setup.camera)?;
+    let renderer = Renderer::for_node(s, setup.camera, seed)?;
+    let (width, height) = renderer.size();
+    let mut params = SegmentParams::for_scenario(s, width);
+    params.adaptive_background = params.adaptive_background.scaled_to_fps(setup.fps);
+    let mut segmenter = Segmenter::new(&params);
+    let mut people = match tracker {
+        Tracker::Particle(p) => Some(GroundPeople::new(p, seed)?),
+        Tracker::Segmentation => None,
+    };
+    let mut linker = RegionLinker::default();
+    let mut frame = Frame::new(0, 0, ClusterTime::ZERO);
+    let mut regions: Vec<Detection> = Vec::new();
+    let n = (setup.duration_s * setup.fps).floor() as usize;
+    let mut frames = Vec::with_capacity(n);
+    for k in 0..n {
+        let t = k as f64 / setup.fps;
+        let present: Vec<Target> = setup.walkers.iter().filter_map(|w| w.at(t)).collect();
+        let captured = ClusterTime::from_secs_f64(t);
+        renderer.render(&present, t, captured, &mut frame);
+        if let Some(light) = &setup.illumination {
+            light.apply(t, &mut frame);
+        }
+        segmenter.process(&frame, &mut regions)?;
+        let mut rec = FrameRecord {
+            t,
+            truth: present.iter().map(|p| truth_of(s, &camera, p, t)).collect(),
+            reported: Vec::new(),
+            observation_bytes: 0,
+            sample_set_bytes: 0,
+            jpeg_bytes: (jpeg_every > 0 && k % jpeg_every == 0)
+                .then(|| jpeg_size(&frame))
+                .transpose()?,
+        };
+        match people.as_mut() {
+            Some(people) => {
+                let foreground = match &segmenter {
+                    Segmenter::AdaptiveBackground(seg) => Foreground::of(seg),
+                    Segmenter::ColourDifference(_) => None,
+                };
+                people.track(&camera, &frame, &regions, foreground)?;
+                record_people(&camera, people, setup.camera, &mut rec)?;
+            }
+            None => {
+                for (id, d) in linker.link(&regions) {
+                    rec.reported.push(Reported {
+                        id,
+                        bbox: d.bbox,
+                        ground: foot_position(&camera, &d.bbox),
+                    });
+                }
+            }
+        }
+        frames.push(rec);
+    }
+    Ok(CameraRun {
+        frames,
+        width,
+        height,
+        live_at_end: people.map_or(0, |p| p.tracker().ids().len()),
+    })
+}
+
+/// The particle filters' people of this frame into `rec`, with the bytes of each mode.
+fn record_people(
+    camera: &CameraModel,
+    people: &GroundPeople,
+    node: u32,
+    rec: &mut FrameRecord,
+) -> anyhow::Result<()> {
+    let time = ClusterTime::from_secs_f64(rec.t);
+    let envelope = |body: Message| Envelope {
+        source: NodeId(node),
+        seq: 0,
+        time,
+        body,
+    };
+    for g in people.latest() {
+        let m = ground_people::measurement(camera, g.clone(), None, Mode::Active, &[]);
+        rec.observation_bytes += proto::wire::encode(&envelope(Message::Measurement(m)))?.len();
+        let bbox = people
+            .tracker()
+            .filter(g.local)
+            .map(|f| f.mean().bbox())
+            .unwrap_or(PixelBox {
+                xmin: 0.0,
+                ymin: 0.0,
+                xmax: 0.0,
+                ymax: 0.0,
+            });
+        rec.reported.push(Reported {
+            id: g.local,
+            bbox,
+            ground: Some(g.position),
+        });
+    }
+    for set in people.samples(None) {
+        rec.sample_set_bytes += proto::wire::encode(&envelope(Message::SampleSet(set)))?.len();
+    }
+    Ok(())
+}
+
+/// Where the rays of a box's lower corners meet the floor, midway (paper 004 §3.2.3's
+/// position, as the particle mode computes it).
+pub fn foot_position(camera: &CameraModel, b: &PixelBox) -> Option<[f64; 2]> {
+    let left = ground_point(camera, [f64::from(b.xmin), f64::from(b.ymax)])?;
+    let right = ground_point(camera, [f64::from(b.xmax), f64::from(b.ymax)])?;
+    let mid = 0.5 * (left + right);
+    Some([mid.x, mid.y])
+}
+
+fn truth_of(s: &Scenario, camera: &CameraModel, p: &Target, t: f64) -> TruePerson {
+    let c = p.position_at(t);
+    let k = &camera.intrinsics;
+    let in_view = camera.project(&c).is_some_and(|px| {
+        px.x >= 0.0 && px.y >= 0.0 && px.x < f64::from(k.width) && px.y < f64::from(k.height)
+    });
+    let mut bbox = PixelBox {
+        xmin: f32::MAX,
+        ymin: f32::MAX,
+        xmax: f32::MIN,
+        ymax: f32::MIN,
+    };
+    let half = Vector3::new(p.size[0], p.size[1], p.size[2]) * 0.5;
+    for corner in 0..8 {
+        let sign = |bit: usize| if corner & bit == 0 { -1.0 } else { 1.0 };
+        let q = c + Vector3::new(sign(1) * half.x, sign(2) * half.y, sign(4) * half.z);
+        if let Some(px) = camera.project(&q) {
+            bbox.xmin = bbox.xmin.min(px.x as f32);
+            bbox.ymin = bbox.ymin.min(px.y as f32);
+            bbox.xmax = bbox.xmax.max(px.x as f32);
+            bbox.ymax = bbox.ymax.max(px.y as f32);
+        }
+    }
+    TruePerson {
+        id: p.id,
+        ground: [c.x, c.y],
+        bbox,
+        in_view,
+        occluded: s.world.occluded(&camera.pose.centre(), &c),
+    }
+}
+
+/// Bytes of `frame` as a baseline JPEG at [`JPEG_QUALITY`].
+fn jpeg_size(frame: &Frame) -> anyhow::Result<usize> {
+    let mut out = Vec::new();
+    let mut enc = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, JPEG_QUALITY);
+    enc.encode(
+        &frame.data,
+        frame.width,
+        frame.height,
+        image::ExtendedColorType::Rgb8,
+    )?;
+    Ok(out.len())
+}
+
+/// Intersection over union of two pixel boxes.
+pub fn iou(a: &PixelBox, b: &PixelBox) -> f32 {
+    let w = (a.xmax.min(b.xmax) - a.xmin.max(b.xmin)).max(0.0);
+    let h = (a.ymax.min(b.ymax) - a.ymin.max(b.ymin)).max(0.0);
+    let inter = w * h;
+    let area = |b: &PixelBox| (b.xmax - b.xmin).max(0.0) * (b.ymax - b.ymin).max(0.0);
+    let union = area(a) + area(b) - inter;
+    if union > 0.0 { inter / union } else { 0.0 }
+}
+
+/// Segmentation alone's identities: a region that overlaps a region of the previous frame
+/// takes its id (the best overlap first, each id once), any other region a new id.
+#[derive(Debug, Default)]
+struct RegionLinker {
+    previous: Vec<(u32, PixelBox)>,
+    next_id: u32,
+}
+
+impl RegionLinker {
+    fn link<'a>(&mut self, regions: &'a [Detection]) -> Vec<(u32, &'a Detection)> {
+        let mut pairs: Vec<(f32, usize, usize)> = Vec::new();
+        for (i, d) in regions.iter().enumerate() {
+            for (j, (_, b)) in self.previous.iter().enumerate() {
+                let o = iou(&d.bbox, b);
+                if o > 0.0 {
+                    pairs.push((o, i, j));
+                }
+            }
+        }
+        pairs.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let mut ids: Vec<Option<u32>> = vec![None; regions.len()];
+        let mut taken = vec![false; self.previous.len()];
+        for (_, i, j) in pairs {
+            if ids[i].is_none() && !taken[j] {
+                ids[i] = Some(self.previous[j].0);
+                taken[j] = true;
+            }
+        }
+        let out: Vec<(u32, &Detection)> = regions
+            .iter()
+            .zip(ids)
+            .map(|(d, id)| {
+                let id = id.unwrap_or_else(|| {
+                    self.next_id += 1;
+                    self.next_id
+                });
+                (id, d)
+            })
+            .collect();
+        self.previous = out.iter().map(|(id, d)| (*id, d.bbox)).collect();
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn region(x: f32) -> Detection {
+        Detection {
+            centre: [x + 5.0, 5.0],
+            foot: [x + 5.0, 10.0],
+            bbox: PixelBox {
+                xmin: x,
+                ymin: 0.0,
+                xmax: x + 10.0,
+                ymax: 10.0,
+            },
+            area: 100,
+            colour: proto::msg::ColourSignature {
+                hue: 0.0,
+                saturation: 0.0,
+                intensity: 0.0,
+            },
+        }
+    }
+
+    #[test]
+    fn the_linker_keeps_ids_of_overlapping_regions_and_gives_new_ones_otherwise() {
+        let mut l = RegionLinker::default();
+        let a: Vec<u32> = l.link(&[region(0.0), region(50.0)]).iter().map(|p| p.0).collect();
+        assert_eq!(a, vec![1, 2]);
+        // The first moves a little, the second splits in two: one half keeps its id.
+        let b: Vec<u32> = l
+            .link(&[region(2.0), region(48.0), region(56.0)])
+            .iter()
+            .map(|p| p.0)
+            .collect();
+        assert_eq!(b[0], 1);
+        assert!(b[1..].contains(&2) && b[1..].contains(&3), "{b:?}");
+        // Lost for a frame: a new id when it comes back.
+        assert!(l.link(&[]).is_empty());
+        assert_eq!(l.link(&[region(2.0)])[0].0, 4);
+    }
+
+    #[test]
+    fn the_illumination_ramps_from_one_to_its_end_gain() {
+        let light = Illumination {
+            end_gain: [0.5, 0.7, 1.0],
+            from_s: 10.0,
+            to_s: 20.0,
+        };
+        assert_eq!(light.gain(0.0), [1.0; 3]);
+        assert_eq!(light.gain(15.0), [0.75, 0.85, 1.0]);
+        assert_eq!(light.gain(30.0), [0.5, 0.7, 1.0]);
+    }
+}

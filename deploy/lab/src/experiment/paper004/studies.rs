@@ -1,0 +1,445 @@
+//! The four studies: their scenes, their rows and their shape checks.
+
+use super::camera::{self, CameraRun, Illumination, Setup, Tracker, Walker};
+use super::score::{self, Single, mean, share};
+use super::{FPS, NAME};
+use crate::experiment::runner::{Errors, Sample};
+use crate::experiment::{Check, Extra, Options, Outcome, Row, Trace};
+use node_camera::tracker::params::ParticleParams;
+use proto::scenario::{Scenario, Wall};
+use world::{Target, Trajectory};
+
+/// The camera node every study watches through.
+pub const CAMERA: u32 = 10;
+/// Where node 10 looks on the floor and its position there, m (the default scenario's pose).
+const LOOK_AT: [f64; 2] = [3.73, 2.27];
+const CAMERA_XY: [f64; 2] = [0.95, 0.15];
+/// The single person enters after the background model has seen the empty room this long, s.
+const ENTER_S: f64 = 2.0;
+/// The crowd: people, seconds between entries, walking speed (m/s), and the empty seconds
+/// after the last one leaves (filters must be destroyed by then).
+const CROWD: usize = 6;
+const CROWD_GAP_S: f64 = 3.0;
+const CROWD_SPEED: f64 = 0.7;
+const CROWD_TAIL_S: f64 = 4.0;
+/// The illumination settings: name and the end gain of each colour channel.
+const LIGHTS: [(&str, [f64; 3]); 2] = [
+    ("dimming to 50%", [0.5, 0.5, 0.5]),
+    ("dimming with colour shift", [0.45, 0.65, 0.95]),
+];
+
+const SEGMENTATION: &str = "segmentation alone";
+const PARTICLE: &str = "particle filters";
+
+/// Unit vectors along node 10's view on the floor and across it.
+fn axes() -> ([f64; 2], [f64; 2]) {
+    let d = [LOOK_AT[0] - CAMERA_XY[0], LOOK_AT[1] - CAMERA_XY[1]];
+    let n = d[0].hypot(d[1]);
+    let along = [d[0] / n, d[1] / n];
+    (along, [-along[1], along[0]])
+}
+
+fn at(base: [f64; 2], dir: [f64; 2], s: f64) -> [f64; 2] {
+    [base[0] + s * dir[0], base[1] + s * dir[1]]
+}
+
+fn person(id: u32, colour: [u8; 3], trajectory: Trajectory) -> Target {
+    Target {
+        id,
+        trajectory,
+        size: [0.5, 0.3, 1.7],
+        colour,
+        rssi_tag: false,
+    }
+}
+
+/// The red person walking to and fro across node 10's view, 1.4 m either side of its centre.
+fn walker() -> Walker {
+    let (_, across) = axes();
+    Walker {
+        target: person(
+            1,
+            [200, 40, 40],
+            Trajectory::Loop {
+                waypoints: vec![at(LOOK_AT, across, 1.4), at(LOOK_AT, across, -1.4)],
+                speed: 0.5,
+            },
+        ),
+        enter_s: ENTER_S,
+        leave_s: f64::INFINITY,
+    }
+}
+
+fn setup(scenario: Scenario, walkers: Vec<Walker>, duration_s: f64) -> Setup {
+    Setup {
+        scenario,
+        camera: CAMERA,
+        walkers,
+        fps: FPS,
+        duration_s,
+        illumination: None,
+    }
+}
+
+/// The occlusion scene: a pillar 0.2 m wide and 3 m high, 1.2 m in front of the walk's middle.
+pub fn occlusion_scene(duration_s: f64) -> Setup {
+    let mut s = Scenario::default_scenario();
+    s.name = format!("{NAME}-occlusion");
+    let (along, across) = axes();
+    let centre = at(LOOK_AT, along, -1.2);
+    s.world.walls.push(Wall {
+        from: at(centre, across, -0.1),
+        to: at(centre, across, 0.1),
+        height: 3.0,
+        attenuation_db: 0.0,
+    });
+    setup(s, vec![walker()], duration_s)
+}
+
+fn particle() -> Tracker {
+    Tracker::Particle(ParticleParams::default())
+}
+
+/// Every run of `tracker` on `setup`, seeds from `opts`.
+fn runs(
+    setup: &Setup,
+    tracker: &Tracker,
+    opts: &Options,
+    jpeg_every: usize,
+) -> anyhow::Result<Vec<CameraRun>> {
+    (0..opts.runs.max(1))
+        .map(|k| camera::run(setup, tracker, opts.seed.wrapping_add(u64::from(k)), jpeg_every))
+        .collect()
+}
+
+/// A single-person study's row from its runs' scores.
+fn single_row(method: String, scores: &[Single]) -> Row {
+    let sum = |f: fn(&Single) -> usize| scores.iter().map(f).sum::<usize>();
+    let all = |f: fn(&Single) -> &Vec<f64>| scores.iter().flat_map(f).copied().collect::<Vec<_>>();
+    let samples: Vec<Vec<Sample>> = scores.iter().map(|s| s.samples.clone()).collect();
+    let hidden = sum(|s| s.hidden);
+    let per_run = |f: fn(&Single) -> usize| Some(sum(f) as f64 / scores.len().max(1) as f64);
+    let mut extra = vec![
+        Extra::new("tracked", share(sum(|s| s.tracked), sum(|s| s.in_view)), 3),
+        Extra::new("lost frames", per_run(|s| s.in_view - s.tracked), 1),
+        Extra::new("img err px", mean(&all(|s| &s.image_px)), 1),
+    ];
+    if hidden > 0 {
+        extra.push(Extra::new(
+            "tracked hidden",
+            share(sum(|s| s.tracked_hidden), hidden),
+            3,
+        ));
+        extra.push(Extra::new(
+            "img err hidden px",
+            mean(&all(|s| &s.image_px_hidden)),
+            1,
+        ));
+    }
+    extra.push(Extra::new("ids", per_run(|s| s.identities), 2));
+    extra.push(Extra::new("spurious ids", per_run(|s| s.spurious), 2));
+    Row {
+        method,
+        extra,
+        ..Row::default()
+    }
+    .with_errors(Errors::of(&samples, |_| true))
+}
+
+fn extra(row: Option<&Row>, name: &str) -> f64 {
+    row.and_then(|r| r.extra.iter().find(|e| e.name == name))
+        .and_then(|e| e.value)
+        .unwrap_or(f64::NAN)
+}
+
+/// Study 1: the pillar.
+///
+/// # Errors
+/// As [`camera::run`].
+pub fn occlusion(opts: &Options, duration_s: f64, out: &mut Outcome) -> anyhow::Result<()> {
+    let scene = occlusion_scene(duration_s);
+    let mut labels = Vec::new();
+    for (label, tracker) in [(SEGMENTATION, Tracker::Segmentation), (PARTICLE, particle())] {
+        let runs = runs(&scene, &tracker, opts, 0)?;
+        let scores: Vec<Single> = runs.iter().map(score::single).collect();
+        let windows = runs
+            .first()
+            .map(|r| score::hidden_windows(&r.frames))
+            .unwrap_or_default();
+        let method = format!("1 occlusion: {label}");
+        let row = single_row(method.clone(), &scores);
+        // Ground error while hidden, as its own column.
+        let hidden = Errors::of(
+            &scores.iter().map(|s| s.samples.clone()).collect::<Vec<_>>(),
+            |t| windows.iter().any(|w| t >= w.0 && t < w.1),
+        );
+        let mut row = row;
+        row.extra
+            .push(Extra::new("ground err hidden m", hidden.map(|e| e.mean), 3));
+        out.rows.push(row);
+        out.traces.push(Trace {
+            method,
+            samples: scores.first().map(|s| s.samples.clone()).unwrap_or_default(),
+            window: windows.first().copied(),
+        });
+        labels.push(label);
+        if label == PARTICLE {
+            let hidden_s: f64 = windows.iter().map(|w| w.1 - w.0).sum();
+            out.notes.push(format!(
+                "Occlusion: a pillar 0.2 m wide, 3 m high, 1.2 m in front of the middle of a 2.8 m walk at 0.5 m/s across node 10's view, 3.5 m away; it hides the person's centre {hidden_s:.1} s of {duration_s:.0} s in the first run ({} passes), a vertical strip of them (they are 0.5 m wide) while it does. The person enters after {ENTER_S} s of empty room. Segmentation alone keeps an id while a region overlaps the previous frame's region of that id; a region that splits off, or comes back after a frame without one, gets a new id.",
+                windows.len()
+            ));
+        }
+    }
+    let seg = out.row(&format!("1 occlusion: {SEGMENTATION}"));
+    let pf = out.row(&format!("1 occlusion: {PARTICLE}"));
+    let (th_s, th_p) = (extra(seg, "tracked hidden"), extra(pf, "tracked hidden"));
+    let (id_s, id_p) = (extra(seg, "ids"), extra(pf, "ids"));
+    out.shape.push(Check::new(
+        "Partial occlusion: the particle filters keep the person in at least as many hidden frames as segmentation alone",
+        th_p >= th_s,
+        format!("tracked while hidden {th_p:.3} vs {th_s:.3}"),
+    ));
+    out.shape.push(Check::new(
+        "Partial occlusion: the particle filters give the person fewer identities than segmentation alone (no loss, no split)",
+        id_p < id_s,
+        format!("{id_p:.2} vs {id_s:.2} ids per run"),
+    ));
+    Ok(())
+}
+
+/// Study 2: adaptation on and off under each illumination change.
+///
+/// # Errors
+/// As [`camera::run`].
+pub fn illumination(opts: &Options, duration_s: f64, out: &mut Outcome) -> anyhow::Result<()> {
+    let on = ParticleParams::default();
+    let off = ParticleParams {
+        alpha: 0.0,
+        ..on.clone()
+    };
+    let mut ours = Vec::new();
+    for (name, end_gain) in LIGHTS {
+        let mut scene = setup(Scenario::default_scenario(), vec![walker()], duration_s);
+        scene.illumination = Some(Illumination {
+            end_gain,
+            from_s: ENTER_S,
+            to_s: duration_s,
+        });
+        let mut pair = Vec::new();
+        for (label, p) in [("adaptation on", &on), ("adaptation off", &off)] {
+            let runs = runs(&scene, &Tracker::Particle(p.clone()), opts, 0)?;
+            let scores: Vec<Single> = runs.iter().map(score::single).collect();
+            let row = single_row(format!("2 {name}: {label}"), &scores);
+            pair.push((extra(Some(&row), "lost frames"), extra(Some(&row), "img err px")));
+            out.rows.push(row);
+        }
+        ours.push(format!(
+            "{name}: lost {:.1} vs {:.1} frames, image error {:.1} vs {:.1} px",
+            pair[0].0, pair[1].0, pair[0].1, pair[1].1
+        ));
+        if name == LIGHTS[LIGHTS.len() - 1].0 {
+            out.shape.push(Check::new(
+                "Self-adaptation (colour shift): with adaptation the filter loses the person in no more frames, with no larger image error, than without",
+                pair[0].0 <= pair[1].0 && pair[0].1 <= pair[1].1,
+                ours.join("; "),
+            ));
+        }
+    }
+    out.notes.push(format!(
+        "Illumination: the occlusion study's walk without the pillar; from {ENTER_S} s to the end every channel's gain goes linearly from 1 to the end gain ({}), laid over the rendered frames (the renderer's own ±8% change stays underneath). Adaptation off is alpha = 0; on is the scenario's alpha = {} with its similarity and foreground gates.",
+        LIGHTS
+            .iter()
+            .map(|(n, g)| format!("{n}: {g:?}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        on.alpha
+    ));
+    Ok(())
+}
+
+/// The crowd: six people in six colours crossing node 10's view, from beyond its left edge to
+/// beyond its right edge, one every [`CROWD_GAP_S`].
+pub fn crowd_scene() -> Setup {
+    const COLOURS: [[u8; 3]; CROWD] = [
+        [200, 40, 40],
+        [40, 170, 60],
+        [50, 70, 210],
+        [220, 200, 40],
+        [190, 60, 190],
+        [40, 180, 190],
+    ];
+    let mut walkers = Vec::new();
+    let mut last_leave: f64 = 0.0;
+    for (k, colour) in COLOURS.into_iter().enumerate() {
+        let from = [1.1, 4.0 + 0.6 * k as f64];
+        let to = [4.5 + 0.7 * k as f64, 0.2];
+        let length = (to[0] - from[0]).hypot(to[1] - from[1]);
+        let enter_s = 1.0 + CROWD_GAP_S * k as f64;
+        let leave_s = enter_s + length / CROWD_SPEED + 0.5;
+        last_leave = last_leave.max(leave_s);
+        walkers.push(Walker {
+            target: person(
+                k as u32 + 1,
+                colour,
+                Trajectory::Path {
+                    waypoints: vec![from, to],
+                    speed: CROWD_SPEED,
+                },
+            ),
+            enter_s,
+            leave_s,
+        });
+    }
+    let mut s = Scenario::default_scenario();
+    s.name = format!("{NAME}-crowd");
+    setup(s, walkers, (last_leave + CROWD_TAIL_S).ceil())
+}
+
+/// Study 3: CLEAR MOT of both methods in the crowd. Returns the particle filters' runs (for
+/// the bandwidth).
+///
+/// # Errors
+/// As [`camera::run`].
+pub fn crowd(opts: &Options, duration_s: f64, out: &mut Outcome) -> anyhow::Result<Vec<CameraRun>> {
+    let mut scene = crowd_scene();
+    // A shorter duration asked for cuts the crowd short too (fewer people enter then).
+    if opts.duration_s.is_some() {
+        scene.duration_s = scene.duration_s.min(duration_s);
+    }
+    let mut kept = Vec::new();
+    let mut mota = Vec::new();
+    for (label, tracker) in [(SEGMENTATION, Tracker::Segmentation), (PARTICLE, particle())] {
+        let runs = runs(&scene, &tracker, opts, FPS as usize)?;
+        let mots = runs.iter().map(score::mot).collect::<anyhow::Result<Vec<_>>>()?;
+        let avg = |f: &dyn Fn(&node_server::metrics::MotMetrics) -> Option<f64>| {
+            let v: Vec<f64> = mots.iter().filter_map(f).collect();
+            mean(&v)
+        };
+        let row = Row {
+            method: format!("3 crowd: {label}"),
+            extra: vec![
+                Extra::new("MOTA", avg(&|m| m.mota), 3),
+                Extra::new("IDF1", avg(&|m| m.idf1), 3),
+                Extra::new("MOTP m", avg(&|m| m.motp_m), 3),
+                Extra::new("ids", avg(&|m| Some(m.unique_hypotheses as f64)), 2),
+                Extra::new("id switches", avg(&|m| Some(m.id_switches as f64)), 2),
+                Extra::new("misses", avg(&|m| Some(m.misses as f64)), 1),
+                Extra::new("false pos", avg(&|m| Some(m.false_positives as f64)), 1),
+                Extra::new("mostly lost", avg(&|m| Some(m.mostly_lost as f64)), 2),
+                Extra::new(
+                    "live at end",
+                    mean(&runs.iter().map(|r| r.live_at_end as f64).collect::<Vec<_>>()),
+                    2,
+                ),
+            ],
+            ..Row::default()
+        };
+        mota.push(extra(Some(&row), "MOTA"));
+        let people: usize = mots.first().map_or(0, |m| m.unique_objects);
+        if label == PARTICLE {
+            let lost: usize = mots.iter().map(|m| m.mostly_lost).sum();
+            out.shape.push(Check::new(
+                "Crowd: every person who enters is picked up by a filter of its own (none mostly lost)",
+                lost == 0 && people > 0,
+                format!("{lost} mostly lost over {} runs of {people} people", runs.len()),
+            ));
+            let live: usize = runs.iter().map(|r| r.live_at_end).sum();
+            out.shape.push(Check::new(
+                "Crowd: filters are destroyed once their people have left (none alive at the end)",
+                live == 0,
+                format!(
+                    "{live} filters alive {CROWD_TAIL_S} s after the last person left, over {} runs",
+                    runs.len()
+                ),
+            ));
+            kept = runs;
+        }
+        out.rows.push(row);
+    }
+    out.shape.push(Check::new(
+        "Crowd (ours, not a paper claim): the particle filters' MOTA is at least segmentation alone's",
+        mota[1] >= mota[0],
+        format!("{:.3} vs {:.3}", mota[1], mota[0]),
+    ));
+    out.notes.push(format!(
+        "Crowd: {CROWD} people (0.5 x 0.3 x 1.7 m, six colours) cross node 10's view diagonally at {CROWD_SPEED} m/s from beyond its left edge to beyond its right, entering every {CROWD_GAP_S} s, up to four in view at once; {:.0} s per run, the last {CROWD_TAIL_S} s empty. Truth: the people whose centre projects inside the image. CLEAR MOT and IDF1 from node_server::metrics on the floor with a 1 m threshold; MOTA, IDF1, MOTP mean over runs, counts per run.",
+        scene.duration_s
+    ));
+    Ok(kept)
+}
+
+/// Study 4: bytes per second of the crowd's particle runs.
+pub fn bandwidth(runs: &[CameraRun], out: &mut Outcome) {
+    let frames: Vec<&camera::FrameRecord> = runs.iter().flat_map(|r| &r.frames).collect();
+    let seconds = frames.len() as f64 / FPS;
+    let people = mean(&frames.iter().map(|f| f.reported.len() as f64).collect::<Vec<_>>()).unwrap_or(0.0);
+    let per_s = |bytes: usize| (seconds > 0.0).then(|| bytes as f64 / seconds);
+    let obs = per_s(frames.iter().map(|f| f.observation_bytes).sum());
+    let sets = per_s(frames.iter().map(|f| f.sample_set_bytes).sum());
+    let (w, h) = runs.first().map_or((0, 0), |r| (r.width, r.height));
+    let raw = f64::from(w) * f64::from(h) * 3.0 * FPS;
+    let jpegs: Vec<f64> = frames
+        .iter()
+        .filter_map(|f| f.jpeg_bytes.map(|b| b as f64))
+        .collect();
+    let jpeg = mean(&jpegs).map(|b| b * FPS);
+    let per_person = |v: Option<f64>| v.filter(|_| people > 0.0).map(|v| v / people);
+    let row = |method: &str, v: Option<f64>, person: bool| Row {
+        method: format!("4 bandwidth: {method}"),
+        extra: vec![
+            Extra::new("bytes/s", v, 0),
+            Extra::new("bytes/s per person", if person { per_person(v) } else { None }, 0),
+            Extra::new("people in view", Some(people), 2),
+        ],
+        ..Row::default()
+    };
+    out.rows.push(row("ground observations as sent", obs, true));
+    out.rows.push(row("every sample set every frame", sets, true));
+    out.rows
+        .push(row(&format!("raw RGB {w}x{h} frames"), Some(raw), false));
+    out.rows.push(row(
+        &format!("JPEG q{} frames", camera::JPEG_QUALITY),
+        jpeg,
+        false,
+    ));
+    let o = per_person(obs).unwrap_or(f64::NAN);
+    out.shape.push(Check::new(
+        "Bandwidth: ground observations of five people stay within 2 kB/s (the issue's goal, scaled from the crowd's per-person rate)",
+        5.0 * o <= 2000.0,
+        format!("{:.0} B/s per person, x5 = {:.0} B/s", o, 5.0 * o),
+    ));
+    let j = jpeg.unwrap_or(f64::NAN);
+    let ob = obs.unwrap_or(f64::NAN);
+    out.shape.push(Check::new(
+        "Bandwidth: what leaves the camera is at least 100 times smaller than even compressed video",
+        ob * 100.0 <= j,
+        format!(
+            "{ob:.0} B/s vs JPEG {j:.0} B/s ({:.0}x), raw {raw:.0} B/s",
+            j / ob
+        ),
+    ));
+    let s = per_person(sets).unwrap_or(f64::NAN);
+    out.shape.push(Check::new(
+        "Bandwidth: every filter's sample set every frame costs the paper's order, within 3x of 15 kB/s per person",
+        (5000.0..=45000.0).contains(&s),
+        format!("{s:.0} B/s per person at {FPS} fps"),
+    ));
+    out.notes.push(format!(
+        "Bandwidth: the crowd's particle runs ({seconds:.0} s of frames, {people:.2} people reported per frame on average). Ground observations are the measurement envelopes the camera sends (protocol encoding, one per person per frame, the histogram at most once a second per person); sample sets are every filter's SampleSet envelope every frame (100 samples of 7 f32), which the camera sends only on request; raw is 8-bit RGB; JPEG is the `image` crate's baseline encoder at quality {} on every {FPS}th frame. Paper: about 15 kB/s per camera for 100 samples; raw VGA at 15 fps is 37 Mbit/s (8-bit Bayer).",
+        camera::JPEG_QUALITY
+    ));
+}
+
+/// The paper's figures: its bandwidth numbers (the paper gives no tracking table).
+pub fn paper() -> Vec<Row> {
+    let row = |method: &str, bps: f64| Row {
+        method: method.into(),
+        extra: vec![Extra::new("bytes/s", Some(bps), 0)],
+        ..Row::default()
+    };
+    vec![
+        row("4 bandwidth: sample set of 100 particles", 15_000.0),
+        row("4 bandwidth: raw VGA 8-bit at 15 fps", 640.0 * 480.0 * 15.0),
+    ]
+}
