@@ -29,6 +29,15 @@ pub enum LabError {
     Camera(#[from] node_camera::config::ConfigError),
     #[error(transparent)]
     Frame(#[from] proto::sensor::FrameError),
+    #[error(transparent)]
+    Particle(#[from] proto::scenario::particle::ParamsError),
+    #[error(transparent)]
+    Tracker(#[from] node_camera::tracker::manager::TrackerError),
+    #[error(transparent)]
+    Metrics(#[from] node_server::metrics::MetricsError),
+    /// Encoding a frame for the bandwidth comparison (JPEG).
+    #[error("encoding an image: {0}")]
+    Image(#[from] image::ImageError),
     /// The operating system refused something a benchmark needs (a thread, a runtime).
     #[error("the system: {0}")]
     System(#[from] std::io::Error),

@@ -151,7 +151,12 @@ pub const JPEG_QUALITY: u8 = 75;
 /// # Errors
 /// A camera the scenario cannot model, parameters out of range, or a frame the pipeline
 /// refuses.
-pub fn run(setup: &Setup, tracker: &Tracker, seed: u64, jpeg_every: usize) -> anyhow::Result<CameraRun> {
+pub fn run(
+    setup: &Setup,
+    tracker: &Tracker,
+    seed: u64,
+    jpeg_every: usize,
+) -> crate::error::Result<CameraRun> {
     let s = &setup.scenario;
     let camera = s.camera_model(setup.camera)?;
     let renderer = Renderer::for_node(s, setup.camera, seed)?;
@@ -222,7 +227,7 @@ fn record_people(
     people: &GroundPeople,
     node: u32,
     rec: &mut FrameRecord,
-) -> anyhow::Result<()> {
+) -> crate::error::Result<()> {
     let time = ClusterTime::from_secs_f64(rec.t);
     let envelope = |body: Message| Envelope {
         source: NodeId(node),
@@ -297,7 +302,7 @@ fn truth_of(s: &Scenario, camera: &CameraModel, p: &Target, t: f64) -> TruePerso
 }
 
 /// Bytes of `frame` as a baseline JPEG at [`JPEG_QUALITY`].
-fn jpeg_size(frame: &Frame) -> anyhow::Result<usize> {
+fn jpeg_size(frame: &Frame) -> crate::error::Result<usize> {
     let mut out = Vec::new();
     let mut enc = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, JPEG_QUALITY);
     enc.encode(

@@ -38,7 +38,7 @@ pub const DURATION_S: f64 = 30.0;
 ///
 /// # Errors
 /// A scenario the camera cannot be built from, or a frame the pipeline refuses.
-pub fn run(opts: &Options) -> anyhow::Result<Outcome> {
+pub fn run(opts: &Options) -> crate::error::Result<Outcome> {
     let duration_s = opts.duration_s.unwrap_or(DURATION_S);
     let mut out = Outcome::new(NAME, Level::Pixel, opts, duration_s);
     studies::occlusion(opts, duration_s, &mut out)?;

@@ -111,7 +111,7 @@ pub fn hidden_windows(frames: &[FrameRecord]) -> Vec<(f64, f64)> {
 ///
 /// # Errors
 /// A frame the metrics refuse (never for a run's own records: times increase, ids are unique).
-pub fn mot(run: &CameraRun) -> anyhow::Result<MotMetrics> {
+pub fn mot(run: &CameraRun) -> crate::error::Result<MotMetrics> {
     let frames: Vec<metrics::Frame<2>> = run
         .frames
         .iter()

@@ -106,7 +106,7 @@ fn runs(
     tracker: &Tracker,
     opts: &Options,
     jpeg_every: usize,
-) -> anyhow::Result<Vec<CameraRun>> {
+) -> crate::error::Result<Vec<CameraRun>> {
     (0..opts.runs.max(1))
         .map(|k| camera::run(setup, tracker, opts.seed.wrapping_add(u64::from(k)), jpeg_every))
         .collect()
@@ -156,7 +156,7 @@ fn extra(row: Option<&Row>, name: &str) -> f64 {
 ///
 /// # Errors
 /// As [`camera::run`].
-pub fn occlusion(opts: &Options, duration_s: f64, out: &mut Outcome) -> anyhow::Result<()> {
+pub fn occlusion(opts: &Options, duration_s: f64, out: &mut Outcome) -> crate::error::Result<()> {
     let scene = occlusion_scene(duration_s);
     let mut labels = Vec::new();
     for (label, tracker) in [(SEGMENTATION, Tracker::Segmentation), (PARTICLE, particle())] {
@@ -212,7 +212,7 @@ pub fn occlusion(opts: &Options, duration_s: f64, out: &mut Outcome) -> anyhow::
 ///
 /// # Errors
 /// As [`camera::run`].
-pub fn illumination(opts: &Options, duration_s: f64, out: &mut Outcome) -> anyhow::Result<()> {
+pub fn illumination(opts: &Options, duration_s: f64, out: &mut Outcome) -> crate::error::Result<()> {
     let on = ParticleParams::default();
     let off = ParticleParams {
         alpha: 0.0,
@@ -301,7 +301,7 @@ pub fn crowd_scene() -> Setup {
 ///
 /// # Errors
 /// As [`camera::run`].
-pub fn crowd(opts: &Options, duration_s: f64, out: &mut Outcome) -> anyhow::Result<Vec<CameraRun>> {
+pub fn crowd(opts: &Options, duration_s: f64, out: &mut Outcome) -> crate::error::Result<Vec<CameraRun>> {
     let mut scene = crowd_scene();
     // A shorter duration asked for cuts the crowd short too (fewer people enter then).
     if opts.duration_s.is_some() {
@@ -311,7 +311,10 @@ pub fn crowd(opts: &Options, duration_s: f64, out: &mut Outcome) -> anyhow::Resu
     let mut mota = Vec::new();
     for (label, tracker) in [(SEGMENTATION, Tracker::Segmentation), (PARTICLE, particle())] {
         let runs = runs(&scene, &tracker, opts, FPS as usize)?;
-        let mots = runs.iter().map(score::mot).collect::<anyhow::Result<Vec<_>>>()?;
+        let mots = runs
+            .iter()
+            .map(score::mot)
+            .collect::<crate::error::Result<Vec<_>>>()?;
         let avg = |f: &dyn Fn(&node_server::metrics::MotMetrics) -> Option<f64>| {
             let v: Vec<f64> = mots.iter().filter_map(f).collect();
             mean(&v)
