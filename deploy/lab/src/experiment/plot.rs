@@ -413,7 +413,9 @@ fn ring(cx: f64, cy: f64, r: f64, x: &Range<f64>, y: &Range<f64>) -> Vec<Vec<(f6
         let a = std::f64::consts::TAU * k as f64 / N as f64;
         let p = (cx + r * a.cos(), cy + r * a.sin());
         if inside(&p) {
-            arcs.last_mut().map(|arc| arc.push(p));
+            if let Some(arc) = arcs.last_mut() {
+                arc.push(p);
+            }
         } else if arcs.last().is_some_and(|arc| !arc.is_empty()) {
             arcs.push(Vec::new());
         }
