@@ -43,11 +43,11 @@ The last section, `ble-rssi`, is not a simulation: it checks our RSSI models aga
 dataset (`shared/datasets/ble-rssi`), and its `param` column carries dB for the RSSI rows (see
 its notes).
 
-Figures (first run of each method): left, trajectory in the x-y plane (truth blue, estimate
-red, the 3σ band as light-red rings around every k-th estimate, σ = √ trace of the position
-covariance); middle, error over time (red; 3σ light red, clipped at the top; grey = the
-experiment's loss or occlusion window); right, sensors per step over time (cameras blue, RSSI
-readings green). Axes in m and s.
+Figures (first run of each method, seed 1; each titled and with its own legends): left,
+trajectory in the x-y plane (truth, estimate, the 3σ band as rings around every k-th estimate,
+σ = √ trace of the position covariance); middle, error over time with its 3σ bound (clipped at
+the top when far above the error) and the experiment's loss or occlusion window shaded; right,
+sensors per step over time (cameras with a measurement, RSSI readings). Axes in m and s.
 
 HEAD
   rm -f "$FIG"/paper*.png "$FIG"/ble-rssi*.png

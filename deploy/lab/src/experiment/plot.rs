@@ -1,248 +1,451 @@
-//! PNG figures of an experiment's first run per method, drawn with the `image` crate (no fonts:
-//! tick values in a built-in 3×5 digit font). One file per method, three panels:
-//! - **trajectory** (x–y plane, m): truth in blue, estimate in red, its 3σ band (σ = √ trace
-//!   of the position covariance) as light-red rings around every k-th estimate;
-//! - **error over time** (s, m): error in red, 3σ in light red (clipped to the panel, which is
-//!   scaled to the error), the experiment's window (loss, occlusion) shaded grey;
-//! - **active sensors over time** (s, count): cameras in blue, RSSI readings in green.
+//! PNG figures of an experiment's first run per method, drawn with `plotters` into an RGB
+//! buffer that `image` encodes. Text is DejaVu Sans, embedded in the crate and registered once
+//! with plotters' `ab_glyph` font backend: no system fonts, so a figure looks the same on any
+//! machine. One file per method: a title band (experiment, method, seed), then three panels,
+//! each with a caption, axis labels with units and a legend strip under it:
+//! - **trajectory** (x–y plane, m, equal scales): truth, estimate, and the 3σ band (σ = √ trace
+//!   of the position covariance) as rings around every k-th estimate;
+//! - **error over time** (s, m): the estimate's error, its 3σ bound (the panel is scaled to the
+//!   error; a larger bound is clipped at the top), the experiment's window (loss, occlusion)
+//!   shaded;
+//! - **active sensors over time** (s, count): cameras with a measurement, RSSI readings.
 
+use super::runner::Sample;
 use super::{Outcome, Trace};
-use image::{Rgb, RgbImage};
+use image::RgbImage;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
-const PANEL_W: u32 = 400;
-const PANEL_H: u32 = 360;
-const MARGIN: f64 = 34.0;
-const WHITE: Rgb<u8> = Rgb([255, 255, 255]);
-const BLACK: Rgb<u8> = Rgb([0, 0, 0]);
-const GREY: Rgb<u8> = Rgb([225, 225, 225]);
-const BLUE: Rgb<u8> = Rgb([30, 80, 220]);
-const RED: Rgb<u8> = Rgb([220, 30, 30]);
-const PINK: Rgb<u8> = Rgb([250, 195, 195]);
-const GREEN: Rgb<u8> = Rgb([20, 160, 60]);
+/// Figure size, px.
+pub const WIDTH: u32 = 1500;
+pub const HEIGHT: u32 = 600;
+/// Height of the title band, px: the panels start below it.
+pub const TITLE_H: u32 = 70;
+/// Height of the legend strip under each panel, px.
+pub const LEGEND_H: u32 = 62;
 
-/// A panel's data-to-pixel map.
-struct Panel {
-    x0: f64,
-    lo: (f64, f64),
-    hi: (f64, f64),
+pub const TRUTH: RGBColor = RGBColor(30, 80, 220);
+pub const ESTIMATE: RGBColor = RGBColor(220, 30, 30);
+/// The 3σ rings and bound.
+pub const BAND: RGBColor = RGBColor(245, 150, 150);
+/// The experiment's window (loss, occlusion).
+pub const WINDOW: RGBColor = RGBColor(215, 215, 215);
+pub const CAMERAS: RGBColor = RGBColor(30, 80, 220);
+pub const RSSI: RGBColor = RGBColor(20, 160, 60);
+const GRID: RGBColor = RGBColor(236, 236, 236);
+const SUBTITLE: RGBColor = RGBColor(70, 70, 70);
+
+/// The family plotters knows the embedded font by (every text style here asks for it).
+const FAMILY: &str = "sans-serif";
+/// DejaVu Sans 2.37 (Debian's fonts-dejavu-core), unmodified. Licence: Bitstream Vera, the
+/// DejaVu changes in the public domain; it allows redistribution with the notice, which is in
+/// `assets/fonts/LICENSE` beside the file.
+static FONT: &[u8] = include_bytes!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/assets/fonts/DejaVuSans.ttf"
+));
+
+/// Font sizes, px.
+const TITLE_PX: f64 = 30.0;
+const SUBTITLE_PX: f64 = 19.0;
+const CAPTION_PX: f64 = 23.0;
+const AXIS_PX: f64 = 20.0;
+const TICK_PX: f64 = 17.0;
+const LEGEND_PX: f64 = 17.0;
+
+/// Chart margins and label areas, px.
+const MARGIN: u32 = 12;
+const X_LABELS: u32 = 52;
+const Y_LABELS: u32 = 68;
+
+/// Why a figure could not be drawn or written.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    #[error("the embedded font (DejaVu Sans) cannot be parsed")]
+    Font,
+    #[error("drawing the figure of {method:?}: {detail}")]
+    Draw { method: String, detail: String },
+    #[error("creating {path}: {source}")]
+    CreateDir { path: PathBuf, source: std::io::Error },
+    #[error("writing {path}: {source}")]
+    Write {
+        path: PathBuf,
+        source: image::ImageError,
+    },
 }
 
-impl Panel {
-    fn new(index: u32, lo: (f64, f64), hi: (f64, f64)) -> Panel {
-        let pad = |a: f64, b: f64| {
-            if (b - a).abs() < 1e-9 {
-                (a - 0.5, b + 0.5)
-            } else {
-                (a, b)
-            }
-        };
-        let (x, y) = (pad(lo.0, hi.0), pad(lo.1, hi.1));
-        Panel {
-            x0: f64::from(index * PANEL_W),
-            lo: (x.0, y.0),
-            hi: (x.1, y.1),
-        }
-    }
-
-    fn px(&self, x: f64, y: f64) -> (f64, f64) {
-        let w = f64::from(PANEL_W) - 2.0 * MARGIN;
-        let h = f64::from(PANEL_H) - 2.0 * MARGIN;
-        (
-            self.x0 + MARGIN + (x - self.lo.0) / (self.hi.0 - self.lo.0) * w,
-            f64::from(PANEL_H) - MARGIN - (y - self.lo.1) / (self.hi.1 - self.lo.1) * h,
-        )
-    }
-
-    fn scale(&self) -> f64 {
-        (f64::from(PANEL_W) - 2.0 * MARGIN) / (self.hi.0 - self.lo.0)
-    }
+/// Register the embedded font with plotters, once per process.
+fn register_font() -> Result<(), PlotError> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok =
+        *REGISTERED.get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
+    if ok { Ok(()) } else { Err(PlotError::Font) }
 }
 
-fn put(img: &mut RgbImage, x: f64, y: f64, c: Rgb<u8>) {
-    if x >= 0.0 && y >= 0.0 && (x as u32) < img.width() && (y as u32) < img.height() {
-        img.put_pixel(x as u32, y as u32, c);
-    }
+fn text(px: f64) -> TextStyle<'static> {
+    (FAMILY, px).into_font().color(&BLACK)
 }
 
-fn line(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), c: Rgb<u8>) {
-    let n = (b.0 - a.0).abs().max((b.1 - a.1).abs()).ceil().max(1.0) as usize;
-    for i in 0..=n {
-        let f = i as f64 / n as f64;
-        put(img, a.0 + f * (b.0 - a.0), a.1 + f * (b.1 - a.1), c);
-    }
-}
+/// What a drawing step returns: plotters' error for the backend.
+type Drawn<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
 
-/// A circle of radius `r` px (two pixels wide), clipped to the plot area of panel `p`.
-fn ring(img: &mut RgbImage, p: &Panel, c: (f64, f64), r: f64, col: Rgb<u8>) {
-    let r = r.clamp(1.0, 4.0 * f64::from(PANEL_W));
-    let (x_lo, x_hi) = (p.x0 + MARGIN, p.x0 + f64::from(PANEL_W) - MARGIN);
-    let (y_lo, y_hi) = (MARGIN, f64::from(PANEL_H) - MARGIN);
-    let n = (r * 8.0).ceil().max(16.0) as usize;
-    for k in 0..n {
-        let a = std::f64::consts::TAU * k as f64 / n as f64;
-        for rr in [r, r + 1.0] {
-            let (x, y) = (c.0 + rr * a.cos(), c.1 + rr * a.sin());
-            if x >= x_lo && x <= x_hi && y >= y_lo && y <= y_hi {
-                put(img, x, y, col);
-            }
-        }
-    }
-}
-
-/// A filled axis-aligned rectangle between two pixel corners.
-fn rect(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), col: Rgb<u8>) {
-    let (x0, x1) = (a.0.min(b.0).max(0.0) as u32, a.0.max(b.0).max(0.0) as u32);
-    let (y0, y1) = (a.1.min(b.1).max(0.0) as u32, a.1.max(b.1).max(0.0) as u32);
-    for y in y0..=y1.min(img.height().saturating_sub(1)) {
-        for x in x0..=x1.min(img.width().saturating_sub(1)) {
-            img.put_pixel(x, y, col);
-        }
-    }
-}
-
-/// 3×5 glyphs of `0-9 . -`, rows top to bottom, bit 2 = left column.
-fn glyph(ch: char) -> Option<[u8; 5]> {
-    Some(match ch {
-        '0' => [7, 5, 5, 5, 7],
-        '1' => [2, 6, 2, 2, 7],
-        '2' => [7, 1, 7, 4, 7],
-        '3' => [7, 1, 7, 1, 7],
-        '4' => [5, 5, 7, 1, 1],
-        '5' => [7, 4, 7, 1, 7],
-        '6' => [7, 4, 7, 5, 7],
-        '7' => [7, 1, 1, 1, 1],
-        '8' => [7, 5, 7, 5, 7],
-        '9' => [7, 5, 7, 1, 7],
-        '.' => [0, 0, 0, 0, 2],
-        '-' => [0, 0, 7, 0, 0],
-        _ => return None,
+/// The figure of one method's trace: the title band names the experiment, the method and the
+/// run's seed; below it the three panels (a line saying so when the run has no estimate).
+///
+/// # Errors
+/// The embedded font cannot be parsed, or plotters fails to draw.
+pub fn render(experiment: &str, seed: u64, trace: &Trace) -> Result<RgbImage, PlotError> {
+    register_font()?;
+    let mut buf = vec![0u8; WIDTH as usize * HEIGHT as usize * 3];
+    let drawn = {
+        let root = BitMapBackend::with_buffer(&mut buf, (WIDTH, HEIGHT)).into_drawing_area();
+        figure(&root, experiment, seed, trace).and_then(|()| root.present())
+    };
+    drawn.map_err(|e| PlotError::Draw {
+        method: trace.method.clone(),
+        detail: e.to_string(),
+    })?;
+    RgbImage::from_raw(WIDTH, HEIGHT, buf).ok_or_else(|| PlotError::Draw {
+        method: trace.method.clone(),
+        detail: "the pixel buffer does not match the figure's size".into(),
     })
 }
 
-fn text(img: &mut RgbImage, x: f64, y: f64, s: &str) {
-    for (k, ch) in s.chars().enumerate() {
-        let Some(g) = glyph(ch) else { continue };
-        for (row, bits) in g.iter().enumerate() {
-            for col in 0..3 {
-                if bits & (4 >> col) != 0 {
-                    for (sx, sy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
-                        let px = x + (k * 8 + col * 2) as f64 + sx;
-                        put(img, px, y + (row * 2) as f64 + sy, BLACK);
-                    }
-                }
-            }
-        }
-    }
-}
-
-fn axes(img: &mut RgbImage, p: &Panel) {
-    let (a, b) = (p.px(p.lo.0, p.lo.1), p.px(p.hi.0, p.hi.1));
-    line(img, a, (b.0, a.1), BLACK);
-    line(img, a, (a.0, b.1), BLACK);
-    for k in 0..=4 {
-        let f = f64::from(k) / 4.0;
-        let (x, y) = (p.lo.0 + f * (p.hi.0 - p.lo.0), p.lo.1 + f * (p.hi.1 - p.lo.1));
-        let tx = p.px(x, p.lo.1);
-        line(img, tx, (tx.0, tx.1 + 4.0), BLACK);
-        text(img, tx.0 - 8.0, tx.1 + 7.0, &format!("{x:.1}"));
-        let ty = p.px(p.lo.0, y);
-        line(img, ty, (ty.0 - 4.0, ty.1), BLACK);
-        text(img, ty.0 - 32.0, ty.1 - 12.0, &format!("{y:.1}"));
-    }
-}
-
-fn bounds(pts: impl Iterator<Item = (f64, f64)>) -> ((f64, f64), (f64, f64)) {
-    pts.filter(|p| p.0.is_finite() && p.1.is_finite())
-        .fold(((f64::MAX, f64::MAX), (f64::MIN, f64::MIN)), |(lo, hi), p| {
-            ((lo.0.min(p.0), lo.1.min(p.1)), (hi.0.max(p.0), hi.1.max(p.1)))
-        })
-}
-
-/// The three panels of one method's trace.
-pub fn render(trace: &Trace) -> RgbImage {
-    let mut img = RgbImage::from_pixel(3 * PANEL_W, PANEL_H, WHITE);
+fn figure<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    experiment: &str,
+    seed: u64,
+    trace: &Trace,
+) -> Drawn<DB> {
+    root.fill(&WHITE)?;
+    let (title, body) = root.split_vertically(TITLE_H);
+    let centre = |px| text(px).pos(Pos::new(HPos::Center, VPos::Center));
+    let mid = WIDTH as i32 / 2;
+    title.draw_text(
+        &format!("{experiment}: {}", trace.method),
+        &centre(TITLE_PX),
+        (mid, 24),
+    )?;
     let s = &trace.samples;
+    let span = match (s.first(), s.last()) {
+        (Some(a), Some(b)) => format!(", {} estimates over {:.0} s", s.len(), b.t - a.t),
+        _ => String::new(),
+    };
+    title.draw_text(
+        &format!("first run of the experiment (seed {seed}){span}"),
+        &centre(SUBTITLE_PX).color(&SUBTITLE),
+        (mid, 55),
+    )?;
     if s.is_empty() {
-        return img;
+        let (w, h) = body.dim_in_pixel();
+        return body.draw_text(
+            "no estimate of the target in this run",
+            &centre(CAPTION_PX),
+            (w as i32 / 2, h as i32 / 2),
+        );
     }
-    // Trajectory, with equal scales on x and y.
-    let (mut lo, mut hi) = bounds(
+    let panels = body.split_evenly((1, 3));
+    let split = |p: &DrawingArea<DB, Shift>| p.split_vertically(HEIGHT - TITLE_H - LEGEND_H);
+    let (area, legend) = split(&panels[0]);
+    draw_legend(&legend, &trajectory(&area, s)?)?;
+    let (area, legend) = split(&panels[1]);
+    draw_legend(&legend, &error(&area, s, trace.window, experiment)?)?;
+    let (area, legend) = split(&panels[2]);
+    draw_legend(&legend, &sensors(&area, s)?)
+}
+
+/// How a legend entry is drawn.
+#[derive(Clone, Copy)]
+enum Swatch {
+    Line(RGBColor),
+    Ring(RGBColor),
+    Fill(RGBColor),
+    Dot(RGBColor),
+}
+
+/// A panel's chart: captioned, with the label areas every panel uses.
+fn chart_builder<'a, 'b, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, Shift>,
+    caption: &str,
+) -> ChartBuilder<'a, 'b, DB> {
+    let mut b = ChartBuilder::on(area);
+    b.caption(caption, text(CAPTION_PX))
+        .margin(MARGIN)
+        .margin_right(2 * MARGIN)
+        .x_label_area_size(X_LABELS)
+        .y_label_area_size(Y_LABELS);
+    b
+}
+
+/// The trajectory panel; returns its legend.
+fn trajectory<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    s: &[Sample],
+) -> Result<Vec<(String, Swatch)>, DrawingAreaErrorKind<DB::ErrorType>> {
+    // Equal metres per pixel on both axes: the ranges take the plotting area's aspect. The
+    // plotting area is the panel less the caption, margins and label areas.
+    let (w, h) = area.dim_in_pixel();
+    let plot_w = f64::from(w.saturating_sub(3 * MARGIN + Y_LABELS).max(1));
+    let plot_h = f64::from(
+        h.saturating_sub(2 * MARGIN + X_LABELS + CAPTION_PX as u32 + 10)
+            .max(1),
+    );
+    let (x, y) = square_ranges(
         s.iter()
             .flat_map(|v| [(v.truth[0], v.truth[1]), (v.est[0], v.est[1])]),
+        plot_w / plot_h,
     );
-    let span = (hi.0 - lo.0).max(hi.1 - lo.1).max(1.0) * 0.5 + 0.5;
-    let mid = ((lo.0 + hi.0) * 0.5, (lo.1 + hi.1) * 0.5);
-    (lo, hi) = ((mid.0 - span, mid.1 - span), (mid.0 + span, mid.1 + span));
-    let p = Panel::new(0, lo, hi);
+    let mut chart = chart_builder(area, "Trajectory (x–y plane)").build_cartesian_2d(x.clone(), y.clone())?;
+    mesh(&mut chart, "x (m)", "y (m)")?;
     // The band as rings around every k-th estimate: filled, a filter that assumes more noise
     // than it gets would hide the trajectory under it.
     let every = (s.len() / 24).max(1);
     for v in s.iter().step_by(every) {
-        ring(
-            &mut img,
-            &p,
-            p.px(v.est[0], v.est[1]),
-            3.0 * v.sigma_m * p.scale(),
-            PINK,
-        );
+        for arc in ring(v.est[0], v.est[1], 3.0 * v.sigma_m, &x, &y) {
+            chart.draw_series(std::iter::once(PathElement::new(arc, BAND.stroke_width(2))))?;
+        }
     }
-    for w in s.windows(2) {
-        line(
-            &mut img,
-            p.px(w[0].truth[0], w[0].truth[1]),
-            p.px(w[1].truth[0], w[1].truth[1]),
-            BLUE,
-        );
-    }
-    for w in s.windows(2) {
-        line(
-            &mut img,
-            p.px(w[0].est[0], w[0].est[1]),
-            p.px(w[1].est[0], w[1].est[1]),
-            RED,
-        );
-    }
-    axes(&mut img, &p);
+    let xy = |p: &[f64; 3]| (p[0], p[1]);
+    chart.draw_series(LineSeries::new(
+        s.iter().map(|v| xy(&v.truth)),
+        TRUTH.stroke_width(3),
+    ))?;
+    chart.draw_series(LineSeries::new(
+        s.iter().map(|v| xy(&v.est)),
+        ESTIMATE.stroke_width(2),
+    ))?;
+    let start = xy(&s[0].truth);
+    chart.draw_series(std::iter::once(Circle::new(start, 6, BLACK.filled())))?;
+    Ok(vec![
+        ("truth".into(), Swatch::Line(TRUTH)),
+        ("estimate".into(), Swatch::Line(ESTIMATE)),
+        (band_label(every), Swatch::Ring(BAND)),
+        ("start".into(), Swatch::Dot(BLACK)),
+    ])
+}
 
-    // Error over time.
-    let t_lo = s.first().map_or(0.0, |v| v.t.min(0.0));
-    let t_hi = s.last().map_or(1.0, |v| v.t);
-    let e_hi = s
-        .iter()
-        .map(|v| v.error_m.max(3.0 * v.sigma_m))
-        .fold(0.1, f64::max)
-        .min(10.0);
-    let p = Panel::new(1, (t_lo, 0.0), (t_hi, e_hi));
-    if let Some((a, b)) = trace.window {
-        rect(&mut img, p.px(a.max(t_lo), 0.0), p.px(b.min(t_hi), e_hi), GREY);
+fn band_label(every: usize) -> String {
+    if every == 1 {
+        "3σ around each estimate".into()
+    } else {
+        format!("3σ around one estimate in {every}")
     }
-    for w in s.windows(2) {
-        let c = |v: &super::runner::Sample| (3.0 * v.sigma_m).min(e_hi);
-        line(&mut img, p.px(w[0].t, c(&w[0])), p.px(w[1].t, c(&w[1])), PINK);
-        let e = |v: &super::runner::Sample| v.error_m.min(e_hi);
-        line(&mut img, p.px(w[0].t, e(&w[0])), p.px(w[1].t, e(&w[1])), RED);
-    }
-    axes(&mut img, &p);
+}
 
-    // Active sensors over time.
+/// The error panel; returns its legend.
+fn error<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    s: &[Sample],
+    window: Option<(f64, f64)>,
+    experiment: &str,
+) -> Result<Vec<(String, Swatch)>, DrawingAreaErrorKind<DB::ErrorType>> {
+    let t = time_range(s);
+    let err_hi = s.iter().map(|v| v.error_m).fold(0.0, f64::max);
+    let band_hi = s.iter().map(|v| 3.0 * v.sigma_m).fold(0.0, f64::max);
+    // Scaled to the error; the bound up to 10 m above it, clipped there.
+    let e_hi = (err_hi.max(band_hi.min(10.0)) * 1.08).max(0.1);
+    let mut chart = chart_builder(area, "Error over time").build_cartesian_2d(t.clone(), 0.0..e_hi)?;
+    mesh(&mut chart, "time (s)", "error (m)")?;
+    let mut legend = Vec::new();
+    if let Some((a, b)) = window {
+        let (a, b) = (a.max(t.start), b.min(t.end));
+        if a < b {
+            chart.draw_series(std::iter::once(Rectangle::new(
+                [(a, 0.0), (b, e_hi)],
+                WINDOW.filled(),
+            )))?;
+            legend.push((window_label(experiment).into(), Swatch::Fill(WINDOW)));
+        }
+    }
+    let clip = |v: f64| v.min(e_hi);
+    chart.draw_series(LineSeries::new(
+        s.iter().map(|v| (v.t, clip(3.0 * v.sigma_m))),
+        BAND.stroke_width(2),
+    ))?;
+    chart.draw_series(LineSeries::new(
+        s.iter().map(|v| (v.t, clip(v.error_m))),
+        ESTIMATE.stroke_width(2),
+    ))?;
+    let bound = if band_hi > e_hi {
+        "3σ (clipped at the top)"
+    } else {
+        "3σ"
+    };
+    legend.splice(
+        0..0,
+        [
+            ("error".into(), Swatch::Line(ESTIMATE)),
+            (bound.into(), Swatch::Line(BAND)),
+        ],
+    );
+    Ok(legend)
+}
+
+/// What an experiment's window is, for the legend.
+fn window_label(experiment: &str) -> &'static str {
+    match experiment {
+        "paper000-table1" => "cameras 2 and 3 lost",
+        "paper001" | "paper002-occlusion" => "hidden from every camera (first window)",
+        _ => "the experiment's window",
+    }
+}
+
+/// The active-sensors panel; returns its legend.
+fn sensors<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    s: &[Sample],
+) -> Result<Vec<(String, Swatch)>, DrawingAreaErrorKind<DB::ErrorType>> {
+    let t = time_range(s);
     let n_hi = s
         .iter()
         .map(|v| v.cameras.max(v.rssi_nodes))
         .max()
         .unwrap_or(1)
         .max(1);
-    let p = Panel::new(2, (t_lo, 0.0), (t_hi, f64::from(n_hi)));
-    for w in s.windows(2) {
-        let r = |v: &super::runner::Sample| f64::from(v.rssi_nodes);
-        line(&mut img, p.px(w[0].t, r(&w[0])), p.px(w[1].t, r(&w[0])), GREEN);
-        line(&mut img, p.px(w[1].t, r(&w[0])), p.px(w[1].t, r(&w[1])), GREEN);
-        let c = |v: &super::runner::Sample| f64::from(v.cameras);
-        line(&mut img, p.px(w[0].t, c(&w[0])), p.px(w[1].t, c(&w[0])), BLUE);
-        line(&mut img, p.px(w[1].t, c(&w[0])), p.px(w[1].t, c(&w[1])), BLUE);
+    let top = i32::try_from(n_hi).unwrap_or(i32::MAX - 1) + 1;
+    let mut chart = chart_builder(area, "Active sensors").build_cartesian_2d(t, 0..top)?;
+    chart
+        .configure_mesh()
+        .x_desc("time (s)")
+        .y_desc("sensors per step")
+        .axis_desc_style(text(AXIS_PX))
+        .label_style(text(TICK_PX))
+        .bold_line_style(GRID)
+        .light_line_style(TRANSPARENT)
+        .y_labels(usize::try_from(top).unwrap_or(1).min(12) + 1)
+        .draw()?;
+    let count = |n: u32| i32::try_from(n).unwrap_or(i32::MAX);
+    // RSSI first: where both counts are equal the cameras' line stays visible over it.
+    chart.draw_series(LineSeries::new(
+        steps(s, |v| count(v.rssi_nodes)),
+        RSSI.stroke_width(3),
+    ))?;
+    chart.draw_series(LineSeries::new(
+        steps(s, |v| count(v.cameras)),
+        CAMERAS.stroke_width(2),
+    ))?;
+    Ok(vec![
+        ("cameras with a measurement".into(), Swatch::Line(CAMERAS)),
+        ("RSSI readings".into(), Swatch::Line(RSSI)),
+    ])
+}
+
+/// A step line of `f` over the samples: each value held until the next sample.
+fn steps(s: &[Sample], f: impl Fn(&Sample) -> i32) -> Vec<(f64, i32)> {
+    let mut out = Vec::with_capacity(2 * s.len());
+    for (k, v) in s.iter().enumerate() {
+        if k > 0 {
+            out.push((v.t, f(&s[k - 1])));
+        }
+        out.push((v.t, f(v)));
     }
-    axes(&mut img, &p);
-    img
+    out
+}
+
+/// The mesh of a panel with f64 axes: axis labels, tick labels, a light grid.
+fn mesh<DB: DrawingBackend>(
+    chart: &mut ChartContext<
+        '_,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+    x_desc: &str,
+    y_desc: &str,
+) -> Drawn<DB> {
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .axis_desc_style(text(AXIS_PX))
+        .label_style(text(TICK_PX))
+        .bold_line_style(GRID)
+        .light_line_style(TRANSPARENT)
+        .x_labels(8)
+        .y_labels(8)
+        .draw()
+}
+
+/// The scenario seconds the samples span (from 0 at the latest).
+fn time_range(s: &[Sample]) -> Range<f64> {
+    let lo = s.first().map_or(0.0, |v| v.t.min(0.0));
+    let hi = s.last().map_or(1.0, |v| v.t);
+    if hi > lo { lo..hi } else { lo..lo + 1.0 }
+}
+
+/// Ranges holding every finite point with a margin, widened so that a metre is as long on x as
+/// on y in a plotting area of width / height `aspect`.
+fn square_ranges(pts: impl Iterator<Item = (f64, f64)>, aspect: f64) -> (Range<f64>, Range<f64>) {
+    let (lo, hi) = pts
+        .filter(|p| p.0.is_finite() && p.1.is_finite())
+        .fold(((f64::MAX, f64::MAX), (f64::MIN, f64::MIN)), |(lo, hi), p| {
+            ((lo.0.min(p.0), lo.1.min(p.1)), (hi.0.max(p.0), hi.1.max(p.1)))
+        });
+    let (lo, hi) = if lo.0 <= hi.0 {
+        (lo, hi)
+    } else {
+        ((0.0, 0.0), (1.0, 1.0))
+    };
+    let mid = ((lo.0 + hi.0) * 0.5, (lo.1 + hi.1) * 0.5);
+    // Half-spans with a 10% margin and at least 0.5 m.
+    let mut half = (((hi.0 - lo.0) * 0.55).max(0.5), ((hi.1 - lo.1) * 0.55).max(0.5));
+    if half.0 / half.1 < aspect {
+        half.0 = half.1 * aspect;
+    } else {
+        half.1 = half.0 / aspect;
+    }
+    (mid.0 - half.0..mid.0 + half.0, mid.1 - half.1..mid.1 + half.1)
+}
+
+/// A circle of radius `r` around `(cx, cy)` as arcs inside the ranges (plotters does not clip
+/// to the plotting area).
+fn ring(cx: f64, cy: f64, r: f64, x: &Range<f64>, y: &Range<f64>) -> Vec<Vec<(f64, f64)>> {
+    const N: usize = 72;
+    let inside = |p: &(f64, f64)| x.contains(&p.0) && y.contains(&p.1);
+    let mut arcs = vec![Vec::new()];
+    if !(r.is_finite() && r > 0.0) {
+        return Vec::new();
+    }
+    for k in 0..=N {
+        let a = std::f64::consts::TAU * k as f64 / N as f64;
+        let p = (cx + r * a.cos(), cy + r * a.sin());
+        if inside(&p) {
+            if let Some(arc) = arcs.last_mut() {
+                arc.push(p);
+            }
+        } else if arcs.last().is_some_and(|arc| !arc.is_empty()) {
+            arcs.push(Vec::new());
+        }
+    }
+    arcs.retain(|arc| arc.len() > 1);
+    arcs
+}
+
+/// A legend strip: its entries in rows, swatch then label, left-aligned with the plotting area.
+fn draw_legend<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, entries: &[(String, Swatch)]) -> Drawn<DB> {
+    let (w, _) = area.dim_in_pixel();
+    let style = text(LEGEND_PX).pos(Pos::new(HPos::Left, VPos::Center));
+    let (left, right) = (i32::try_from(MARGIN + Y_LABELS).unwrap_or(0) - 20, w as i32 - 10);
+    let (mut x, mut y) = (left, 16);
+    for (label, swatch) in entries {
+        let (tw, _) = area.estimate_text_size(label, &style)?;
+        let width = 34 + tw as i32 + 22;
+        if x + width > right && x > left {
+            (x, y) = (left, y + 26);
+        }
+        match *swatch {
+            Swatch::Line(c) => area.draw(&PathElement::new(vec![(x, y), (x + 26, y)], c.stroke_width(3)))?,
+            Swatch::Ring(c) => area.draw(&Circle::new((x + 13, y), 8, c.stroke_width(2)))?,
+            Swatch::Fill(c) => area.draw(&Rectangle::new([(x, y - 8), (x + 26, y + 8)], c.filled()))?,
+            Swatch::Dot(c) => area.draw(&Circle::new((x + 13, y), 6, c.filled()))?,
+        }
+        area.draw_text(label, &style, (x + 34, y))?;
+        x += width;
+    }
+    Ok(())
 }
 
 /// A file-name-safe form of a method label.
@@ -258,62 +461,28 @@ pub fn slug(s: &str) -> String {
     out.trim_matches('-').to_string()
 }
 
-/// Write one PNG per traced method into `dir`; returns the paths.
+/// Write one PNG per traced method into `dir` (`EXPERIMENT-METHOD.png`); returns the paths.
 ///
 /// # Errors
-/// The directory cannot be created or a file cannot be written.
-pub fn write_all(o: &Outcome, dir: &Path) -> crate::Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|source| crate::LabError::Io {
+/// The directory cannot be created, a figure cannot be drawn, or a file cannot be written.
+pub fn write_all(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>, PlotError> {
+    std::fs::create_dir_all(dir).map_err(|source| PlotError::CreateDir {
         path: dir.to_path_buf(),
         source,
     })?;
     let mut out = Vec::new();
     for t in &o.traces {
         let path = dir.join(format!("{}-{}.png", o.experiment, slug(&t.method)));
-        render(t)
-            .save(&path)
-            .map_err(|e| crate::LabError::failed(format!("writing {}", path.display()), e.to_string()))?;
+        render(&o.experiment, o.seed, t)?
+            .save_with_format(&path, image::ImageFormat::Png)
+            .map_err(|source| PlotError::Write {
+                path: path.clone(),
+                source,
+            })?;
         out.push(path);
     }
     Ok(out)
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::experiment::runner::Sample;
-
-    #[test]
-    fn a_trace_draws_truth_estimate_and_band_in_their_colours() {
-        let samples: Vec<Sample> = (0..50)
-            .map(|k| {
-                let t = f64::from(k) * 0.2;
-                Sample {
-                    t,
-                    est: [t * 0.4 + 0.1, 2.0, 0.25],
-                    truth: [t * 0.4, 2.0, 0.25],
-                    sigma_m: 0.05,
-                    error_m: 0.1,
-                    cameras: 3,
-                    rssi_nodes: 1,
-                }
-            })
-            .collect();
-        let img = render(&Trace {
-            method: "m".into(),
-            samples,
-            window: Some((2.0, 4.0)),
-        });
-        let count = |c: Rgb<u8>| img.pixels().filter(|p| **p == c).count();
-        for (name, c) in [
-            ("blue", BLUE),
-            ("red", RED),
-            ("pink", PINK),
-            ("green", GREEN),
-            ("grey", GREY),
-        ] {
-            assert!(count(c) > 20, "{name}: {} pixels", count(c));
-        }
-        assert_eq!(slug("Active perception (cost 0.2)"), "active-perception-cost-0-2");
-    }
-}
+mod tests;
