@@ -55,8 +55,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
             .await
             .with_context(|| format!("the viewer cannot listen on {listen}"))?;
         let url = format!("http://{}", listener.local_addr()?);
+        // A log line, not a bare print: under `--log-json` every line of the log is JSON
+        // (`ocelli launch` prints the URL itself).
         tracing::info!(%url, node = %id, "viewer serving");
-        eprintln!("viewer: {url}");
         view::live::run(cfg, initial, transport, listener, shutdown).await?;
         Ok(())
     })?;

@@ -50,6 +50,13 @@ impl RunDir {
         force: bool,
         now_unix_s: i64,
     ) -> Result<RunDir, RunDirError> {
+        // An explicit recording that exists is refused before any folder is made.
+        if let Some(r) = recording
+            && r.exists()
+            && !force
+        {
+            return Err(RunDirError::RecordingExists(r.to_path_buf()));
+        }
         let dir = match dir {
             Some(d) => {
                 let busy = std::fs::read_dir(d).is_ok_and(|mut e| e.next().is_some());

@@ -273,7 +273,15 @@ fn killing_a_camera_mid_run_leaves_tracking_running() {
 /// robot keeps its global id, the surviving head has cameras within a second (over TCP the
 /// cameras dial the head they are reassigned to) and the error is back under half a metre.
 fn owning_head_fails_over(transport: &str) {
-    let run = Launch::start(&format!("kill-head-{transport}"), transport, 24.0, None);
+    // The head stays dead (`--no-restart`): the failover, not the supervisor's restart, is
+    // what this tests.
+    let run = Launch::start_with(
+        &format!("kill-head-{transport}"),
+        transport,
+        24.0,
+        None,
+        &["--no-restart"],
+    );
     // Wait until the robot is tracked, then kill whichever head owns it. The robot is the
     // global reported most often: a ghost more than a metre off can hold a second, short-lived
     // id, and the latest row may be the ghost's.

@@ -179,7 +179,8 @@ fn every_stop_signal_stops_every_node_and_prints_the_report() {
         let mut run = Run::start(&format!("stop-{name}"), &[]);
         let launcher = run.pid();
         let pids = run.pids();
-        assert_eq!(pids.len(), 6, "{pids:?}");
+        // Server, head, four cameras and the viewer.
+        assert_eq!(pids.len(), 7, "{pids:?}");
         // Every node is running and the server has recorded something.
         let dir = run.run_dir();
         wait_for(Duration::from_secs(30), "the recording", || {
@@ -236,7 +237,7 @@ fn check_files(dir: &Path) {
             );
         }
     }
-    assert_eq!(logs, 6, "one log per node");
+    assert_eq!(logs, 7, "one log per node and the viewer");
     let mode = std::fs::metadata(dir).unwrap().permissions().mode() & 0o777;
     assert_eq!(mode, 0o750, "the run folder has mode {mode:o}");
 }
@@ -248,7 +249,7 @@ fn a_launcher_killed_outright_takes_its_nodes_with_it() {
     let run = Run::start("sigkill", &[]);
     let launcher = run.pid();
     let pids = run.pids();
-    assert_eq!(pids.len(), 6);
+    assert_eq!(pids.len(), 7, "{pids:?}");
     std::thread::sleep(Duration::from_secs(3));
     signal(launcher, libc::SIGKILL);
     wait_for(Duration::from_secs(20), "every node to stop", || {
