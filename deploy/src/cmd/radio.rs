@@ -2,7 +2,7 @@
 //! `radio = "…"` names it (`proto::scenario::RadioSpec`): recorded `.mbd` readings replayed at
 //! real time from the launch's epoch, or a BlueZ adapter (feature `ble`).
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use proto::ClusterTime;
 use proto::scenario::RadioSpec;
 use proto::sensor::RadioSource;
@@ -29,7 +29,7 @@ pub fn open(spec: &RadioSpec, clock: &HostClock, epoch: ClusterTime) -> Result<B
         #[cfg(not(feature = "ble"))]
         RadioSpec::Ble { .. } => {
             let _ = clock;
-            bail!("radio {spec}: this build has no BLE support (build with --features ble)")
+            anyhow::bail!("radio {spec}: this build has no BLE support (build with --features ble)")
         }
     }
 }
