@@ -3,7 +3,7 @@
 //! reads the launch's final JSON report and the server's recording (through `ocelli export`),
 //! and checks that no process and no `/dev/shm` file is left behind.
 
-use crate::harness::{EXE, cluster_now_s, now, owner_rows, signal};
+use crate::harness::{EXE, alive, cluster_now_s, now, owner_rows, scratch, signal, wait_exit};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -14,20 +14,6 @@ use std::time::Duration;
 /// decimetres; real processes add scheduling jitter, start-up (tracks born late) and the
 /// two-core CI machine running 24 processes at once, so the bound leaves a margin of about 3×.
 const MEAN_ERROR_BOUND_M: f64 = 1.0;
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("ocelli-e2e-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
-}
-
-fn alive(pid: u32) -> bool {
-    #[allow(unsafe_code)]
-    // SAFETY: signal 0 only checks for existence.
-    let r = unsafe { libc::kill(pid as libc::pid_t, 0) };
-    r == 0
-}
 
 /// A running `ocelli launch`, killed on drop.
 pub(crate) struct Launch {
@@ -122,30 +108,8 @@ impl Launch {
 
     /// Wait for the launch to end by itself; its JSON report.
     pub(crate) fn finish(mut self, within: Duration) -> (Value, Launch) {
-        let mut child = self.child.take().expect("running");
-        let deadline = now() + within;
-        let status = loop {
-            if let Some(s) = child.try_wait().expect("try_wait") {
-                break s;
-            }
-            if now() >= deadline {
-                let _ = child.kill();
-                let _ = child.wait();
-                panic!(
-                    "launch did not finish within {within:?}; log:\n{}",
-                    self.launch_log()
-                );
-            }
-            std::thread::sleep(Duration::from_millis(200));
-        };
-        let mut out = String::new();
-        use std::io::Read;
-        child
-            .stdout
-            .take()
-            .expect("stdout")
-            .read_to_string(&mut out)
-            .expect("stdout");
+        let child = self.child.take().expect("running");
+        let (status, out) = wait_exit(child, within, || self.launch_log());
         assert!(
             status.success(),
             "launch failed ({status}); log:\n{}",

@@ -2,8 +2,9 @@
 //! recording's tracks back through `ocelli export`.
 
 use serde_json::Value;
-use std::path::Path;
-use std::process::Command;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus};
+use std::time::Duration;
 
 /// The `ocelli` CLI under test.
 pub const EXE: &str = env!("CARGO_BIN_EXE_ocelli-e2e");
@@ -51,4 +52,41 @@ pub fn owner_rows(record: &Path) -> Vec<Value> {
         .map(|l| serde_json::from_str::<Value>(l).expect("export JSON line"))
         .filter(|r| r["owner"].as_bool() == Some(true))
         .collect()
+}
+
+/// A fresh, empty scratch folder for one test, named for it and this process.
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("ocelli-e2e-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir
+}
+
+/// Whether process `pid` still exists.
+pub fn alive(pid: u32) -> bool {
+    #[allow(unsafe_code)]
+    // SAFETY: signal 0 only checks for existence.
+    let r = unsafe { libc::kill(pid as libc::pid_t, 0) };
+    r == 0
+}
+
+/// Wait for `child` to exit by itself within `within`; its status and standard output. Past
+/// the deadline it is killed and the test fails with `log()` (the launch's log).
+pub fn wait_exit(mut child: Child, within: Duration, log: impl Fn() -> String) -> (ExitStatus, String) {
+    let deadline = now() + within;
+    let status = loop {
+        if let Some(s) = child.try_wait().expect("try_wait") {
+            break s;
+        }
+        if now() >= deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("the process did not exit within {within:?}; log:\n{}", log());
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let mut out = String::new();
+    use std::io::Read;
+    let _ = child.stdout.take().expect("stdout").read_to_string(&mut out);
+    (status, out)
 }

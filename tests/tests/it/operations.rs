@@ -5,20 +5,13 @@
 //! A small scenario (a server, a head, four cameras) keeps each launch cheap: these tests are
 //! about operations, not tracking quality.
 
-use crate::harness::{EXE, now, signal};
+use crate::harness::{EXE, alive, now, scratch, signal, wait_exit};
 use proto::scenario::{NodeRole, Scenario};
 use serde_json::Value;
 use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("ocelli-ops-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
-}
 
 /// The default scenario cut down to its server, head 2 and four of head 2's cameras.
 fn small_scenario(dir: &Path) -> PathBuf {
@@ -33,13 +26,6 @@ fn small_scenario(dir: &Path) -> PathBuf {
     let path = dir.join("small.toml");
     std::fs::write(&path, s.to_toml()).expect("writing the scenario");
     path
-}
-
-fn alive(pid: u32) -> bool {
-    #[allow(unsafe_code)]
-    // SAFETY: signal 0 only checks for existence.
-    let r = unsafe { libc::kill(pid as libc::pid_t, 0) };
-    r == 0
 }
 
 /// Wait until `done` or panic after `within`, saying `what`.
@@ -60,7 +46,7 @@ struct Run {
 
 impl Run {
     fn start(name: &str, extra: &[&str]) -> Run {
-        let dir = scratch(name);
+        let dir = scratch(&format!("ops-{name}"));
         let scenario = small_scenario(&dir);
         let child = Command::new(EXE)
             .current_dir(&dir)
@@ -114,23 +100,8 @@ impl Run {
 
     /// Wait for the launch to exit; its status and standard output.
     fn wait(&mut self, within: Duration) -> (std::process::ExitStatus, String) {
-        let mut child = self.child.take().expect("running");
-        let deadline = now() + within;
-        let status = loop {
-            if let Some(s) = child.try_wait().expect("try_wait") {
-                break s;
-            }
-            if now() >= deadline {
-                let _ = child.kill();
-                let _ = child.wait();
-                panic!("launch did not stop within {within:?}:\n{}", self.launch_log());
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        };
-        let mut out = String::new();
-        use std::io::Read;
-        let _ = child.stdout.take().expect("stdout").read_to_string(&mut out);
-        (status, out)
+        let child = self.child.take().expect("running");
+        wait_exit(child, within, || self.launch_log())
     }
 
     fn domain_files(&self, launcher: u32) -> Vec<String> {
