@@ -460,17 +460,19 @@ mod tests {
         .unwrap();
     }
 
+    /// Camera 12 of the default scenario, to change one setting.
+    fn camera_12(s: &mut super::super::Scenario) -> &mut super::super::CameraSpec {
+        s.nodes
+            .iter_mut()
+            .find(|n| n.id == 12)
+            .and_then(|n| n.camera.as_mut())
+            .expect("camera 12 in the default scenario")
+    }
+
     #[test]
     fn a_camera_that_sees_nothing_or_a_missing_calibration_is_refused() {
         let e = err(default_with(|s| {
-            let cam = s
-                .nodes
-                .iter_mut()
-                .find(|n| n.id == 12)
-                .unwrap()
-                .camera
-                .as_mut()
-                .unwrap();
+            let cam = camera_12(s);
             cam.pose = Some(super::super::PoseSpec::LookAt {
                 // At the ceiling, looking up: every point of the room is behind it or level.
                 position: [5.0, 4.0, 3.0],
@@ -482,14 +484,7 @@ mod tests {
             "{e}"
         );
         let e = err(default_with(|s| {
-            let cam = s
-                .nodes
-                .iter_mut()
-                .find(|n| n.id == 12)
-                .unwrap()
-                .camera
-                .as_mut()
-                .unwrap();
+            let cam = camera_12(s);
             cam.opencv_intrinsic = Some("/no/such/intr.xml".into());
         }));
         assert!(
