@@ -4,6 +4,10 @@
 //! (SIGTERM → wait → SIGKILL) and always reap — an unreaped child keeps iceoryx2 from seeing
 //! that a node died.
 //!
+//! A child the supervisor kills on purpose ([`Supervisor::chaos_kill`], `ocelli launch
+//! --chaos-every`) is restarted after the first delay and never counts towards giving up; a
+//! crash still does.
+//!
 //! Time is passed in ([`Supervisor::watch`] takes `now`), so the restart schedule is a plain
 //! function of when children ended.
 
@@ -73,6 +77,8 @@ pub struct Supervised {
     in_a_row: u32,
     /// Restarts over the child's whole life.
     pub restarts: u32,
+    /// Killed on purpose by [`Supervisor::chaos_kill`]; its next restart is not a failure's.
+    chaos_killed: bool,
 }
 
 impl fmt::Debug for Supervised {
@@ -119,8 +125,21 @@ pub enum Event {
         status: ExitStatus,
         restart_in: Option<Duration>,
     },
-    /// A child was started again (its `n`-th restart in a row).
-    Restarted { name: String, pid: u32, n: u32 },
+    /// A child was started again (its `n`-th restart in a row; `after_chaos`: it had been
+    /// killed on purpose, which does not count).
+    Restarted {
+        name: String,
+        pid: u32,
+        n: u32,
+        after_chaos: bool,
+    },
+    /// The supervisor killed a running child on purpose ([`Supervisor::chaos_kill`]); it is
+    /// started again after `restart_in`.
+    ChaosKilled {
+        name: String,
+        pid: u32,
+        restart_in: Duration,
+    },
     /// A child kept ending soon after each start; it is left stopped.
     GaveUp { name: String, restarts: u32 },
     /// A child could not be started again.
@@ -145,9 +164,24 @@ impl fmt::Display for Event {
                 status,
                 restart_in: None,
             } => write!(f, "{name} ended ({})", describe(*status)),
-            Event::Restarted { name, pid, n } => {
+            Event::Restarted {
+                name,
+                pid,
+                after_chaos: true,
+                ..
+            } => write!(f, "{name} restarted as pid {pid} (after a chaos kill)"),
+            Event::Restarted { name, pid, n, .. } => {
                 write!(f, "{name} restarted as pid {pid} (restart {n} in a row)")
             }
+            Event::ChaosKilled {
+                name,
+                pid,
+                restart_in,
+            } => write!(
+                f,
+                "chaos: killed {name} (pid {pid}); restarting it in {:.1} s",
+                restart_in.as_secs_f64()
+            ),
             Event::GaveUp { name, restarts } => write!(
                 f,
                 "{name} gave up after {restarts} restarts in a row, each ending within moments; \
@@ -261,6 +295,7 @@ impl Supervisor {
             state: State::Running { since: now },
             in_a_row: 0,
             restarts: 0,
+            chaos_killed: false,
         });
         Ok(self.children.last_mut().expect("just pushed"))
     }
@@ -323,6 +358,38 @@ impl Supervisor {
             });
         }
         events
+    }
+
+    /// Kill the running child `name` on purpose (SIGKILL to its group, reaped at once) and
+    /// schedule its restart after the policy's first delay, not counted towards giving up. A
+    /// child that is not running, or a supervisor without a restart policy, is left alone.
+    /// The event says who was killed and when it comes back.
+    pub fn chaos_kill(&mut self, name: &str, now: Instant) -> Option<Event> {
+        let policy = self.restart?;
+        let c = self.children.iter_mut().find(|c| c.name == name)?;
+        let State::Running { since } = c.state else {
+            return None;
+        };
+        // Ended on its own already: a crash, for `watch` to count (std keeps the status).
+        if !matches!(c.child.try_wait(), Ok(None)) {
+            return None;
+        }
+        let pid = c.pid();
+        signal_group(pid, libc::SIGKILL);
+        let status = c.child.wait().ok()?;
+        if now.saturating_duration_since(since) >= policy.stable_after {
+            c.in_a_row = 0;
+        }
+        c.chaos_killed = true;
+        c.state = State::Waiting {
+            at: now + policy.first_delay,
+            status,
+        };
+        Some(Event::ChaosKilled {
+            name: c.name.clone(),
+            pid,
+            restart_in: policy.first_delay,
+        })
     }
 
     /// Stop the named children (in the given order): SIGTERM each, wait up to `grace` for all,
@@ -399,8 +466,12 @@ fn restart(
     policy: RestartPolicy,
     events: &mut Vec<Event>,
 ) {
-    c.in_a_row += 1;
+    let after_chaos = std::mem::take(&mut c.chaos_killed);
     let started = (c.make)().and_then(|cmd| start(&c.name, cmd));
+    // A kill made on purpose is no failure; failing to start again always is.
+    if !after_chaos || started.is_err() {
+        c.in_a_row += 1;
+    }
     match started {
         Ok(child) => {
             c.child = child;
@@ -410,6 +481,7 @@ fn restart(
                 name: c.name.clone(),
                 pid: c.pid(),
                 n: c.in_a_row,
+                after_chaos,
             });
         }
         Err(error) => {

@@ -1,6 +1,7 @@
 //! `ocelli launch`: the one-command local cluster (see `crate::launch`).
 
 use super::common::{ScenarioArg, TransportArg, seconds};
+use crate::launch::chaos::ChaosOptions;
 use crate::launch::{LaunchOptions, launch};
 use crate::supervisor::RestartPolicy;
 use anyhow::Result;
@@ -55,6 +56,19 @@ pub struct Args {
     /// reaching a port can pose as any node. Without it a launch makes certificates for the run.
     #[arg(long)]
     pub insecure: bool,
+    /// Chaos mode, for resilience tests: every SECONDS on average (each gap half to one and a
+    /// half of it) SIGKILL a random node — the server, a head, a camera — and let the
+    /// supervisor restart it (these kills never count towards giving up on a node). Each kill
+    /// is a line of `chaos.jsonl` in the run's folder. No kill in the last 10 s of a
+    /// `--duration`.
+    #[arg(long, value_parser = seconds, value_name = "SECONDS", conflicts_with = "no_restart")]
+    pub chaos_every: Option<f64>,
+    /// The chaos mode's seed (victims and times).
+    #[arg(long, default_value_t = 1, requires = "chaos_every")]
+    pub chaos_seed: u64,
+    /// No chaos kill before this many seconds into the run.
+    #[arg(long, value_parser = seconds, default_value_t = 10.0, requires = "chaos_every")]
+    pub chaos_after: f64,
 }
 
 pub fn run(args: Args, log_json: bool) -> Result<ExitCode> {
@@ -73,6 +87,11 @@ pub fn run(args: Args, log_json: bool) -> Result<ExitCode> {
         log_json,
         restart: (!args.no_restart).then(RestartPolicy::default),
         view: (!args.no_view).then(|| view_address(args.view)),
+        chaos: args.chaos_every.map(|every| ChaosOptions {
+            every: Duration::from_secs_f64(every),
+            seed: args.chaos_seed,
+            after: Duration::from_secs_f64(args.chaos_after),
+        }),
     };
     let launched = launch(scenario, &opts)?;
     for (node, n) in &launched.restarts {

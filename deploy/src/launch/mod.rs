@@ -12,6 +12,7 @@
 //! TCP if the scenario (or `--insecure`) says `insecure`.
 
 mod acoustic;
+pub mod chaos;
 pub mod progress;
 pub mod run_dir;
 
@@ -48,6 +49,8 @@ pub struct LaunchOptions {
     pub restart: Option<RestartPolicy>,
     /// Start the viewer serving here (`None`: no viewer).
     pub view: Option<std::net::SocketAddr>,
+    /// Kill random nodes at random times for the supervisor to restart (needs `restart`).
+    pub chaos: Option<chaos::ChaosOptions>,
 }
 
 /// What a launch leaves behind.
@@ -255,7 +258,7 @@ impl StopSignals {
 fn tell(events: &[Event], sup: &mut Supervisor, pids: &Path) {
     for e in events {
         match e {
-            Event::Restarted { .. } => tracing::warn!("{e}"),
+            Event::Restarted { .. } | Event::ChaosKilled { .. } => tracing::warn!("{e}"),
             Event::GaveUp { .. } | Event::RestartFailed { .. } => tracing::error!("{e}"),
             Event::Ended { .. } => tracing::warn!("{e}"),
         }
@@ -274,6 +277,7 @@ async fn supervise(
     opts: &LaunchOptions,
     mut progress: Option<(Progress, Vec<world::Target>, ClusterTime)>,
     pids: &Path,
+    mut chaos: Option<chaos::Chaos>,
 ) -> Result<Supervisor> {
     let mut signals = StopSignals::new()?;
     let mut sup = sup;
@@ -286,7 +290,12 @@ async fn supervise(
             }
             () = tokio::time::sleep(Duration::from_millis(500)) => {}
         }
-        let events = sup.watch(instant_now());
+        let mut events = sup.watch(instant_now());
+        if let Some(c) = chaos.as_mut()
+            && let Some(kill) = c.strike(&mut sup, started.elapsed(), instant_now())?
+        {
+            events.push(kill);
+        }
         tell(&events, &mut sup, pids);
         if let Some((p, targets, epoch)) = progress.as_mut() {
             p.update();
@@ -389,7 +398,12 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<Launched> {
         .enable_all()
         .build()
         .context("starting the launcher's runtime")?;
-    let mut sup = rt.block_on(supervise(sup, opts, progress, &pids))?;
+    let chaos = match (opts.chaos, opts.restart) {
+        (Some(c), Some(_)) => Some(chaos::Chaos::new(&c, opts.duration, &run.dir, &run.recording)?),
+        (Some(_), None) => anyhow::bail!("the chaos mode needs restarts: nodes it kills are started again"),
+        (None, _) => None,
+    };
+    let mut sup = rt.block_on(supervise(sup, opts, progress, &pids, chaos))?;
     let restarts = sup
         .children_mut()
         .iter()

@@ -140,3 +140,70 @@ fn the_delay_doubles_up_to_its_cap() {
     assert_eq!(p.delay(4), Duration::from_secs(4));
     assert_eq!(p.delay(40), Duration::from_secs(30));
 }
+
+#[test]
+fn chaos_kills_are_restarted_at_once_and_never_count_towards_giving_up() {
+    let policy = RestartPolicy {
+        first_delay: Duration::from_millis(10),
+        max_delay: Duration::from_millis(20),
+        stable_after: Duration::from_secs(60),
+        max_in_a_row: 2,
+    };
+    let mut sup = Supervisor::new(Duration::from_millis(300), Some(policy));
+    sup.spawn("victim", sh("sleep 30"), now()).unwrap();
+    // Twice the number of restarts that would give up on a crashing child.
+    for _ in 0..4 {
+        let before = sup.get_mut("victim").unwrap().pid();
+        let Some(Event::ChaosKilled { pid, restart_in, .. }) = sup.chaos_kill("victim", now()) else {
+            panic!("a running child is killed");
+        };
+        assert_eq!((pid, restart_in), (before, policy.first_delay));
+        let events = watch_until(&mut sup, |e| {
+            e.iter().any(|e| matches!(e, Event::Restarted { .. }))
+        });
+        assert!(
+            matches!(
+                events[..],
+                [Event::Restarted {
+                    n: 0,
+                    after_chaos: true,
+                    ..
+                }]
+            ),
+            "{events:?}"
+        );
+        assert!(events[0].to_string().contains("after a chaos kill"));
+        assert_ne!(sup.get_mut("victim").unwrap().pid(), before);
+    }
+    assert_eq!(sup.get_mut("victim").unwrap().restarts, 4);
+    // A real crash still counts: killed from outside, it is restart 1 in a row.
+    signal_group(sup.get_mut("victim").unwrap().pid(), libc::SIGKILL);
+    let events = watch_until(&mut sup, |e| {
+        e.iter().any(|e| matches!(e, Event::Restarted { .. }))
+    });
+    assert!(
+        events.iter().any(|e| matches!(
+            e,
+            Event::Restarted {
+                n: 1,
+                after_chaos: false,
+                ..
+            }
+        )),
+        "{events:?}"
+    );
+    // Not running (restart pending) or unknown: nothing to kill.
+    assert!(sup.chaos_kill("nobody", now()).is_none());
+    assert!(sup.chaos_kill("victim", now()).is_some());
+    assert!(sup.chaos_kill("victim", now()).is_none());
+    sup.stop_all();
+}
+
+#[test]
+fn without_a_restart_policy_there_is_no_chaos() {
+    let mut sup = Supervisor::new(Duration::from_millis(300), None);
+    sup.spawn("calm", sh("sleep 30"), now()).unwrap();
+    assert!(sup.chaos_kill("calm", now()).is_none());
+    assert!(sup.get_mut("calm").unwrap().running());
+    sup.stop_all();
+}
