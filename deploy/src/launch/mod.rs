@@ -14,6 +14,7 @@
 mod acoustic;
 pub mod progress;
 pub mod run_dir;
+pub mod usage;
 
 use crate::supervisor::{Event, MakeCommand, RestartPolicy, Supervisor};
 use anyhow::{Context, Result};
@@ -58,6 +59,10 @@ pub struct Launched {
     pub report: RecordingReport,
     /// Restarts per node that needed any.
     pub restarts: BTreeMap<String, u32>,
+    /// CPU and memory per role, read just before the nodes were stopped.
+    pub usage: Vec<usage::RoleUsage>,
+    /// Seconds from the start of the nodes to that reading.
+    pub wall_s: f64,
 }
 
 /// A free loopback port (bound then released; the child binds it right after).
@@ -274,7 +279,7 @@ async fn supervise(
     opts: &LaunchOptions,
     mut progress: Option<(Progress, Vec<world::Target>, ClusterTime)>,
     pids: &Path,
-) -> Result<Supervisor> {
+) -> Result<(Supervisor, Vec<usage::RoleUsage>, f64)> {
     let mut signals = StopSignals::new()?;
     let mut sup = sup;
     let started = instant_now();
@@ -298,6 +303,13 @@ async fn supervise(
             break;
         }
     }
+    let wall_s = started.elapsed().as_secs_f64();
+    let samples: Vec<(String, usage::ProcessUsage)> = sup
+        .children_mut()
+        .iter()
+        .filter_map(|c| Some((c.name.clone(), usage::sample(c.pid())?)))
+        .collect();
+    let roles = usage::by_role(&samples, wall_s);
     let groups = sup.running_groups();
     let stop = tokio::task::spawn_blocking(move || {
         let killed = sup.stop_all();
@@ -311,7 +323,7 @@ async fn supervise(
                 if !killed.is_empty() {
                     tracing::warn!(nodes = killed.join(", "), "nodes ignored SIGTERM and were killed");
                 }
-                return Ok(sup);
+                return Ok((sup, roles, wall_s));
             }
             sig = signals.next() => {
                 tracing::warn!(signal = sig, "second stop signal: killing every node");
@@ -389,7 +401,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<Launched> {
         .enable_all()
         .build()
         .context("starting the launcher's runtime")?;
-    let mut sup = rt.block_on(supervise(sup, opts, progress, &pids))?;
+    let (mut sup, usage, wall_s) = rt.block_on(supervise(sup, opts, progress, &pids))?;
     let restarts = sup
         .children_mut()
         .iter()
@@ -407,5 +419,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<Launched> {
         run,
         report,
         restarts,
+        usage,
+        wall_s,
     })
 }
