@@ -135,7 +135,8 @@ mod tests {
     #[test]
     fn stat_fields_are_counted_after_the_command_name() {
         // A name with a space and a parenthesis in it; utime 1500, stime 250.
-        let stat = "4242 (ocelli (x) y) S 1 4242 4242 0 -1 4194560 900 0 0 0 1500 250 0 0 20 0 9 0 100 1000 200";
+        let stat =
+            "4242 (ocelli (x) y) S 1 4242 4242 0 -1 4194560 900 0 0 0 1500 250 0 0 20 0 9 0 100 1000 200";
         assert_eq!(parse_stat_ticks(stat), Some(1750));
         assert_eq!(parse_stat_ticks("4242 (short) S 1"), None);
         let status = "Name:\tocelli\nVmHWM:\t   20480 kB\nVmRSS:\t   10240 kB\n";
@@ -161,7 +162,10 @@ mod tests {
         let cam = &roles[0];
         assert_eq!((cam.role.as_str(), cam.processes), ("camera", 2));
         assert!((cam.cores - 0.5).abs() < 1e-12 && (cam.cpu_percent_per_process - 25.0).abs() < 1e-12);
-        assert_eq!((cam.rss_mib_per_process, cam.peak_rss_mib_max, cam.rss_mib_total), (2.0, 4.0, 4.0));
+        assert_eq!(
+            (cam.rss_mib_per_process, cam.peak_rss_mib_max, cam.rss_mib_total),
+            (2.0, 4.0, 4.0)
+        );
         assert_eq!(roles[1].role, "head");
         assert!(to_table(&roles, 60.0).contains("camera"));
         // The launcher itself can be read.

@@ -65,10 +65,15 @@ fn the_hall_is_the_generators_output_for_its_header() {
     let text = std::fs::read_to_string(scenarios_dir().join("hall.toml")).expect("hall.toml");
     let header: Vec<&str> = text.lines().take_while(|l| l.starts_with('#')).collect();
     assert!(
-        header[0].contains("ocelli scenario generate --cameras 100 --heads 5 --people 10 --size 30x20 --seed 1"),
+        header[0]
+            .contains("ocelli scenario generate --cameras 100 --heads 5 --people 10 --size 30x20 --seed 1"),
         "{header:?}"
     );
-    let body: String = text.lines().skip(header.len()).map(|l| format!("{l}\n")).collect();
+    let body: String = text
+        .lines()
+        .skip(header.len())
+        .map(|l| format!("{l}\n"))
+        .collect();
     assert_eq!(body, generate_toml(&HallSpec::default()), "regenerate hall.toml");
     let s = Scenario::from_toml(&body, "hall.toml").expect("parses");
     assert_eq!((s.cameras().count(), s.heads().count()), (100, 5));

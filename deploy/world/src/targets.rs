@@ -289,7 +289,10 @@ mod tests {
     }
 
     fn close(a: ([f64; 2], [f64; 2]), b: ([f64; 2], [f64; 2])) -> bool {
-        a.0.iter().chain(&a.1).zip(b.0.iter().chain(&b.1)).all(|(x, y)| (x - y).abs() < 1e-9)
+        a.0.iter()
+            .chain(&a.1)
+            .zip(b.0.iter().chain(&b.1))
+            .all(|(x, y)| (x - y).abs() < 1e-9)
     }
 
     #[test]
@@ -307,7 +310,10 @@ mod tests {
         }
         // Then 10 s behind the plain loop, for the rest of the lap and the next ones (26 s).
         for t in [14.5, 20.0, 25.9, 26.0 + 2.0, 26.0 + 15.0] {
-            assert!(close(paused.at(t), plain.at(t - 10.0 * ((t + 22.0) / 26.0).floor())), "t = {t}");
+            assert!(
+                close(paused.at(t), plain.at(t - 10.0 * ((t + 22.0) / 26.0).floor())),
+                "t = {t}"
+            );
         }
         // The second lap stops again at 26 + 4 s.
         assert_eq!(paused.at(26.0 + 5.0).1, [0.0, 0.0]);
@@ -333,7 +339,10 @@ mod tests {
             ts[0].trajectory = square(vec![Pause { at, seconds }]);
             set_targets(&mut s, &ts);
             let e = targets(&s).unwrap_err().to_string();
-            assert!(e.contains(".trajectory.pauses") && e.contains("waypoint index below 4"), "{e}");
+            assert!(
+                e.contains(".trajectory.pauses") && e.contains("waypoint index below 4"),
+                "{e}"
+            );
         }
     }
 }

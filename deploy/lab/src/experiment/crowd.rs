@@ -154,7 +154,8 @@ pub fn run(opts: &Options) -> crate::Result<Outcome> {
         out.rows.push(row(label, people, &scores));
     }
     let guard = method_on(&Scenario::default_scenario(), GUARD, Fusion::DistributedEif);
-    out.rows.push(runner::run_method(&guard, opts, level, duration_s)?.row);
+    out.rows
+        .push(runner::run_method(&guard, opts, level, duration_s)?.row);
     out.shape = goals(&out, people);
     out.notes = notes(people, duration_s);
     Ok(out)
