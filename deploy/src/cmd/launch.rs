@@ -83,6 +83,9 @@ pub fn run(args: Args, log_json: bool) -> Result<ExitCode> {
         println!("{}", serde_json::to_string_pretty(report)?);
     } else {
         print!("{}", report.to_table());
+        if let Some(age) = crate::launch::latency::of(&launched.report.loaded) {
+            print!("{}", crate::launch::latency::to_line(&age));
+        }
         print!(
             "{}",
             crate::launch::usage::to_table(&launched.usage, launched.wall_s)

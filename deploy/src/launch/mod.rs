@@ -12,6 +12,7 @@
 //! TCP if the scenario (or `--insecure`) says `insecure`.
 
 mod acoustic;
+pub mod latency;
 pub mod progress;
 pub mod run_dir;
 pub mod usage;
