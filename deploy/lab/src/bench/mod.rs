@@ -8,3 +8,4 @@ pub mod head;
 pub mod particle;
 pub mod server;
 pub mod transport;
+mod wake;

@@ -5,6 +5,7 @@
 //! encode/decode cost per message kind. Sender and receiver are two threads of this process,
 //! each with its own current-thread tokio runtime, so they share one clock.
 
+use super::wake;
 use crate::error::OrFailed as _;
 use crate::{LabError, Result};
 use proto::msg::*;
@@ -79,7 +80,7 @@ struct Phase {
     receive_span: Duration,
 }
 
-fn percentile(sorted: &[u64], p: f64) -> f64 {
+pub(super) fn percentile(sorted: &[u64], p: f64) -> f64 {
     if sorted.is_empty() {
         return f64::NAN;
     }
@@ -282,70 +283,6 @@ fn phase(kind: Kind, count: usize, interval: Option<Duration>, tag: &str) -> Res
     })
 }
 
-/// The floor under any latency here: one thread waking another through a plain
-/// `std::sync::mpsc` channel at the fixed rate, nothing else.
-fn thread_wake_baseline(count: usize, interval: Duration) -> Value {
-    #[allow(clippy::disallowed_methods)] // a benchmark owns its clock
-    let base = Instant::now();
-    let (tx, rx) = std::sync::mpsc::channel::<i64>();
-    let waiter = std::thread::spawn(move || {
-        let mut lat = Vec::new();
-        while let Ok(t) = rx.recv() {
-            lat.push((now_ns(base) - t).max(0) as u64);
-        }
-        lat
-    });
-    for _ in 0..count {
-        std::thread::sleep(interval);
-        if tx.send(now_ns(base)).is_err() {
-            break;
-        }
-    }
-    drop(tx);
-    let mut lat = waiter.join().unwrap_or_default();
-    lat.sort_unstable();
-    json!({"p50_us": percentile(&lat, 0.5), "p99_us": percentile(&lat, 0.99), "samples": lat.len()})
-}
-
-/// The floor under the transports' latency: one current-thread tokio runtime (timer-driven,
-/// like the bench's sender) waking another, parked on its reactor, through a tokio channel
-/// at the fixed rate. Every message over either transport pays at least this one wake.
-fn tokio_wake_baseline(count: usize, interval: Duration) -> Result<Value> {
-    #[allow(clippy::disallowed_methods)] // a benchmark owns its clock
-    let base = Instant::now();
-    let (tx, mut rx) = tokio::sync::mpsc::channel::<i64>(16);
-    let waiter = std::thread::spawn(move || -> Result<Vec<u64>> {
-        let rt = tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()?;
-        Ok(rt.block_on(async move {
-            let mut lat = Vec::with_capacity(count);
-            while let Ok(Some(t)) = tokio::time::timeout(Duration::from_secs(10), rx.recv()).await {
-                lat.push((now_ns(base) - t).max(0) as u64);
-            }
-            lat
-        }))
-    });
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()?;
-    rt.block_on(async move {
-        let mut next = tokio::time::Instant::now();
-        for _ in 0..count {
-            next += interval;
-            tokio::time::sleep_until(next).await;
-            if tx.try_send(now_ns(base)).is_err() {
-                break;
-            }
-        }
-    });
-    let mut lat = waiter
-        .join()
-        .map_err(|_| LabError::failed("transport bench", "waiter panicked"))??;
-    lat.sort_unstable();
-    Ok(json!({"p50_us": percentile(&lat, 0.5), "p99_us": percentile(&lat, 0.99), "samples": lat.len()}))
-}
-
 /// One message of every kind (the wire contract's fixtures).
 fn samples() -> Vec<Message> {
     proto::examples::messages().into_iter().map(|e| e.body).collect()
@@ -388,8 +325,10 @@ fn codec_costs(iterations: usize) -> Result<Vec<Value>> {
 pub fn run(args: &Options) -> Result<serde_json::Value> {
     let interval = Duration::from_secs_f64(1.0 / args.rate_hz.max(0.1));
     let codec = codec_costs(args.codec_iterations.max(1))?;
-    let baseline = thread_wake_baseline(args.rate_messages, interval);
-    let tokio_baseline = tokio_wake_baseline(args.rate_messages, interval)?;
+    let baseline = wake::thread(args.rate_messages, interval);
+    let tokio_baseline = wake::tokio(args.rate_messages, interval)?;
+    let socket_baseline = wake::socket(args.rate_messages, interval)?;
+    let iceoryx2_baseline = wake::iceoryx2(args.rate_messages, interval)?;
     let mut transports = serde_json::Map::new();
     let mut p99 = serde_json::Map::new();
     let mut tls_cost = serde_json::Map::new();
@@ -414,6 +353,15 @@ pub fn run(args: &Options) -> Result<serde_json::Value> {
             json!({"fixed_rate": rate.to_json(), "full_rate": full.to_json()}),
         );
     }
+    // The yardstick: the iceoryx2 transport's p99 over each floor's, in this run.
+    let ipc_p99 = p99.get("ipc_p99_us").and_then(Value::as_f64).unwrap_or(f64::NAN);
+    let over = |floor: &Value| ipc_p99 / floor["p99_us"].as_f64().unwrap_or(f64::NAN);
+    let ipc_p99_over = json!({
+        "thread_wake": over(&baseline),
+        "tokio_wake": over(&tokio_baseline),
+        "socket_wake": over(&socket_baseline),
+        "iceoryx2": over(&iceoryx2_baseline),
+    });
     let frame_bytes = encode(&Envelope {
         source: NodeId(2),
         seq: 0,
@@ -441,6 +389,9 @@ pub fn run(args: &Options) -> Result<serde_json::Value> {
         "codec": codec,
         "thread_wake_baseline": baseline,
         "tokio_wake_baseline": tokio_baseline,
+        "socket_wake_baseline": socket_baseline,
+        "ipc_p99_over": ipc_p99_over,
+        "iceoryx2_baseline": iceoryx2_baseline,
     });
     if let Some(o) = report.as_object_mut() {
         for (k, v) in p99 {
