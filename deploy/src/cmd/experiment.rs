@@ -12,7 +12,9 @@ use std::process::ExitCode;
 pub struct Args {
     /// Experiment name (`paper000-table1`, `paper001`, `paper002-table1`, `paper002-occlusion`,
     /// `paper002-rssi-only`, `paper002-robustness`, `paper004`), `all` (those seven), or
-    /// `ble-rssi` (real BLE data from shared/datasets/ble-rssi; not part of `all`).
+    /// `ble-rssi` (real BLE data from shared/datasets/ble-rssi; not part of `all`), or `crowd`
+    /// (ten people in the default room, issue 16's multi-target metrics; slow, not part of
+    /// `all`).
     pub name: String,
     /// Seeded runs per method.
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=10_000))]

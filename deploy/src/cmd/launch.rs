@@ -102,6 +102,22 @@ pub fn run(args: Args, log_json: bool) -> Result<ExitCode> {
         println!("{}", serde_json::to_string_pretty(report)?);
     } else {
         print!("{}", report.to_table());
+        if let Some(age) = crate::launch::latency::of(&launched.report.loaded) {
+            print!("{}", crate::launch::latency::to_line(&age));
+        }
+        print!(
+            "{}",
+            crate::launch::usage::to_table(&launched.usage, launched.wall_s)
+        );
+    }
+    for r in &launched.usage {
+        tracing::info!(
+            role = %r.role,
+            processes = r.processes,
+            cores = r.cores,
+            rss_mib_total = r.rss_mib_total,
+            "CPU and memory"
+        );
     }
     tracing::info!(
         run = %launched.run.dir.display(),

@@ -50,6 +50,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         println!("{json}");
     } else {
         print!("{}", r.report.to_table());
+        if let Some(age) = crate::launch::latency::of(&r.loaded) {
+            print!("{}", crate::launch::latency::to_line(&age));
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -13,8 +13,10 @@
 
 mod acoustic;
 pub mod chaos;
+pub mod latency;
 pub mod progress;
 pub mod run_dir;
+pub mod usage;
 
 use crate::supervisor::{Event, MakeCommand, RestartPolicy, Supervisor};
 use anyhow::{Context, Result};
@@ -61,6 +63,10 @@ pub struct Launched {
     pub report: RecordingReport,
     /// Restarts per node that needed any.
     pub restarts: BTreeMap<String, u32>,
+    /// CPU and memory per role, read just before the nodes were stopped.
+    pub usage: Vec<usage::RoleUsage>,
+    /// Seconds from the start of the nodes to that reading.
+    pub wall_s: f64,
 }
 
 /// A free loopback port (bound then released; the child binds it right after).
@@ -278,7 +284,7 @@ async fn supervise(
     mut progress: Option<(Progress, Vec<world::Target>, ClusterTime)>,
     pids: &Path,
     mut chaos: Option<chaos::Chaos>,
-) -> Result<Supervisor> {
+) -> Result<(Supervisor, Vec<usage::RoleUsage>, f64)> {
     let mut signals = StopSignals::new()?;
     let mut sup = sup;
     let started = instant_now();
@@ -307,6 +313,13 @@ async fn supervise(
             break;
         }
     }
+    let wall_s = started.elapsed().as_secs_f64();
+    let samples: Vec<(String, usage::ProcessUsage)> = sup
+        .children_mut()
+        .iter()
+        .filter_map(|c| Some((c.name.clone(), usage::sample(c.pid())?)))
+        .collect();
+    let roles = usage::by_role(&samples, wall_s);
     let groups = sup.running_groups();
     let stop = tokio::task::spawn_blocking(move || {
         let killed = sup.stop_all();
@@ -320,7 +333,7 @@ async fn supervise(
                 if !killed.is_empty() {
                     tracing::warn!(nodes = killed.join(", "), "nodes ignored SIGTERM and were killed");
                 }
-                return Ok(sup);
+                return Ok((sup, roles, wall_s));
             }
             sig = signals.next() => {
                 tracing::warn!(signal = sig, "second stop signal: killing every node");
@@ -403,7 +416,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<Launched> {
         (Some(_), None) => anyhow::bail!("the chaos mode needs restarts: nodes it kills are started again"),
         (None, _) => None,
     };
-    let mut sup = rt.block_on(supervise(sup, opts, progress, &pids, chaos))?;
+    let (mut sup, usage, wall_s) = rt.block_on(supervise(sup, opts, progress, &pids, chaos))?;
     let restarts = sup
         .children_mut()
         .iter()
@@ -421,5 +434,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<Launched> {
         run,
         report,
         restarts,
+        usage,
+        wall_s,
     })
 }

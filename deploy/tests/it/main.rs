@@ -1,3 +1,4 @@
 //! Integration tests of the `ocelli` binary (one binary).
 
 mod cli;
+mod scenarios;

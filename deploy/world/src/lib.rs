@@ -21,4 +21,4 @@ pub mod sources;
 pub mod targets;
 
 pub use prepare::prepare;
-pub use targets::{Target, Trajectory, set_targets, targets};
+pub use targets::{Pause, Target, Trajectory, set_targets, targets};

@@ -78,6 +78,7 @@ fn bench_scenario(width: u32, height: u32) -> Result<Scenario> {
         trajectory: Trajectory::Loop {
             waypoints: vec![[2.0, 1.5], [4.5, 3.5], [2.5, 4.0]],
             speed: 0.7,
+            pauses: Vec::new(),
         },
         size: [0.4, 0.4, 1.7],
         colour: [40, 90, 200],
@@ -88,6 +89,7 @@ fn bench_scenario(width: u32, height: u32) -> Result<Scenario> {
         trajectory: Trajectory::Loop {
             waypoints: vec![[4.0, 1.0], [3.0, 3.0]],
             speed: 0.5,
+            pauses: Vec::new(),
         },
         size: [0.5, 0.5, 1.2],
         colour: [60, 170, 60],

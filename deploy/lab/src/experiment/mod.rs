@@ -11,6 +11,7 @@
 //! JSON and Markdown) and [`plot`] (PNG figures).
 
 pub mod ble_rssi;
+pub mod crowd;
 pub mod paper000_table1;
 pub mod paper001;
 pub mod paper002_occlusion;
@@ -40,6 +41,9 @@ pub const NAMES: [&str; 7] = [
 /// Experiments on real data from `shared/datasets/`: run by name only, never by `all`, so that
 /// `all` works without the shared datasets (each fails with the dataset's path when absent).
 pub const REAL_DATA: [&str; 1] = [ble_rssi::NAME];
+
+/// Experiments too slow for `all` (minutes per run at pixel level): run by name only.
+pub const SLOW: [&str; 1] = [crowd::NAME];
 
 /// How to run an experiment.
 #[derive(Clone, Debug)]
@@ -223,9 +227,15 @@ pub fn run(name: &str, opts: &Options) -> crate::Result<Outcome> {
         "paper002-robustness" => paper002_robustness::run(opts),
         paper004::NAME => paper004::run(opts),
         ble_rssi::NAME => ble_rssi::run(opts),
+        crowd::NAME => crowd::run(opts),
         other => Err(crate::LabError::UnknownExperiment {
             name: other.into(),
-            known: format!("{}, {}", NAMES.join(", "), REAL_DATA.join(", ")),
+            known: format!(
+                "{}, {}, {}",
+                NAMES.join(", "),
+                REAL_DATA.join(", "),
+                SLOW.join(", ")
+            ),
         }),
     }
 }

@@ -63,6 +63,7 @@ pub fn scenario() -> Scenario {
         t.trajectory = Trajectory::Loop {
             waypoints: vec![[1.5, 3.5], [9.5, 3.5]],
             speed: 0.4,
+            pauses: Vec::new(),
         };
     }
     world::set_targets(&mut s, &targets);

@@ -150,8 +150,11 @@ pub fn to_text(o: &Outcome) -> String {
     let _ = writeln!(s, "experiment {} — {}", o.experiment, setup(o, "s each"));
     let _ = writeln!(s, "\nours:");
     text_table(&o.rows, &mut s);
-    let _ = writeln!(s, "\npaper:");
-    text_table(&o.paper, &mut s);
+    // An experiment of our own (no paper behind it) has no paper table.
+    if !o.paper.is_empty() {
+        let _ = writeln!(s, "\npaper:");
+        text_table(&o.paper, &mut s);
+    }
     if !o.shape.is_empty() {
         let _ = writeln!(s, "\nshape:");
         for c in &o.shape {
@@ -221,8 +224,10 @@ pub fn to_markdown(o: &Outcome, command: &str, figures: &[String]) -> String {
     let _ = writeln!(s, "{capitalized}.\n");
     let _ = writeln!(s, "Ours:\n");
     md_table(&o.rows, &mut s);
-    let _ = writeln!(s, "\nPaper:\n");
-    md_table(&o.paper, &mut s);
+    if !o.paper.is_empty() {
+        let _ = writeln!(s, "\nPaper:\n");
+        md_table(&o.paper, &mut s);
+    }
     if !o.shape.is_empty() {
         let _ = writeln!(s, "\nShape:\n");
         for c in &o.shape {

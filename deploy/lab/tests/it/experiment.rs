@@ -99,3 +99,35 @@ fn rssi_only_trained_models_beat_the_default_model() {
     assert!(err(p::TRAINED) < err(p::DEFAULT), "{table}");
     assert!(o.rows.iter().all(|r| r.power_mw.is_none()), "{table}");
 }
+
+/// A few seconds of the crowd: both methods and the guard give their rows, every multi-target
+/// figure is there and finite, and the goals are checked (they may fail: they are goals).
+#[test]
+fn crowd_short_run_has_every_metric_per_method_and_the_guard() {
+    let o = experiment::run(
+        experiment::crowd::NAME,
+        &Options {
+            runs: 2,
+            seed: 1,
+            level: Some(Level::Measurement),
+            duration_s: Some(6.0),
+        },
+    )
+    .expect("the crowd runs");
+    assert_eq!(o.rows.len(), 3);
+    for (label, _) in experiment::crowd::METHODS {
+        let row = o.row(label).expect("a row per method");
+        for name in ["MOTA", "MOTP m", "IDF1", "ID sw", "frag", "global ids", "GOSPA m"] {
+            let v = row.extra.iter().find(|e| e.name == name).and_then(|e| e.value);
+            assert!(v.is_some_and(f64::is_finite), "{label}: {name} = {v:?}");
+            let ci = row.extra.iter().find(|e| e.name == format!("{name} ±95%"));
+            assert!(
+                ci.is_some_and(|e| e.value.is_some()),
+                "{label}: {name} has no interval"
+            );
+        }
+    }
+    let guard = o.row(experiment::crowd::GUARD).expect("the guard row");
+    assert!(guard.mean_error_m.is_some_and(f64::is_finite));
+    assert_eq!(o.shape.len(), 5);
+}

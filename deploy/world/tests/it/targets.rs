@@ -29,7 +29,7 @@ fn default_loop_is_seen_by_many_cameras() {
     assert_eq!(s.cameras().count(), 21);
     let targets = targets(&s).unwrap();
     let t = &targets[0];
-    let Trajectory::Loop { waypoints, speed } = &t.trajectory else {
+    let Trajectory::Loop { waypoints, speed, .. } = &t.trajectory else {
         panic!("the default target drives a loop")
     };
     let perimeter: f64 = (0..waypoints.len())

@@ -42,6 +42,7 @@ impl Walker {
             trajectory: Trajectory::Path {
                 waypoints: vec![p, p],
                 speed: 1.0,
+                pauses: Vec::new(),
             },
             ..self.target.clone()
         })

@@ -63,6 +63,7 @@ fn walker() -> Walker {
             Trajectory::Loop {
                 waypoints: vec![at(LOOK_AT, across, 1.4), at(LOOK_AT, across, -1.4)],
                 speed: 0.5,
+                pauses: Vec::new(),
             },
         ),
         enter_s: ENTER_S,
@@ -285,6 +286,7 @@ pub fn crowd_scene() -> Setup {
                 Trajectory::Path {
                     waypoints: vec![from, to],
                     speed: CROWD_SPEED,
+                    pauses: Vec::new(),
                 },
             ),
             enter_s,
