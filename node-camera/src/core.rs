@@ -285,10 +285,6 @@ impl CameraNode {
         // frame period), so the frame's age needs no clock shared with the head.
         let age_s = captured.map_or(0.0, |t| now.secs_since(t));
         let cam = &self.cfg.camera;
-        // Nearest gated detection per prior, as each prior comes. A detection may so go to two
-        // nearby priors (one region covering two people); answering jointly with the other live
-        // priors (`assign` over them) starved one of the two instead and measured worse on
-        // four-people (docs/multi-target.md).
         let chosen = captured.and_then(|_| {
             self.measured
                 .iter()

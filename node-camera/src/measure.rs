@@ -48,32 +48,36 @@ pub fn mahalanobis2(camera: &CameraModel, prior: &Prior, m: &Measured, age_s: f6
     models::gate_distance2(camera, &mean, &cov, &m.point, &m.cov, age_s)
 }
 
-/// Assign measured detections to priors jointly (global nearest neighbour, `assign::assign`):
-/// each prior takes at most one detection and each detection at most one prior, the set of
-/// pairs with the least total d² (a free detection costing the gate), only within `gate_chi2`.
-/// Each prior comes with the detections' age relative to it, s (see [`mahalanobis2`]).
-/// Returns, per detection, the index of its prior.
-/// (Joint, not nearest pairs first: a greedy pass may leave a prior without the detection only
-/// it could take, and that detection then goes out free, for a birth next to a live track.)
+/// Assign measured detections to priors: each prior takes at most one detection and each
+/// detection at most one prior, nearest pairs first, only within `gate_chi2`. Each prior comes
+/// with the detections' age relative to it, s (see [`mahalanobis2`]). Returns, per detection,
+/// the index of its prior.
 pub fn associate(
     camera: &CameraModel,
     priors: &[(&Prior, f64)],
     measured: &[Measured],
     gate_chi2: f64,
 ) -> Vec<Option<usize>> {
-    let Ok(mut costs) = assign::GatedCosts::new(priors.len(), gate_chi2) else {
-        return vec![None; measured.len()];
-    };
-    for m in measured {
-        let row: Vec<Option<f64>> = priors
-            .iter()
-            .map(|&(p, age_s)| mahalanobis2(camera, p, m, age_s).filter(|d2| d2.is_finite() && *d2 >= 0.0))
-            .collect();
-        if costs.push(0, &row).is_err() {
-            return vec![None; measured.len()];
+    let mut pairs = Vec::new();
+    for (pi, &(p, age_s)) in priors.iter().enumerate() {
+        for (mi, m) in measured.iter().enumerate() {
+            if let Some(d2) = mahalanobis2(camera, p, m, age_s)
+                && d2 <= gate_chi2
+            {
+                pairs.push((d2, pi, mi));
+            }
         }
     }
-    assign::assign(&costs)
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut of_detection = vec![None; measured.len()];
+    let mut prior_taken = vec![false; priors.len()];
+    for (_, pi, mi) in pairs {
+        if of_detection[mi].is_none() && !prior_taken[pi] {
+            of_detection[mi] = Some(pi);
+            prior_taken[pi] = true;
+        }
+    }
+    of_detection
 }
 
 /// The contribution Ω_i, ξ_i of one measured point at the prior's mean, or the all-zero

@@ -72,9 +72,6 @@ pub struct HeadNode {
     last_status: Option<ClusterTime>,
     sync: (i64, i64),
     undelivered: u64,
-    /// Pairs of tracks (lower local id first) that looked alike for this many steps in a row
-    /// (`lifecycle::MERGE_STEPS`).
-    near: std::collections::BTreeMap<(TargetId, TargetId), u32>,
 }
 
 impl HeadNode {
@@ -121,7 +118,6 @@ impl HeadNode {
             last_status: None,
             sync: (0, -1),
             undelivered: 0,
-            near: std::collections::BTreeMap::new(),
         }
     }
 
@@ -548,18 +544,7 @@ impl HeadNode {
         let before = self.tracks.len();
         let bounds = self.cfg.bounds;
         let mut left = 0;
-        let coast_steps = u32::try_from(self.cfg.method.track_timeout_ms / self.cfg.method.step_ms.max(1))
-            .unwrap_or(u32::MAX);
-        let mut ended = 0;
         self.tracks.retain(|t| {
-            // Camera tracks by the lifecycle rules; radio tracks by their silence alone.
-            if t.camera_steps > 0
-                && crate::lifecycle::deleted(t.confirmed, &t.history, t.filter.cov(), coast_steps)
-            {
-                info!(target = %t.local, state = ?t.state(), "track deleted (lifecycle)");
-                ended += 1;
-                return false;
-            }
             let silent = now - t.last_seen > timeout;
             if silent {
                 info!(target = %t.local, "track silent too long; dropped");
@@ -573,7 +558,6 @@ impl HeadNode {
             !(silent || outside)
         });
         self.counters.left_world += left;
-        self.counters.lifecycle_deaths += ended;
         self.counters.deaths += (before - self.tracks.len()) as u64;
         let motion = self.cfg.method.motion;
         let mut failed = 0;

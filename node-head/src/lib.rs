@@ -8,7 +8,7 @@
 //! modules, each tested alone: [`eif`] (information form), [`ekf`] (covariance-form
 //! cross-check), [`init`] (triangulation), [`rssi_training`] (Algorithm 1), [`rssi_noise`]
 //! (RSSI weighed by its innovations), [`activation`] (Algorithm 2), [`association`] (several
-//! targets), [`lifecycle`] (a track's states and their rules) and [`step`] (the distributed step's accounting).
+//! targets) and [`step`] (the distributed step's accounting).
 
 pub mod activation;
 pub mod association;
@@ -19,7 +19,6 @@ pub mod fusion;
 pub mod grid;
 pub mod head;
 pub mod init;
-pub mod lifecycle;
 pub mod observe;
 pub mod process;
 pub mod rssi_noise;

@@ -60,9 +60,6 @@ pub struct Counters {
     pub left_world: u64,
     /// Tracks dropped as duplicates of another on the same target.
     pub merges: u64,
-    /// Tracks deleted by the lifecycle rules (coasting too long, σ too wide, a tentative track
-    /// missed too often); also counted in `deaths`.
-    pub lifecycle_deaths: u64,
     pub handovers: u64,
     pub commands: u64,
     /// Filter updates that failed numerically and fell back to prediction only.

@@ -3,7 +3,6 @@
 
 use crate::association::Detection;
 use crate::eif::{Accumulator, Eif, FilterError};
-use crate::lifecycle::{History, Lifecycle};
 use crate::rssi_noise::RssiNoise;
 use crate::rssi_training::RssiTrainer;
 use nalgebra::{Matrix3, Matrix6, Vector3};
@@ -13,11 +12,10 @@ use proto::observation::Kinds;
 use proto::{ClusterTime, TargetId};
 
 /// Steps with camera information a born track needs before it is reported (one second at the
-/// default 200 ms step), among its last [`crate::lifecycle::CONFIRM_WINDOW`]. Until then it is
-/// tentative: it is filtered and may be merged, but the server never hears of it, so a
-/// short-lived duplicate (a split region, the leftover of a segmentation ghost) never becomes a
-/// global id. Handed-over tracks are confirmed at once. See [`crate::lifecycle`].
-pub const CONFIRM_STEPS: u32 = crate::lifecycle::CONFIRM_HITS;
+/// default 200 ms step). Until then it is tentative: it is filtered and may be merged, but the
+/// server never hears of it, so a short-lived duplicate (a split region, the leftover of a
+/// segmentation ghost) never becomes a global id. Handed-over tracks are confirmed at once.
+pub const CONFIRM_STEPS: u32 = 5;
 /// How far (metres) a born track must move, from where it was after its first two camera steps
 /// (by then a new track has converged on its detections), to be confirmed. Motion segmentation
 /// (paper 004) only sees what moves, so a target that does not move is a ghost: the background
@@ -70,8 +68,6 @@ pub struct Track {
     /// The colour histogram the ground-plane observations fused into it carried, blended
     /// over time (empty until one came): its appearance for identity at the server.
     pub appearance: Vec<f32>,
-    /// Its recent steps, for the lifecycle rules ([`crate::lifecycle`]).
-    pub history: History,
 }
 
 /// How long the readings a track took are remembered (longer than any freshness bound).
@@ -119,7 +115,6 @@ impl Track {
             confirmed: global.is_some(),
             taken: Vec::new(),
             appearance: Vec::new(),
-            history: History::default(),
         })
     }
 
@@ -146,11 +141,9 @@ impl Track {
         Ok(())
     }
 
-    /// Record a closed step: whether cameras measured it (`camera`), whether any measurement
-    /// did (`informed`); confirm it by the M-of-N rule ([`crate::lifecycle`]) once it moved
-    /// [`CONFIRM_DISTANCE_M`] from its anchor.
-    pub fn end_step(&mut self, camera: bool, informed: bool) {
-        self.history.record(camera, informed);
+    /// Count a step in which cameras measured it (`camera`); confirm it after
+    /// [`CONFIRM_STEPS`] of them once it moved [`CONFIRM_DISTANCE_M`] from its anchor.
+    pub fn end_step(&mut self, camera: bool) {
         self.camera_steps += u32::from(camera);
         if self.confirmed || !camera {
             return;
@@ -158,15 +151,10 @@ impl Track {
         if self.camera_steps == ANCHOR_STEPS {
             self.anchor = Some(self.position());
         }
-        self.confirmed = self.history.confirmable()
+        self.confirmed = self.camera_steps >= CONFIRM_STEPS
             && self
                 .anchor
                 .is_some_and(|a| (self.position() - a).norm() >= CONFIRM_DISTANCE_M);
-    }
-
-    /// Where it is in its life.
-    pub fn state(&self) -> Lifecycle {
-        crate::lifecycle::state(self.confirmed, &self.history)
     }
 
     pub fn position(&self) -> Vector3<f64> {

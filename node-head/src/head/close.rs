@@ -4,7 +4,6 @@
 use super::HeadNode;
 use crate::activation::{Candidate, Expected, Variant};
 use crate::association::{Detection, associate, births};
-use crate::lifecycle;
 use crate::observe;
 use crate::rssi_training::distance_variance;
 use crate::stats::StepStats;
@@ -66,17 +65,7 @@ impl HeadNode {
         let evidenced = |t: &crate::track::Track| {
             t.global.is_some() || t.camera_steps > 0 || t.rssi_heard.iter().any(|&h| h)
         };
-        // Camera tracks by their lifecycle state (a coasting one while its σ is small); radio
-        // tracks once confirmed.
-        let reported = |t: &crate::track::Track| {
-            evidenced(t)
-                && if t.camera_steps > 0 {
-                    lifecycle::reported(t.state(), t.filter.cov())
-                } else {
-                    t.confirmed
-                }
-        };
-        for t in self.tracks.iter().filter(|t| reported(t)) {
+        for t in self.tracks.iter().filter(|t| t.confirmed && evidenced(t)) {
             if let Some(server) = self.cfg.server {
                 out.push(Outgoing::new(
                     server,
@@ -168,7 +157,7 @@ impl HeadNode {
             warn!(target = %track.local, error = %e, "update failed; prediction only");
         }
         let trained_from_cameras = track.aux_acc.count > 0;
-        track.end_step(trained_from_cameras || !dets.is_empty(), updated.informed);
+        track.end_step(trained_from_cameras || !dets.is_empty());
         // Algorithm 1: pairs (distance from the camera-only filter, RSSI).
         if trained_from_cameras {
             // σ²_u is the paper's: from the auxiliary filter's covariance at the step. Taken at
@@ -227,51 +216,49 @@ impl HeadNode {
     }
 
     /// Two tracks on one target (a track born next to another, or two converging on the same
-    /// detections) would be updated together forever. Two tracks that look alike
-    /// ([`lifecycle::look_alike`]: close in position, and in velocity too when both are
-    /// confirmed — people crossing are near but move apart) for [`lifecycle::MERGE_STEPS`]
-    /// steps in a row become one: the one the server knows, else the confirmed one, else the
-    /// older is kept ([`lifecycle::merge_rank`]).
+    /// detections, which cameras may gate to both priors) would be updated together forever.
+    /// When their states (position and velocity) agree within the gate (Mahalanobis with the
+    /// summed covariances), keep the one with a global id, else the confirmed one, else the
+    /// older, and drop the other. A tentative track (never reported) next to a confirmed one
+    /// is dropped on position alone: its velocity is still a guess (a ghost's track swept onto
+    /// a target, or a second track born on one target), and nobody knows it yet.
     fn merge_duplicates(&mut self) {
         let gate = self.cfg.method.gate_chi2;
-        let mut near = std::collections::BTreeMap::new();
-        let mut gone = Vec::new();
-        for i in 0..self.tracks.len() {
-            for j in i + 1..self.tracks.len() {
+        let mut i = 0;
+        'outer: while i < self.tracks.len() {
+            let mut j = i + 1;
+            while j < self.tracks.len() {
                 let (a, b) = (&self.tracks[i], &self.tracks[j]);
-                if gone.contains(&i) || gone.contains(&j) {
-                    continue;
-                }
-                let both = a.confirmed && b.confirmed;
-                if !lifecycle::look_alike(
-                    (a.filter.mean(), a.filter.cov()),
-                    (b.filter.mean(), b.filter.cov()),
-                    gate,
-                    both,
-                ) {
-                    continue;
-                }
-                let key = (a.local.min(b.local), a.local.max(b.local));
-                let steps = self.near.get(&key).copied().unwrap_or(0) + 1;
-                if steps < lifecycle::MERGE_STEPS {
-                    near.insert(key, steps);
-                    continue;
-                }
-                let rank = |t: &crate::track::Track| {
-                    lifecycle::merge_rank(t.global.is_some(), t.confirmed, u64::from(t.local.0))
+                // Position and velocity: two targets crossing are near but move apart.
+                let d = a.filter.mean() - b.filter.mean();
+                let s = a.filter.cov() + b.filter.cov();
+                let same = if a.confirmed != b.confirmed {
+                    let (d, s) = (
+                        d.fixed_rows::<3>(0).into_owned(),
+                        s.fixed_view::<3, 3>(0, 0).into_owned(),
+                    );
+                    s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate)
+                } else {
+                    s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate)
                 };
-                let (kept, dropped) = if rank(b) > rank(a) { (j, i) } else { (i, j) };
-                info!(kept = %self.tracks[kept].local, dropped = %self.tracks[dropped].local, "duplicate tracks merged");
-                self.counters.merges += 1;
-                gone.push(dropped);
+                if same {
+                    // Prefer the track the server knows, then a confirmed one, then the older
+                    // (lower index).
+                    let rank = |t: &crate::track::Track| (t.global.is_some(), t.confirmed);
+                    let gone = if rank(b) > rank(a) { i } else { j };
+                    let kept = if gone == i { j } else { i };
+                    info!(kept = %self.tracks[kept].local, dropped = %self.tracks[gone].local, "duplicate tracks merged");
+                    self.counters.merges += 1;
+                    self.tracks.remove(gone);
+                    if gone == i {
+                        continue 'outer;
+                    }
+                } else {
+                    j += 1;
+                }
             }
+            i += 1;
         }
-        self.near = near;
-        let mut index = 0;
-        self.tracks.retain(|_| {
-            index += 1;
-            !gone.contains(&(index - 1))
-        });
     }
 
     pub(super) fn command(&mut self, slot: usize, mode: Mode, out: &mut Vec<Outgoing>) {
