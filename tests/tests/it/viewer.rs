@@ -1,8 +1,10 @@
 //! The visualization node as a user meets it: `ocelli launch` starts a cluster with its viewer
 //! (`ocelli viewer`, a client of the server), prints the viewer's URL, `/api/state` shows a
 //! track with its global id, and headless Chromium (Debian's `chromium`) loads the map (`/`)
-//! and the 3D view (`/3d`) until the track's label is on the page. Screenshots of both go to
-//! `docs/view-live-map.png` and `docs/view-live-3d.png`.
+//! and the 3D view (`/3d`) until the track's label is on the page, then screenshots both into
+//! the test's scratch folder; with `OCELLI_WRITE_SCREENSHOTS=1` they replace
+//! `docs/view-live-map.png` and `docs/view-live-3d.png` (a test run never touches the tree
+//! otherwise).
 //!
 //! Without Chromium this test fails and says which package to install: it never passes
 //! silently.
@@ -192,7 +194,12 @@ fn launch_serves_a_live_map_and_3d_view_with_tracks_in_a_real_browser() {
         &view3d[view3d.len().saturating_sub(3000)..]
     );
 
-    let docs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs");
+    let docs = if std::env::var_os("OCELLI_WRITE_SCREENSHOTS").is_some_and(|v| v == "1") {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs")
+    } else {
+        profile.with_extension("shots")
+    };
+    std::fs::create_dir_all(&docs).expect("screenshot folder");
     for (path, file) in [("/", "view-live-map.png"), ("/3d", "view-live-3d.png")] {
         let png = docs.join(file);
         let _ = std::fs::remove_file(&png);
@@ -210,4 +217,5 @@ fn launch_serves_a_live_map_and_3d_view_with_tracks_in_a_real_browser() {
         );
     }
     let _ = std::fs::remove_dir_all(&profile);
+    let _ = std::fs::remove_dir_all(profile.with_extension("shots"));
 }
