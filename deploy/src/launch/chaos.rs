@@ -11,6 +11,8 @@
 use crate::supervisor::{Event, Supervisor};
 use anyhow::{Context, Result};
 use proto::ClusterTime;
+use rand::{Rng as _, RngCore as _, SeedableRng as _};
+use rand_chacha::ChaCha8Rng;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -29,31 +31,13 @@ pub struct ChaosOptions {
     pub after: Duration,
 }
 
-/// splitmix64: seeded, no dependency, the same sequence everywhere.
-#[derive(Clone, Debug)]
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`.
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 /// When kills are due (as offsets from the launch's start) and who they hit: the server one
 /// kill in five, a head three in ten, a camera (or other sensor node) the rest, a role with no
 /// node passing its share to the others.
 #[derive(Clone, Debug)]
 pub struct Plan {
-    rng: SplitMix,
+    /// Seeded like the simulated world's randomness: the same plan for the same seed.
+    rng: ChaCha8Rng,
     every: Duration,
     next: Duration,
     /// No kill at or after this offset.
@@ -63,7 +47,7 @@ pub struct Plan {
 impl Plan {
     pub fn new(opts: &ChaosOptions, duration: Option<Duration>) -> Plan {
         let mut plan = Plan {
-            rng: SplitMix(opts.seed),
+            rng: ChaCha8Rng::seed_from_u64(opts.seed),
             every: opts.every,
             next: Duration::ZERO,
             until: duration.map(|d| d.saturating_sub(QUIET_BEFORE_END)),
@@ -73,7 +57,7 @@ impl Plan {
     }
 
     fn gap(&mut self) -> Duration {
-        self.every.mul_f64(0.5 + self.rng.unit())
+        self.every.mul_f64(0.5 + self.rng.random::<f64>())
     }
 
     /// Whether a kill is due `elapsed` into the launch (then the next one is scheduled).
@@ -97,8 +81,8 @@ impl Plan {
             .collect();
         let groups = [(0.2, of("server-")), (0.3, of("head-")), (0.5, sensors)];
         let total: f64 = groups.iter().filter(|(_, g)| !g.is_empty()).map(|(w, _)| w).sum();
-        let mut draw = self.rng.unit() * total;
-        let pick = self.rng.next();
+        let mut draw = self.rng.random::<f64>() * total;
+        let pick = self.rng.next_u64();
         for (w, g) in groups.iter().filter(|(_, g)| !g.is_empty()) {
             if draw < *w {
                 return Some(g[(pick % g.len() as u64) as usize]);

@@ -14,14 +14,11 @@
 //!   slot and notifies the inbox's event; a thread blocked on the listener takes the sample.
 //!   The iceoryx2 transport's own cost is its latency above this one.
 
+use super::transport::percentile;
 use crate::{LabError, Result};
 use iceoryx2::prelude::*;
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
-
-fn percentile(sorted: &[u64], p: f64) -> f64 {
-    super::transport::percentile(sorted, p)
-}
 
 fn summary(mut lat: Vec<u64>) -> Value {
     lat.sort_unstable();
