@@ -2,17 +2,23 @@
 //! likelihood alone finds a sound source hidden behind one or two walls, as the nearer wall's
 //! distance and the walls' length vary.
 //!
-//! Setup, scaled from the paper's 90 × 50 cm bench to a room (our band is the paper's real-room
-//! 20–386 Hz, whose wavelengths are metres): an 8 × 5 m room, the two-microphone node at
-//! (0.3, 2.5) facing +x, a "speaker array" of 9 × 6 = 54 fingerprint positions 0.3 m apart over
-//! x ∈ [5.0, 7.4], y ∈ [1.75, 3.25] (the paper's 54 speakers), each rendered for 0.5 s by
-//! `world::acoustics` and analysed as the node analyses its frames. A wall across the line of
-//! sight, centred on y = 2.5, of length L_w, at L_d from the array's edge; with two walls the
-//! second is fixed 0.3 m in front of the array and only the nearer one moves (as in the paper).
-//! Test sources at seeded random positions in the array's area, off the lattice; for each the
-//! likelihood (eq. 16–18) on a 5 cm grid over the array's area gives the nearest-peak error
-//! (distance from the truth to the nearest local maximum above half the highest one) and the
-//! differential entropy of the normalised likelihood.
+//! Setup: the paper's bench (Table 1) scaled by 3, its 10 cm speaker spacing becoming our
+//! 0.3 m lattice (our band is the paper's real-room 20–386 Hz, whose wavelengths are metres,
+//! so the bench must grow with them). The two-microphone node stands next to the room's outer
+//! wall at (0.3, 2.5) facing +x, as the paper's sensor does; the "speaker array" of 9 × 6 = 54
+//! fingerprint positions 0.3 m apart covers x ∈ [1.8, 4.2], y ∈ [1.75, 3.25], its edge
+//! L_m = 1.5 m from the node (the paper's 50 cm); the room is 5 × 5 m. Each position is
+//! rendered for 0.5 s by `world::acoustics` and analysed as the node analyses its frames. A
+//! wall across the line of sight, centred on y = 2.5, of length L_w ∈ {1.5, 1.8, 2.1} m (the
+//! paper's 50–70 cm), at L_d ∈ {0, 0.3, 0.6, 0.9} m from the array's edge (0–30 cm); with two
+//! walls the second stays 0.15 m in front of the array and only the nearer one moves (as in
+//! the paper). Test sources at seeded random positions in the array's area, off the lattice;
+//! for each, the likelihood (eq. 16–18) on a 5 cm grid over the array's area gives the
+//! nearest-peak error (distance from the truth to the nearest local maximum above half the
+//! highest one) and the differential entropy of the normalised likelihood. The error is
+//! measured twice on the same test sound: with the correlations as the spline's control
+//! points, as eq. 17 prints it, and with the spline interpolating them (the surface passes
+//! through each fingerprint's correlation instead of smoothing it with its neighbours').
 
 use crate::Result;
 use crate::error::OrFailed;
@@ -20,7 +26,7 @@ use node_acoustic::ild::IldAnalyzer;
 use node_head::grid::acoustic::{AcousticParams as Likelihood, AcousticSensor};
 use node_head::grid::belief::Belief;
 use node_head::grid::layout::Grid;
-use proto::acoustic::{Fingerprint, FingerprintDb};
+use proto::acoustic::{Fingerprint, FingerprintDb, SplineFit};
 use proto::scenario::{RadioWorld, Wall, World, low_band};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -28,15 +34,21 @@ use std::sync::Arc;
 use world::acoustics::{AcousticParams, TwoMicNode, render_stereo};
 
 /// The array's area, `[xmin, ymin, xmax, ymax]`, m (lattice at its corners).
-const ARRAY: [f64; 4] = [5.0, 1.75, 7.4, 3.25];
+const ARRAY: [f64; 4] = [1.8, 1.75, 4.2, 3.25];
+/// The node's centre: next to the outer wall, L_m = 1.5 m from the array's edge.
+const NODE: [f64; 3] = [0.3, 2.5, 1.2];
+/// The room's depth along x, m (the outline is [0, ROOM_X] × [0, 5]).
+const ROOM_X: f64 = 5.0;
 const SPACING_M: f64 = 0.3;
 const SURVEY_S: f64 = 0.5;
 const TEST_S: f64 = 0.5;
 const GRID_CELL_M: f64 = 0.05;
 /// The nearer wall's distance from the array's edge, m (single wall; two walls use the last three).
-pub const DISTANCES_M: [f64; 4] = [0.0, 0.5, 1.0, 1.5];
+pub const DISTANCES_M: [f64; 4] = [0.0, 0.3, 0.6, 0.9];
 /// The walls' length, m.
-pub const LENGTHS_M: [f64; 3] = [1.0, 2.0, 3.0];
+pub const LENGTHS_M: [f64; 3] = [1.5, 1.8, 2.1];
+/// Where the second wall stays, in front of the array's edge, m.
+const SECOND_WALL_M: f64 = 0.15;
 
 /// One wall configuration's figures.
 #[derive(Clone, Debug)]
@@ -44,8 +56,10 @@ pub struct Cell {
     pub walls: u32,
     pub distance_m: f64,
     pub length_m: f64,
-    /// Nearest-peak error per test source, m.
+    /// Nearest-peak error per test source with the paper's control-point spline, m.
     pub errors_m: Vec<f64>,
+    /// The same with the interpolating spline, m.
+    pub errors_interpolating_m: Vec<f64>,
     /// Differential entropy of the normalised likelihood per test source, nats.
     pub entropies: Vec<f64>,
 }
@@ -53,6 +67,9 @@ pub struct Cell {
 impl Cell {
     pub fn mean_error(&self) -> f64 {
         mean(&self.errors_m)
+    }
+    pub fn mean_error_interpolating(&self) -> f64 {
+        mean(&self.errors_interpolating_m)
     }
     pub fn mean_entropy(&self) -> f64 {
         mean(&self.entropies)
@@ -81,13 +98,12 @@ pub fn room(walls: u32, distance: f64, length: f64) -> World {
     let near_x = ARRAY[0] - distance;
     let mut w = vec![wall_at(near_x, length)];
     if walls == 2 {
-        // The second wall stays 0.3 m in front of the array; the distances swept with two
-        // walls are all larger.
-        w.push(wall_at(ARRAY[0] - 0.3, length));
+        // The distances swept with two walls are all larger than the second wall's.
+        w.push(wall_at(ARRAY[0] - SECOND_WALL_M, length));
     }
     World {
         min: [0.0, 0.0, 0.0],
-        max: [8.0, 5.0, 3.0],
+        max: [ROOM_X, 5.0, 3.0],
         walls: w,
         radio: RadioWorld::default(),
         geo: None,
@@ -140,7 +156,7 @@ pub fn nearest_peak_error(grid: &Grid, map: &[f64], truth: [f64; 2]) -> f64 {
 pub fn evaluate(walls: u32, distance: f64, length: f64, sources: usize, seed: u64) -> Result<Cell> {
     let room = room(walls, distance, length);
     let settings = low_band();
-    let node = TwoMicNode::ears([0.3, 2.5, 1.2], 0.0, 0.2);
+    let node = TwoMicNode::ears(NODE, 0.0, 0.2);
     let params = AcousticParams::default();
     let mut analyzer = IldAnalyzer::new(&settings).or_failed("paper001")?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -167,12 +183,18 @@ pub fn evaluate(walls: u32, distance: f64, length: f64, sources: usize, seed: u6
     let area = array_world();
     let db = FingerprintDb::new(&area, settings, fingerprints).or_failed("fingerprints")?;
     let grid = Arc::new(Grid::new(&area, GRID_CELL_M).or_failed("paper001")?);
-    let sensor = AcousticSensor::new(&grid, db, Likelihood::default()).or_failed("paper001")?;
+    let interpolating = Likelihood {
+        fit: SplineFit::Interpolating,
+        ..Likelihood::default()
+    };
+    let sensor = AcousticSensor::new(&grid, db.clone(), Likelihood::default()).or_failed("paper001")?;
+    let through = AcousticSensor::new(&grid, db, interpolating).or_failed("paper001")?;
     let mut cell = Cell {
         walls,
         distance_m: distance,
         length_m: length,
         errors_m: Vec::with_capacity(sources),
+        errors_interpolating_m: Vec::with_capacity(sources),
         entropies: Vec::with_capacity(sources),
     };
     for _ in 0..sources {
@@ -183,6 +205,9 @@ pub fn evaluate(walls: u32, distance: f64, length: f64, sources: usize, seed: u6
         let ild = listen(p, TEST_S, &mut rng, &mut analyzer).or_failed("paper001")?;
         let map = sensor.likelihood_map(&ild).or_failed("paper001")?;
         cell.errors_m.push(nearest_peak_error(&grid, &map, p));
+        let map_through = through.likelihood_map(&ild).or_failed("paper001")?;
+        cell.errors_interpolating_m
+            .push(nearest_peak_error(&grid, &map_through, p));
         let mut b = Belief::uniform(grid.clone());
         b.correct(&map).or_failed("paper001")?;
         cell.entropies.push(b.differential_entropy());
@@ -225,10 +250,10 @@ mod tests {
         let map: Vec<f64> = (0..nx * ny)
             .map(|k| {
                 let c = grid.centre_of(k);
-                bump(c, [5.5, 2.0]) + 0.8 * bump(c, [7.0, 3.0])
+                bump(c, [ARRAY[0] + 0.5, 2.0]) + 0.8 * bump(c, [ARRAY[0] + 2.0, 3.0])
             })
             .collect();
-        let e = nearest_peak_error(&grid, &map, [6.9, 3.0]);
+        let e = nearest_peak_error(&grid, &map, [ARRAY[0] + 1.9, 3.0]);
         assert!(e < 0.15, "the second peak is the nearest: {e}");
     }
 
@@ -236,10 +261,14 @@ mod tests {
     /// array's area and entropies no larger than a uniform density's over it.
     #[test]
     fn one_configuration_gives_bounded_errors_and_entropies() {
-        let c = evaluate(1, 0.5, 1.0, 2, 7).unwrap();
+        let c = evaluate(1, DISTANCES_M[1], LENGTHS_M[0], 2, 7).unwrap();
         let diagonal = (ARRAY[2] - ARRAY[0]).hypot(ARRAY[3] - ARRAY[1]);
         let uniform = ((ARRAY[2] - ARRAY[0]) * (ARRAY[3] - ARRAY[1])).ln();
         assert_eq!(c.errors_m.len(), 2);
+        assert_eq!(c.errors_interpolating_m.len(), 2);
+        for e in &c.errors_interpolating_m {
+            assert!(e.is_finite() && *e >= 0.0 && *e <= diagonal, "error {e}");
+        }
         for (e, h) in c.errors_m.iter().zip(&c.entropies) {
             assert!(e.is_finite() && *e >= 0.0 && *e <= diagonal, "error {e}");
             assert!(
@@ -251,9 +280,9 @@ mod tests {
 
     #[test]
     fn two_walls_put_the_moving_one_nearer_the_node() {
-        let w = room(2, 1.0, 2.0).walls;
+        let w = room(2, DISTANCES_M[2], LENGTHS_M[1]).walls;
         assert_eq!(w.len(), 2);
         assert!(w[0].from[0] < w[1].from[0], "{w:?}");
-        assert!((w[1].from[0] - (ARRAY[0] - 0.3)).abs() < 1e-12);
+        assert!((w[1].from[0] - (ARRAY[0] - SECOND_WALL_M)).abs() < 1e-12);
     }
 }
