@@ -480,4 +480,57 @@ mod tests {
             panic!("target at t=0 is outside camera 10's view ({p})");
         }
     }
+
+    /// Two people on one line of sight: whichever order they are listed in, the nearer one's
+    /// colour fills the pixel where both are seen (painter's algorithm, far first).
+    #[test]
+    fn the_nearer_of_two_people_on_a_line_of_sight_is_drawn() {
+        let s = Scenario::default_scenario();
+        let cam = s.camera_model(10).unwrap();
+        let r = Renderer::for_node(&s, 10, 1).unwrap();
+        let c = cam.pose.centre();
+        let person = |id: u32, along: f64, colour: [u8; 3]| {
+            // On the ray from the camera through the room's centre, `along` of the way.
+            let at = [c.x + along * (6.0 - c.x), c.y + along * (4.0 - c.y)];
+            crate::Target {
+                id,
+                trajectory: crate::Trajectory::Path {
+                    waypoints: vec![at, at],
+                    speed: 1.0,
+                    pauses: Vec::new(),
+                },
+                size: [0.5, 0.5, 1.8],
+                colour,
+                rssi_tag: false,
+            }
+        };
+        let (red, green) = ([220, 20, 20], [20, 200, 20]);
+        let near = person(1, 0.6, red);
+        let far = person(2, 1.0, green);
+        // Where the far one's centre projects: the near one, taller than that line of sight
+        // where it stands, covers it.
+        let x = far.truth_at(0.0);
+        let p = cam.project(&Vector3::new(x[0], x[1], x[2])).unwrap();
+        assert!(
+            (0.0..352.0).contains(&p.x) && (0.0..288.0).contains(&p.y),
+            "far person outside camera 10's view ({p})"
+        );
+        for order in [[near.clone(), far.clone()], [far.clone(), near.clone()]] {
+            let mut f = Frame::new(0, 0, ClusterTime::ZERO);
+            r.render(&order, 0.0, ClusterTime::ZERO, &mut f);
+            let px = f.pixel(p.x as u32, p.y as u32);
+            assert!(
+                px[0] as i32 > px[1] as i32 + 60,
+                "the nearer (red) person is drawn over the farther (green): {px:?}"
+            );
+        }
+        // The far one alone is visible at that pixel: the test can fail.
+        let mut f = Frame::new(0, 0, ClusterTime::ZERO);
+        r.render(std::slice::from_ref(&far), 0.0, ClusterTime::ZERO, &mut f);
+        let px = f.pixel(p.x as u32, p.y as u32);
+        assert!(
+            px[1] as i32 > px[0] as i32 + 60,
+            "the far (green) person alone: {px:?}"
+        );
+    }
 }
