@@ -531,6 +531,7 @@ pub fn run_on(ds: &Dataset, opts: &Options) -> crate::Result<Outcome> {
         shape,
         notes,
         traces,
+        particles: None,
     })
 }
 

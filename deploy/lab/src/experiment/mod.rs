@@ -172,6 +172,43 @@ pub struct Trace {
     pub window: Option<(f64, f64)>,
 }
 
+/// A particle-filter camera's first run, kept for paper 004's Figs. 6–7: the filters' pdf
+/// over time and one frame with its samples.
+#[derive(Clone, Debug, Default)]
+pub struct ParticleTrace {
+    pub method: String,
+    /// The frame's size, px.
+    pub width: u32,
+    pub height: u32,
+    /// Width of the marginals' bins, px.
+    pub bin_px: u32,
+    /// Every frame's marginals.
+    pub frames: Vec<PdfSlice>,
+    pub snapshot: Option<SampleSnapshot>,
+}
+
+/// One frame's pdf p(X_t | Z_t) projected on the image's columns and rows: the weight of every
+/// live filter's samples per bin. Each filter's weights sum to 1, so the bins of a frame sum to
+/// the number of people tracked.
+#[derive(Clone, Debug, Default)]
+pub struct PdfSlice {
+    pub t: f64,
+    pub columns: Vec<f32>,
+    pub rows: Vec<f32>,
+}
+
+/// One frame as the camera saw it, every filter's samples `[x, y, weight]` (px, weight
+/// normalised per filter) and each filter's mean `[x, y]`.
+#[derive(Clone, Debug)]
+pub struct SampleSnapshot {
+    pub t: f64,
+    pub image: image::RgbImage,
+    pub samples: Vec<[f32; 3]>,
+    pub means: Vec<[f32; 2]>,
+    /// Why this frame: what was happening.
+    pub why: String,
+}
+
 /// What an experiment produced.
 #[derive(Clone, Debug, Serialize)]
 pub struct Outcome {
@@ -187,6 +224,8 @@ pub struct Outcome {
     pub notes: Vec<String>,
     #[serde(skip)]
     pub traces: Vec<Trace>,
+    #[serde(skip)]
+    pub particles: Option<ParticleTrace>,
 }
 
 impl Outcome {
@@ -204,6 +243,7 @@ impl Outcome {
             shape: Vec::new(),
             notes: Vec::new(),
             traces: Vec::new(),
+            particles: None,
         }
     }
 

@@ -461,7 +461,8 @@ pub fn slug(s: &str) -> String {
     out.trim_matches('-').to_string()
 }
 
-/// Write one PNG per traced method into `dir` (`EXPERIMENT-METHOD.png`); returns the paths.
+/// Write one PNG per traced method into `dir` (`EXPERIMENT-METHOD.png`), and the particle
+/// figure (`EXPERIMENT-particles.png`) when the experiment kept one; returns the paths.
 ///
 /// # Errors
 /// The directory cannot be created, a figure cannot be drawn, or a file cannot be written.
@@ -481,8 +482,20 @@ pub fn write_all(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>, PlotError> {
             })?;
         out.push(path);
     }
+    if let Some(p) = &o.particles {
+        let path = dir.join(format!("{}-particles.png", o.experiment));
+        particles::render(&o.experiment, o.seed, p)?
+            .save_with_format(&path, image::ImageFormat::Png)
+            .map_err(|source| PlotError::Write {
+                path: path.clone(),
+                source,
+            })?;
+        out.push(path);
+    }
     Ok(out)
 }
+
+mod particles;
 
 #[cfg(test)]
 mod tests;

@@ -274,6 +274,7 @@ mod tests {
             shape: vec![Check::new("c", false, "o".into())],
             notes: vec![],
             traces: vec![],
+            particles: None,
         }
     }
 

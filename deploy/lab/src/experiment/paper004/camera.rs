@@ -7,6 +7,7 @@
 //! and ground position with the method's id) and, for the particle filters, the bytes each
 //! mode would put on the wire.
 
+use super::super::{ParticleTrace, PdfSlice, SampleSnapshot};
 use nalgebra::Vector3;
 use node_camera::ground_people::{self, GroundPeople};
 use node_camera::segment::{SegmentParams, Segmenter};
@@ -141,6 +142,88 @@ pub struct CameraRun {
     pub height: u32,
     /// Filters alive after the last frame (particle filters only).
     pub live_at_end: usize,
+    /// The filters' pdf per frame and one frame's samples (particle filters only).
+    pub particles: Option<ParticleTrace>,
+}
+
+/// Bin width of the pdf's marginals, px.
+const PDF_BIN_PX: u32 = 4;
+/// The sample snapshot is taken this many frames into the first stretch in which a person in
+/// view is hidden behind a wall (else at the run's middle).
+const SNAPSHOT_FRAMES_IN: usize = 4;
+
+/// Gathers a particle run's [`ParticleTrace`] frame by frame.
+struct ParticleRecorder {
+    trace: ParticleTrace,
+    hidden_run: usize,
+    middle: Option<SampleSnapshot>,
+}
+
+impl ParticleRecorder {
+    fn new(width: u32, height: u32) -> Self {
+        ParticleRecorder {
+            trace: ParticleTrace {
+                width,
+                height,
+                bin_px: PDF_BIN_PX,
+                ..ParticleTrace::default()
+            },
+            hidden_run: 0,
+            middle: None,
+        }
+    }
+
+    fn record(&mut self, t: f64, frame: &Frame, people: &GroundPeople, truth: &[TruePerson], middle: bool) {
+        let tracker = people.tracker();
+        let bins = |len: u32| len.div_ceil(PDF_BIN_PX) as usize;
+        let mut slice = PdfSlice {
+            t,
+            columns: vec![0.0; bins(self.trace.width)],
+            rows: vec![0.0; bins(self.trace.height)],
+        };
+        let mut samples = Vec::new();
+        let mut means = Vec::new();
+        for id in tracker.ids() {
+            let Some(f) = tracker.filter(id) else { continue };
+            for s in f.samples() {
+                let (x, y) = (s.state.x, s.state.y);
+                if x >= 0.0 && y >= 0.0 && x < self.trace.width as f32 && y < self.trace.height as f32 {
+                    slice.columns[x as usize / PDF_BIN_PX as usize] += s.weight;
+                    slice.rows[y as usize / PDF_BIN_PX as usize] += s.weight;
+                }
+                samples.push([x, y, s.weight]);
+            }
+            let m = f.mean();
+            means.push([m.x, m.y]);
+        }
+        self.trace.frames.push(slice);
+        let hidden = truth.iter().any(|p| p.in_view && p.occluded);
+        self.hidden_run = if hidden { self.hidden_run + 1 } else { 0 };
+        let snapshot = |why: &str| {
+            image::RgbImage::from_raw(frame.width, frame.height, frame.data.clone()).map(|image| {
+                SampleSnapshot {
+                    t,
+                    image,
+                    samples: samples.clone(),
+                    means: means.clone(),
+                    why: why.into(),
+                }
+            })
+        };
+        if self.trace.snapshot.is_none() && self.hidden_run == SNAPSHOT_FRAMES_IN && !means.is_empty() {
+            self.trace.snapshot = snapshot("person partly hidden");
+        }
+        if middle && !means.is_empty() {
+            self.middle = snapshot("mid-run");
+        }
+    }
+
+    fn finish(mut self) -> ParticleTrace {
+        if self.trace.snapshot.is_none() {
+            self.trace.snapshot = self.middle;
+        }
+        self.trace
+    }
 }
 
 /// The quality of the JPEGs of the bandwidth study.
@@ -169,6 +252,7 @@ pub fn run(
         Tracker::Particle(p) => Some(GroundPeople::new(p, seed)?),
         Tracker::Segmentation => None,
     };
+    let mut recorder = people.as_ref().map(|_| ParticleRecorder::new(width, height));
     let mut linker = RegionLinker::default();
     let mut frame = Frame::new(0, 0, ClusterTime::ZERO);
     let mut regions: Vec<Detection> = Vec::new();
@@ -201,6 +285,9 @@ pub fn run(
                 };
                 people.track(&camera, &frame, &regions, foreground)?;
                 record_people(&camera, people, setup.camera, &mut rec)?;
+                if let Some(r) = recorder.as_mut() {
+                    r.record(t, &frame, people, &rec.truth, k == n / 2);
+                }
             }
             None => {
                 for (id, d) in linker.link(&regions) {
@@ -219,6 +306,7 @@ pub fn run(
         width,
         height,
         live_at_end: people.map_or(0, |p| p.tracker().ids().len()),
+        particles: recorder.map(ParticleRecorder::finish),
     })
 }
 

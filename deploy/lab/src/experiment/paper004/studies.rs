@@ -4,7 +4,7 @@ use super::camera::{self, CameraRun, Illumination, Setup, Tracker, Walker};
 use super::score::{self, Single, mean, share};
 use super::{FPS, NAME};
 use crate::experiment::runner::{Errors, Sample};
-use crate::experiment::{Check, Extra, Options, Outcome, Row, Trace};
+use crate::experiment::{Check, Extra, Options, Outcome, ParticleTrace, Row, Trace};
 use node_camera::tracker::params::ParticleParams;
 use proto::scenario::{Scenario, Wall};
 use world::{Target, Trajectory};
@@ -179,12 +179,23 @@ pub fn occlusion(opts: &Options, duration_s: f64, out: &mut Outcome) -> crate::e
             .push(Extra::new("ground err hidden m", hidden.map(|e| e.mean), 3));
         out.rows.push(row);
         out.traces.push(Trace {
-            method,
+            method: method.clone(),
             samples: scores.first().map(|s| s.samples.clone()).unwrap_or_default(),
             window: windows.first().copied(),
         });
         labels.push(label);
         if label == PARTICLE {
+            out.particles = runs
+                .first()
+                .and_then(|r| r.particles.clone())
+                .map(|p| ParticleTrace {
+                    method: method.clone(),
+                    ..p
+                });
+            out.notes.push(
+                "Figs. 6–7 (`--plot`: paper004-particles.png), the first particle run of the occlusion study: the filters' pdf over time projected on the image's columns and rows, and the frame four frames into the first partial occlusion with every sample (size: weight) and each filter's mean."
+                    .into(),
+            );
             let hidden_s: f64 = windows.iter().map(|w| w.1 - w.0).sum();
             out.notes.push(format!(
                 "Occlusion: a pillar 0.2 m wide, 3 m high, 1.2 m in front of the middle of a 2.8 m walk at 0.5 m/s across node 10's view, 3.5 m away; it hides the person's centre {hidden_s:.1} s of {duration_s:.0} s in the first run ({} passes), a vertical strip of them (they are 0.5 m wide) while it does. The person enters after {ENTER_S} s of empty room. Segmentation alone keeps an id while a region overlaps the previous frame's region of that id; a region that splits off, or comes back after a frame without one, gets a new id.",

@@ -166,3 +166,68 @@ fn method_labels_become_file_names() {
     assert_eq!(slug("Active perception (cost 0.2)"), "active-perception-cost-0-2");
     assert_eq!(slug("RSSI only — Rectangular"), "rssi-only-rectangular");
 }
+
+/// One filter sweeping the image's columns over 4 s, its samples at (100, 120) in a grey frame.
+fn particle_trace() -> crate::experiment::ParticleTrace {
+    use crate::experiment::{ParticleTrace, PdfSlice, SampleSnapshot};
+    let frames = (0..40)
+        .map(|k| {
+            let mut columns = vec![0.0; 88];
+            columns[(k * 2) % 88] = 1.0;
+            let mut rows = vec![0.0; 72];
+            rows[30] = 1.0;
+            PdfSlice {
+                t: k as f64 * 0.1,
+                columns,
+                rows,
+            }
+        })
+        .collect();
+    ParticleTrace {
+        method: "particle filters".into(),
+        width: 352,
+        height: 288,
+        bin_px: 4,
+        frames,
+        snapshot: Some(SampleSnapshot {
+            t: 2.0,
+            image: image::RgbImage::from_pixel(352, 288, Rgb([128, 128, 128])),
+            samples: (0..50)
+                .map(|i| [100.0 + (i % 5) as f32, 120.0 + (i / 10) as f32, 0.02])
+                .collect(),
+            means: vec![[102.0, 122.0]],
+            why: "test".into(),
+        }),
+    }
+}
+
+#[test]
+fn the_particle_figure_is_written_beside_the_traces_with_samples_and_pdf_drawn() {
+    let dir = std::env::temp_dir().join(format!("ocelli-plot-particles-{}", std::process::id()));
+    let o = Outcome {
+        particles: Some(particle_trace()),
+        ..outcome(vec![trace()])
+    };
+    let paths = write_all(&o, &dir).unwrap();
+    let last = paths.last().unwrap();
+    assert_eq!(last.file_name().unwrap(), "paper-test-particles.png");
+    let img = image::open(last).unwrap();
+    assert_eq!((img.width(), img.height()), (WIDTH, HEIGHT));
+    let count = |x0: u32, x1: u32, f: &dyn Fn(image::Rgba<u8>) -> bool| {
+        (x0..x1)
+            .flat_map(|x| (TITLE_H..HEIGHT - LEGEND_H).map(move |y| (x, y)))
+            .filter(|&(x, y)| f(img.get_pixel(x, y)))
+            .count()
+    };
+    let third = WIDTH / 3;
+    // The pdf panels are shaded in the pdf's blue; the sample panel has green samples and the
+    // yellow mean over the grey frame.
+    let blue = |p: image::Rgba<u8>| p[2] > 100 && p[0] < 60 && p[1] < 80;
+    assert!(count(0, third, &blue) > 200, "column pdf drawn");
+    assert!(count(third, 2 * third, &blue) > 200, "row pdf drawn");
+    let green = |p: image::Rgba<u8>| p[1] > 180 && p[0] < 100 && p[2] < 100;
+    let yellow = |p: image::Rgba<u8>| p[0] > 220 && p[1] > 200 && p[2] < 60;
+    assert!(count(2 * third, WIDTH, &green) > 20, "samples drawn");
+    assert!(count(2 * third, WIDTH, &yellow) > 10, "mean drawn");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
