@@ -68,9 +68,6 @@ impl Cell {
     pub fn mean_error(&self) -> f64 {
         mean(&self.errors_m)
     }
-    pub fn mean_error_interpolating(&self) -> f64 {
-        mean(&self.errors_interpolating_m)
-    }
     pub fn mean_entropy(&self) -> f64 {
         mean(&self.entropies)
     }

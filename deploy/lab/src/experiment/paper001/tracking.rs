@@ -253,3 +253,34 @@ pub fn samples(steps: &[Step]) -> Vec<Sample> {
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A belief shaped like the truth's Gaussian but blind to walls (so it spills out of the
+    /// corridor), centred at `at`.
+    fn belief_at(grid: &Arc<Grid>, at: [f64; 2]) -> Belief {
+        let likelihood: Vec<f64> = (0..grid.len())
+            .map(|k| {
+                let c = grid.centre_of(k);
+                let d2 = (c[0] - at[0]).powi(2) + (c[1] - at[1]).powi(2);
+                (-0.5 * d2 / (KL_SIGMA_M * KL_SIGMA_M)).exp()
+            })
+            .collect();
+        let mut b = Belief::uniform(grid.clone());
+        b.correct(&likelihood).unwrap();
+        b
+    }
+
+    #[test]
+    fn kl_is_small_on_the_truth_in_the_corridor_and_grows_with_the_error() {
+        let s = scenario();
+        let grid = Arc::new(Grid::new(&s.world, CELL_M).unwrap());
+        let truth = [8.0, 3.5];
+        let on = kl_from_truth(&grid, &s.world, &belief_at(&grid, truth), truth);
+        let off = kl_from_truth(&grid, &s.world, &belief_at(&grid, [7.0, 3.5]), truth);
+        assert!(on < 1.0, "a belief on the truth: {on} nats");
+        assert!(off > on + 2.0, "1 m off: {off} nats against {on}");
+    }
+}
