@@ -233,26 +233,7 @@ pub fn gate_distance2(prior: &Prior, g: &GroundPoint, age_s: f64) -> Option<f64>
 /// Assign ground points to priors, nearest pairs first, one to one, within `gate_chi2` (each
 /// prior with the points' age relative to it, s). Returns, per point, its prior's index.
 pub fn associate(priors: &[(&Prior, f64)], people: &[GroundPoint], gate_chi2: f64) -> Vec<Option<usize>> {
-    let mut pairs = Vec::new();
-    for (pi, &(p, age_s)) in priors.iter().enumerate() {
-        for (gi, g) in people.iter().enumerate() {
-            if let Some(d2) = gate_distance2(p, g, age_s)
-                && d2 <= gate_chi2
-            {
-                pairs.push((d2, pi, gi));
-            }
-        }
-    }
-    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut of_point = vec![None; people.len()];
-    let mut taken = vec![false; priors.len()];
-    for (_, pi, gi) in pairs {
-        if of_point[gi].is_none() && !taken[pi] {
-            of_point[gi] = Some(pi);
-            taken[pi] = true;
-        }
-    }
-    of_point
+    crate::measure::nearest_pairs(priors, people, gate_chi2, gate_distance2)
 }
 
 /// The nearest ground point within the gate of one prior.

@@ -58,26 +58,41 @@ pub fn associate(
     measured: &[Measured],
     gate_chi2: f64,
 ) -> Vec<Option<usize>> {
+    nearest_pairs(priors, measured, gate_chi2, |p, m, age_s| {
+        mahalanobis2(camera, p, m, age_s)
+    })
+}
+
+/// Greedy one-to-one assignment of `items` to `priors`, the pairs nearest by `distance2` (a
+/// squared gate distance for the prior, the item and the item's age relative to the prior, s)
+/// first, only within `gate_chi2`. Returns, per item, the index of its prior. Shared by the
+/// pin-hole detections and the ground-plane people.
+pub fn nearest_pairs<T>(
+    priors: &[(&Prior, f64)],
+    items: &[T],
+    gate_chi2: f64,
+    distance2: impl Fn(&Prior, &T, f64) -> Option<f64>,
+) -> Vec<Option<usize>> {
     let mut pairs = Vec::new();
     for (pi, &(p, age_s)) in priors.iter().enumerate() {
-        for (mi, m) in measured.iter().enumerate() {
-            if let Some(d2) = mahalanobis2(camera, p, m, age_s)
+        for (ii, item) in items.iter().enumerate() {
+            if let Some(d2) = distance2(p, item, age_s)
                 && d2 <= gate_chi2
             {
-                pairs.push((d2, pi, mi));
+                pairs.push((d2, pi, ii));
             }
         }
     }
     pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut of_detection = vec![None; measured.len()];
+    let mut of_item = vec![None; items.len()];
     let mut prior_taken = vec![false; priors.len()];
-    for (_, pi, mi) in pairs {
-        if of_detection[mi].is_none() && !prior_taken[pi] {
-            of_detection[mi] = Some(pi);
+    for (_, pi, ii) in pairs {
+        if of_item[ii].is_none() && !prior_taken[pi] {
+            of_item[ii] = Some(pi);
             prior_taken[pi] = true;
         }
     }
-    of_detection
+    of_item
 }
 
 /// The contribution Ω_i, ξ_i of one measured point at the prior's mean, or the all-zero
