@@ -99,18 +99,27 @@ type Drawn<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorTy
 /// # Errors
 /// The embedded font cannot be parsed, or plotters fails to draw.
 pub fn render(experiment: &str, seed: u64, trace: &Trace) -> Result<RgbImage, PlotError> {
+    draw_figure(&trace.method, |root| figure(root, experiment, seed, trace))
+}
+
+/// A [`WIDTH`] × [`HEIGHT`] figure drawn by `draw` into an RGB buffer (`method` names it in
+/// errors).
+fn draw_figure(
+    method: &str,
+    draw: impl for<'a> FnOnce(&DrawingArea<BitMapBackend<'a>, Shift>) -> Drawn<BitMapBackend<'a>>,
+) -> Result<RgbImage, PlotError> {
     register_font()?;
     let mut buf = vec![0u8; WIDTH as usize * HEIGHT as usize * 3];
     let drawn = {
         let root = BitMapBackend::with_buffer(&mut buf, (WIDTH, HEIGHT)).into_drawing_area();
-        figure(&root, experiment, seed, trace).and_then(|()| root.present())
+        draw(&root).and_then(|()| root.present())
     };
     drawn.map_err(|e| PlotError::Draw {
-        method: trace.method.clone(),
+        method: method.to_string(),
         detail: e.to_string(),
     })?;
     RgbImage::from_raw(WIDTH, HEIGHT, buf).ok_or_else(|| PlotError::Draw {
-        method: trace.method.clone(),
+        method: method.to_string(),
         detail: "the pixel buffer does not match the figure's size".into(),
     })
 }
@@ -471,26 +480,23 @@ pub fn write_all(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>, PlotError> {
         path: dir.to_path_buf(),
         source,
     })?;
+    let save = |image: RgbImage, path: PathBuf| {
+        image
+            .save_with_format(&path, image::ImageFormat::Png)
+            .map_err(|source| PlotError::Write {
+                path: path.clone(),
+                source,
+            })
+            .map(|()| path)
+    };
     let mut out = Vec::new();
     for t in &o.traces {
         let path = dir.join(format!("{}-{}.png", o.experiment, slug(&t.method)));
-        render(&o.experiment, o.seed, t)?
-            .save_with_format(&path, image::ImageFormat::Png)
-            .map_err(|source| PlotError::Write {
-                path: path.clone(),
-                source,
-            })?;
-        out.push(path);
+        out.push(save(render(&o.experiment, o.seed, t)?, path)?);
     }
     if let Some(p) = &o.particles {
         let path = dir.join(format!("{}-particles.png", o.experiment));
-        particles::render(&o.experiment, o.seed, p)?
-            .save_with_format(&path, image::ImageFormat::Png)
-            .map_err(|source| PlotError::Write {
-                path: path.clone(),
-                source,
-            })?;
-        out.push(path);
+        out.push(save(particles::render(&o.experiment, o.seed, p)?, path)?);
     }
     Ok(out)
 }

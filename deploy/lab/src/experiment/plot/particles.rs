@@ -5,10 +5,9 @@
 //! state (yellow star), as Fig. 7 shows them.
 
 use super::{
-    AXIS_PX, CAPTION_PX, Drawn, HEIGHT, LEGEND_H, PlotError, SUBTITLE, SUBTITLE_PX, TICK_PX, TITLE_H,
-    TITLE_PX, WIDTH,
+    CAPTION_PX, Drawn, HEIGHT, LEGEND_H, PlotError, SUBTITLE, SUBTITLE_PX, TITLE_H, TITLE_PX, WIDTH,
 };
-use super::{Swatch, chart_builder, draw_legend, register_font, text};
+use super::{Swatch, chart_builder, draw_figure, draw_legend, mesh, text};
 use crate::experiment::{ParticleTrace, PdfSlice, SampleSnapshot};
 use image::RgbImage;
 use plotters::coord::Shift;
@@ -24,20 +23,7 @@ const PDF: RGBColor = RGBColor(20, 40, 140);
 /// # Errors
 /// The embedded font cannot be parsed, or plotters fails to draw.
 pub fn render(experiment: &str, seed: u64, trace: &ParticleTrace) -> Result<RgbImage, PlotError> {
-    register_font()?;
-    let mut buf = vec![0u8; WIDTH as usize * HEIGHT as usize * 3];
-    let drawn = {
-        let root = BitMapBackend::with_buffer(&mut buf, (WIDTH, HEIGHT)).into_drawing_area();
-        figure(&root, experiment, seed, trace).and_then(|()| root.present())
-    };
-    drawn.map_err(|e| PlotError::Draw {
-        method: trace.method.clone(),
-        detail: e.to_string(),
-    })?;
-    RgbImage::from_raw(WIDTH, HEIGHT, buf).ok_or_else(|| PlotError::Draw {
-        method: trace.method.clone(),
-        detail: "the pixel buffer does not match the figure's size".into(),
-    })
+    draw_figure(&trace.method, |root| figure(root, experiment, seed, trace))
 }
 
 fn figure<DB: DrawingBackend>(
@@ -119,14 +105,7 @@ fn pdf_panel<DB: DrawingBackend>(
     let dt = (t1 - t0) / trace.frames.len().max(1) as f64;
     let mut chart =
         chart_builder(area, caption).build_cartesian_2d(t0..t1 + dt, f64::from(extent_px)..0.0)?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc("time (s)")
-        .y_desc("pixel")
-        .label_style(text(TICK_PX))
-        .axis_desc_style(text(AXIS_PX))
-        .draw()?;
+    mesh(&mut chart, "time (s)", "pixel")?;
     let bin = f64::from(trace.bin_px);
     chart.draw_series(trace.frames.iter().flat_map(|s| {
         marginal(s)
@@ -155,14 +134,7 @@ fn samples_panel<DB: DrawingBackend>(
     let (w, h) = (f64::from(trace.width), f64::from(trace.height));
     let caption = format!("samples at t = {:.1} s ({})", snap.t, snap.why);
     let mut chart = chart_builder(area, &caption).build_cartesian_2d(0.0..w, h..0.0)?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc("x (px)")
-        .y_desc("y (px)")
-        .label_style(text(TICK_PX))
-        .axis_desc_style(text(AXIS_PX))
-        .draw()?;
+    mesh(&mut chart, "x (px)", "y (px)")?;
     // The frame, one rectangle per pixel (nearest neighbour onto the plotting area).
     let image = &snap.image;
     chart.draw_series(image.enumerate_pixels().map(|(x, y, p)| {
