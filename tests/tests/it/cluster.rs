@@ -133,16 +133,21 @@ impl Launch {
         for pid in self.all_pids() {
             assert!(!alive(pid), "node process {pid} outlived the launch");
         }
+        let left = self.shm_files();
+        assert!(left.is_empty(), "files left in /dev/shm: {left:?}");
+    }
+
+    /// The run's domain's files in `/dev/shm`.
+    pub(crate) fn shm_files(&self) -> std::collections::BTreeSet<String> {
         let prefix = format!("iox2_{}_", self.domain);
-        let left: Vec<String> = std::fs::read_dir("/dev/shm")
+        std::fs::read_dir("/dev/shm")
             .map(|d| {
                 d.flatten()
                     .map(|e| e.file_name().to_string_lossy().into_owned())
                     .filter(|n| n.starts_with(&prefix))
                     .collect()
             })
-            .unwrap_or_default();
-        assert!(left.is_empty(), "files left in /dev/shm: {left:?}");
+            .unwrap_or_default()
     }
 }
 
@@ -217,7 +222,31 @@ fn killing_a_camera_mid_run_leaves_tracking_running() {
     let victim = "camera-12";
     let pid = run.pid_of(victim);
     std::thread::sleep(Duration::from_secs(8));
+    let listed = |what: &str| {
+        runtime::transport::ipc_nodes(&run.domain)
+            .unwrap_or_else(|e| panic!("listing the domain's nodes {what}: {e}"))
+    };
+    let before = listed("before the kill");
+    assert!(
+        before.alive >= 24,
+        "the run's nodes are not all listed: {before:?}"
+    );
     signal(pid, libc::SIGKILL);
+    // No node starts after the kill (the victim stays down), so iceoryx2's own cleanup, which
+    // runs when a node is created, never comes: the live nodes' janitors must remove the dead
+    // camera's resources (its publishers' data segments, its connections, its service places).
+    std::thread::sleep(Duration::from_secs(1));
+    // The launch runs 20 s and the kill is at 8 s: look until 17 s, while the others run.
+    let deadline = now() + Duration::from_secs(8);
+    let mut after = listed("after the kill");
+    while now() < deadline && after.dead > 0 {
+        std::thread::sleep(Duration::from_millis(250));
+        after = listed("after the kill");
+    }
+    assert!(
+        after.dead == 0 && after.alive + 1 == before.alive,
+        "the killed camera's iceoryx2 resources were not removed within 9 s: before {before:?}, after {after:?}"
+    );
     let (report, run) = run.finish(Duration::from_secs(90));
     assert_tracked(&report);
     // The head's last word on camera 12 is that it is down: it no longer waits for it.

@@ -15,7 +15,9 @@
 //! iceoryx2's thread-safe service flavour, so `Endpoint::send` publishes straight from the
 //! caller's task too. iceoryx2's own signal handling is disabled (tokio owns SIGINT/SIGTERM). Each
 //! iceoryx2 node is created with dead-node cleanup, so resources left by a crashed node of the
-//! domain are removed at start; dropping the nodes on shutdown removes this node's files.
+//! domain are removed at start, and a janitor thread sweeps the domain's dead nodes every few
+//! seconds after that ([`super::ipc_janitor`]); dropping the nodes on shutdown removes this
+//! node's files.
 
 use super::common::accept;
 use super::stats::{TransportStats, bump};
@@ -127,6 +129,36 @@ impl IpcConfig {
 /// with it.
 pub fn file_prefix(domain: &str) -> String {
     format!("iox2_{domain}_")
+}
+
+/// The iceoryx2 nodes of `domain` on this host: how many are alive and how many are dead with
+/// their resources not yet removed (what the janitor is for). For operators and tests.
+///
+/// # Errors
+/// An invalid domain, or iceoryx2 cannot list the nodes.
+pub fn ipc_nodes(domain: &str) -> Result<IpcNodes, TransportError> {
+    check_domain(domain)?;
+    let config = iox_config(domain)?;
+    let mut nodes = IpcNodes::default();
+    Node::<Svc>::list(&config, |state| {
+        match state {
+            NodeState::Alive(_) => nodes.alive += 1,
+            NodeState::Dead(_) => nodes.dead += 1,
+            NodeState::Inaccessible(_) | NodeState::Undefined(_) => nodes.other += 1,
+        }
+        CallbackProgression::Continue
+    })
+    .map_err(|e| ipc_err("node list", e))?;
+    Ok(nodes)
+}
+
+/// What [`ipc_nodes`] counts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct IpcNodes {
+    pub alive: usize,
+    pub dead: usize,
+    /// Nodes iceoryx2 cannot classify (no permission, damaged details).
+    pub other: usize,
 }
 
 fn check_domain(domain: &str) -> Result<(), TransportError> {
@@ -380,6 +412,7 @@ pub(crate) fn start(
     let receiver = Receiver::open(&node, &cfg, stats, handle.token())?;
     let domain = cfg.domain.clone();
     handle.after_join.push(Box::new(move || release_domain(&domain)));
+    start_janitor(config, handle)?;
     let sender = Sender {
         inner: Arc::new(SenderInner {
             cfg,
@@ -397,6 +430,20 @@ pub(crate) fn start(
         on_stop.stop();
     }));
     Ok((sender, receiver))
+}
+
+/// Sweep the domain for dead nodes' files in a thread of its own (see [`super::ipc_janitor`]);
+/// shutdown stops and joins it.
+fn start_janitor(config: Config, handle: &mut ShutdownHandle) -> Result<(), TransportError> {
+    let (stop, stopped) = std::sync::mpsc::channel::<()>();
+    let period = super::ipc_janitor::period_for(std::process::id());
+    let thread = std::thread::Builder::new()
+        .name("iox2-janitor".into())
+        .spawn(move || super::ipc_janitor::run::<Svc>(config, period, stopped))
+        .map_err(TransportError::Io)?;
+    handle.on_stop.push(Box::new(move || drop(stop)));
+    handle.threads.push(thread);
+    Ok(())
 }
 
 /// The inbox's ports. Shared with the shutdown handle, which drops them.

@@ -22,6 +22,7 @@ pub mod codec;
 mod common;
 mod inproc;
 mod ipc;
+mod ipc_janitor;
 pub mod stats;
 mod tcp;
 pub mod tls;
@@ -43,7 +44,7 @@ use tokio_util::task::TaskTracker;
 
 pub use backoff::Backoff;
 pub use inproc::InProcessHub;
-pub use ipc::{IpcConfig, IpcLimits, file_prefix};
+pub use ipc::{IpcConfig, IpcLimits, IpcNodes, file_prefix, ipc_nodes};
 pub use stats::{StatsSnapshot, TransportStats};
 pub use tcp::{Security, TcpConfig};
 pub use tls::{ClusterCa, NodeCert, Tls, TlsError, TlsFiles};
