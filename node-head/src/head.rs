@@ -343,6 +343,7 @@ impl HeadNode {
                     track.acc.add_wire(&c.info_matrix, &c.info_vector);
                     track.aux_acc.add_wire(&c.info_matrix, &c.info_vector);
                     track.last_seen = now;
+                    track.fused_frame(c.captured);
                 }
                 let mut kinds = if camera { c.folded } else { Kinds::NONE };
                 for r in &rssi {

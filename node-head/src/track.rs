@@ -41,6 +41,8 @@ pub struct Track {
     /// Detections associated this step (centralized and ML fusion).
     pub detections: Vec<Detection>,
     pub contributors: Vec<Contributor>,
+    /// When the oldest camera frame fused this step was captured.
+    pub captured: Option<ClusterTime>,
     /// One trainer per node slot.
     pub trainers: Vec<RssiTrainer>,
     /// How much wider than their models claim this track's RSSI readings are weighed.
@@ -101,6 +103,7 @@ impl Track {
             rssi: Vec::new(),
             detections: Vec::new(),
             contributors: Vec::new(),
+            captured: None,
             trainers: (0..nodes)
                 .map(|_| RssiTrainer::new(rssi_default, window, epsilon))
                 .collect(),
@@ -137,6 +140,7 @@ impl Track {
         self.detections.clear();
         self.ml_points.clear();
         self.contributors.clear();
+        self.captured = None;
         self.taken.retain(|&(_, t)| now - t < TAKEN_MEMORY_NS);
         Ok(())
     }
@@ -191,6 +195,11 @@ impl Track {
             self.taken.push((slot, time));
         }
         taken
+    }
+
+    /// A camera frame captured at `at` was fused this step.
+    pub fn fused_frame(&mut self, at: ClusterTime) {
+        self.captured = Some(self.captured.map_or(at, |c| c.min(at)));
     }
 
     /// Record one node's share in the report.

@@ -61,6 +61,7 @@ fn report(head: NodeId, local: u32, global: Option<u32>, t: ClusterTime, x: f64,
             late: 0,
             appearance: Vec::new(),
             grid: None,
+            captured: None,
         }),
     )
 }

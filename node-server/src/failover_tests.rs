@@ -61,6 +61,7 @@ fn report(head: NodeId, local: u32, global: Option<TargetId>, t: i64, x: f64) ->
             late: 0,
             appearance: Vec::new(),
             grid: None,
+            captured: None,
         }),
     )
 }

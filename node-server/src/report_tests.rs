@@ -113,6 +113,7 @@ fn record_run(name: &str) -> PathBuf {
             late: k as u64 / 10,
             appearance: Vec::new(),
             grid: None,
+            captured: None,
         };
         let out = send(&mut server, &mut rec, t, owner, Message::TrackReport(r), 0);
         for o in out {

@@ -199,6 +199,7 @@ pub fn messages() -> Vec<Envelope> {
                 peak_mass: 0.0625,
                 cells: vec![0, 17, 255, 3, 128, 9],
             }),
+            captured: Some(ClusterTime(1_500_020_000)),
         })),
         env(Message::Assignment(Assignment {
             node: NodeId(10),

@@ -245,6 +245,10 @@ pub struct TrackReport {
     pub appearance: Vec<f32>,
     /// The grid estimator's posterior, down-sampled (`[method] fusion = "grid"` only).
     pub grid: Option<GridPosterior>,
+    /// When the oldest camera frame fused into this estimate was captured; `None` when no
+    /// camera's frame was (tag readings only, or a coasting step). With the server's receipt
+    /// time it gives the end-to-end latency from frame capture to the fused estimate.
+    pub captured: Option<ClusterTime>,
 }
 
 /// Most cells per side of a [`GridPosterior`] (a report carries at most 64 × 64 bytes of it).

@@ -99,7 +99,8 @@ pub fn run(args: Args, log_json: bool) -> Result<ExitCode> {
     }
     let report = &launched.report.report;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(report)?);
+        let json = crate::launch::latency::report_json(report, &launched.report.loaded)?;
+        println!("{}", serde_json::to_string_pretty(&json)?);
     } else {
         print!("{}", report.to_table());
         if let Some(age) = crate::launch::latency::of(&launched.report.loaded) {

@@ -42,7 +42,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         Scoring::Given(t0) => tracing::info!(t0_ns = t0.0, "scored from the given time origin"),
         _ => {}
     }
-    let json = serde_json::to_string_pretty(&r.report)?;
+    let json = serde_json::to_string_pretty(&crate::launch::latency::report_json(&r.report, &r.loaded)?)?;
     if let Some(p) = &args.write {
         std::fs::write(p, &json).with_context(|| format!("writing {}", p.display()))?;
     }

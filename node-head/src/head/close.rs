@@ -81,6 +81,7 @@ impl HeadNode {
                         late: self.counters.late,
                         appearance: t.appearance.clone(),
                         grid: self.fusion.posterior(t.local),
+                        captured: t.captured,
                     }),
                 ));
             }
@@ -125,6 +126,7 @@ impl HeadNode {
                 }
             }
             track.note(node.id, kinds);
+            track.fused_frame(d.captured);
         }
         if !self.fusion.distributed() {
             stats.applied += dets.len() as u64;

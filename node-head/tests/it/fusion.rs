@@ -78,6 +78,7 @@ fn previous_point_improves_velocity() {
                     late: 0,
                     appearance: Vec::new(),
                     grid: None,
+                    captured: None,
                 };
                 ev += velocity_error(&sim, &r);
                 ep += error(&sim, &r, 0);

@@ -138,6 +138,10 @@ async fn head_process_tracks_and_survives_cameras_and_server_vanishing() {
     let err = (Vector3::new(last.mean[0], last.mean[1], last.mean[2]) - truth).norm();
     assert!(err < 0.05, "error {err}");
     assert!(!last.contributors.is_empty());
+    assert!(
+        last.captured.is_some(),
+        "a report that fused frames carries their capture time"
+    );
     // The cameras vanish: the head keeps reporting, prediction only, uncertainty growing.
     for h in cam_handles {
         h.shutdown().await;
@@ -150,6 +154,7 @@ async fn head_process_tracks_and_survives_cameras_and_server_vanishing() {
     for _ in 0..5 {
         let r = next_report(&mut server_in).await;
         assert!(r.contributors.is_empty());
+        assert_eq!(r.captured, None, "a prediction-only report fused no frame");
         let t = r.cov[0][0] + r.cov[1][1];
         assert!(t > trace, "uncertainty did not grow");
         trace = t;

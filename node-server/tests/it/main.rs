@@ -73,6 +73,7 @@ fn report(local: u32, x: f64, step: u64) -> Message {
         late: 0,
         appearance: Vec::new(),
         grid: None,
+        captured: None,
     })
 }
 

@@ -71,6 +71,7 @@ fn report(head: u32, local: u32, seq: u64, t: i64, x: f64) -> Stamped {
                 late: 0,
                 appearance: Vec::new(),
                 grid: None,
+                captured: None,
             }),
         }),
     )

@@ -53,6 +53,7 @@ pub fn report(head: u32, seq: u64, local: u32, t: i64, x: f64, y: f64) -> Stampe
                 late: 0,
                 appearance: Vec::new(),
                 grid: None,
+                captured: None,
             }),
         }),
     )

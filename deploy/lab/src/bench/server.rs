@@ -72,6 +72,7 @@ fn report(head: u32, k: u32, step: u64) -> Envelope {
             late: 0,
             appearance: Vec::new(),
             grid: None,
+            captured: Some(t),
         }),
     }
 }

@@ -63,6 +63,7 @@ fn report(head: NodeId, seq: u64, local: u32, at: i64, x: f64) -> Envelope {
             late: seq / 10,
             appearance: Vec::new(),
             grid: None,
+            captured: None,
         }),
     )
 }

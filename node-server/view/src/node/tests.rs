@@ -104,6 +104,7 @@ fn the_feed_fills_the_view_and_every_metric_from_real_data() {
                 late: seq / 4,
                 appearance: Vec::new(),
                 grid: None,
+                captured: None,
             };
             w.server
                 .on_message(ms(at), from(2, seq, at, Message::TrackReport(report)));
@@ -202,6 +203,7 @@ fn a_track_the_server_dropped_leaves_the_view_and_a_quiet_server_is_said() {
         late: 0,
         appearance: Vec::new(),
         grid: None,
+        captured: None,
     };
     w.server
         .on_message(ms(100), from(2, 0, 100, Message::TrackReport(report(100))));

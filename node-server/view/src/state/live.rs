@@ -54,6 +54,7 @@ fn as_report(t: &ViewTrack) -> TrackReport {
         late: 0,
         appearance: Vec::new(),
         grid: None,
+        captured: None,
     }
 }
 

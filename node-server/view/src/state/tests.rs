@@ -51,6 +51,7 @@ fn report(local: u32, at: i64, x: f64, y: f64) -> Message {
         late: 3,
         appearance: Vec::new(),
         grid: None,
+        captured: None,
     })
 }
 

@@ -69,6 +69,7 @@ fn report(local: u32, at: i64, p: [f64; 2], v: [f64; 2], sigma: [f64; 3], camera
         late: 2,
         appearance: Vec::new(),
         grid: None,
+        captured: Some(ClusterTime(at)),
     })
 }
 

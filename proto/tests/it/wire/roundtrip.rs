@@ -325,7 +325,7 @@ fn message() -> impl Strategy<Value = Message> {
         })),
         (
             (any::<u32>(), prop::option::of(any::<u32>()), any::<u64>(), time()),
-            (vec6(), psd(), contributors()),
+            (vec6(), psd(), contributors(), prop::option::of(time())),
             (
                 0.0..1e6f64,
                 any::<u64>(),
@@ -334,7 +334,11 @@ fn message() -> impl Strategy<Value = Message> {
             )
         )
             .prop_map(
-                |((t, g, step, time), (mean, cov, contributors), (power_mw, late, appearance, grid))| {
+                |(
+                    (t, g, step, time),
+                    (mean, cov, contributors, captured),
+                    (power_mw, late, appearance, grid),
+                )| {
                     Message::TrackReport(TrackReport {
                         target: TargetId(t),
                         global: g.map(TargetId),
@@ -347,6 +351,7 @@ fn message() -> impl Strategy<Value = Message> {
                         late,
                         appearance,
                         grid,
+                        captured,
                     })
                 }
             ),
