@@ -43,9 +43,17 @@ pub struct ServerConfig {
     pub journal: bool,
 }
 
+/// Below this blended Bhattacharyya coefficient two tracks' colours say they are different
+/// people. Paper 004's particle filter itself weighs a sample at Bhattacharyya distance
+/// √(1 − ρ) with σ = 0.2 (eq. 8): at ρ = 0.5 (distance 0.71) the weight is e^-6.3 of a perfect
+/// match's, so such a pair is unmistakably two people; two people in similar colours stay
+/// well above it and fall back on position alone.
+pub const MIN_APPEARANCE_SIMILARITY: f32 = 0.5;
+
 impl ServerConfig {
     /// Defaults from the scenario: merge gate 1 m, hysteresis 3 reports, handover margin
-    /// 0.25 m, track timeout from `method.track-timeout-ms`, owner staleness three steps.
+    /// 0.25 m, track timeout from `method.track-timeout-ms`, owner staleness three steps,
+    /// appearance gate [`MIN_APPEARANCE_SIMILARITY`].
     pub fn from_scenario(scenario: Scenario, id: NodeId) -> Self {
         let ms = |v: u64| i64::try_from(v).unwrap_or(i64::MAX / 1_000_000) * 1_000_000;
         let tracks = TrackParams {
@@ -54,6 +62,7 @@ impl ServerConfig {
             handover_margin_m: 0.25,
             track_timeout_ns: ms(scenario.method.track_timeout_ms),
             owner_stale_ns: ms(3 * scenario.method.step_ms),
+            min_appearance_similarity: MIN_APPEARANCE_SIMILARITY,
         };
         ServerConfig {
             id,

@@ -52,7 +52,13 @@
 //!   is forgotten.
 //!
 //! The gate compares positions in metres after extrapolating the global's last posterior to the
-//! report's time with its velocity.
+//! report's time with its velocity. Appearance narrows it (paper 004's next step for its
+//! handover): when both a report and a global carry a colour histogram, a report whose colours
+//! are less alike than `min_appearance_similarity` never agrees with, merges into or counts as
+//! a duplicate of that global, and two globals of other colours are never absorbed into one
+//! (two people meeting stay two); among the globals a report may join, the least distance in
+//! gates plus unlikeness (1 − similarity) wins. Without histograms (segmenting cameras),
+//! position alone decides, as before.
 
 use crate::membership::{Membership, distance_to_region};
 use proto::msg::{Mat6, TrackReport, Vec6};
@@ -75,6 +81,9 @@ pub struct TrackParams {
     pub track_timeout_ns: i64,
     /// An owner silent about a track for this long loses it to a head still reporting it, ns.
     pub owner_stale_ns: i64,
+    /// Two tracks whose colour histograms are less alike than this (blended Bhattacharyya
+    /// coefficient, `proto::appearance`) are different people however close they are.
+    pub min_appearance_similarity: f32,
 }
 
 /// One global track.
@@ -94,6 +103,8 @@ pub struct GlobalTrack {
     /// in another cluster's area keeps it (that cluster's own track will be merged with it)
     /// instead of pushing a posterior from distant cameras onto the other head.
     pub entered: bool,
+    /// The colour histogram its owner last reported (empty until one came).
+    pub appearance: Vec<f32>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -143,6 +154,11 @@ fn dist(a: [f64; 3], b: &Vec6) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
+/// How alike two appearances are; 1 (no evidence against) when either is unknown.
+fn alike(a: &[f32], b: &[f32]) -> f32 {
+    proto::appearance::similarity(a, b).unwrap_or(1.0)
+}
+
 impl Tracks {
     pub fn new(params: TrackParams) -> Self {
         Tracks {
@@ -174,10 +190,17 @@ impl Tracks {
         }
     }
 
+    /// Whether `r` lies within the merge gate of `g` and does not look like someone else.
     fn agrees(&self, g: TargetId, r: &TrackReport) -> bool {
-        self.globals
-            .get(&g)
-            .is_some_and(|gt| dist(gt.position_at(r.time), &r.mean) <= self.params.merge_gate_m)
+        self.globals.get(&g).is_some_and(|gt| {
+            dist(gt.position_at(r.time), &r.mean) <= self.params.merge_gate_m
+                && self.looks_like(gt, &r.appearance)
+        })
+    }
+
+    /// Whether `appearance` is not clearly another person's than `gt`'s.
+    fn looks_like(&self, gt: &GlobalTrack, appearance: &[f32]) -> bool {
+        alike(&gt.appearance, appearance) >= self.params.min_appearance_similarity
     }
 
     fn new_global(&mut self, now: ClusterTime, head: NodeId, r: &TrackReport) -> TargetId {
@@ -193,21 +216,33 @@ impl Tracks {
                 last_report: now,
                 owner_report: now,
                 entered: false,
+                appearance: r.appearance.clone(),
             },
         );
         g
     }
 
-    /// The nearest live global within the gate that `head` does not feed yet. A global whose
-    /// only track from `head` fell silent (for the owner staleness) is a candidate again: the
-    /// head dropped and restarted its track of that target.
+    /// The best live global within the gate that `head` does not feed yet and that `r` does
+    /// not look unlike: the least distance (in gates) plus unlikeness (1 − similarity), so of
+    /// two people side by side the one with the same colours wins. A global whose only track
+    /// from `head` fell silent (for the owner staleness) is a candidate again: the head dropped
+    /// and restarted its track of that target.
     fn candidate(&self, now: ClusterTime, head: NodeId, r: &TrackReport) -> Option<TargetId> {
         let fed = self.fed_by(now, head);
+        let gate = self.params.merge_gate_m;
         self.globals
             .iter()
             .filter(|(g, gt)| !fed.contains(g) && now - gt.last_report <= self.params.track_timeout_ns)
-            .map(|(g, gt)| (*g, dist(gt.position_at(r.time), &r.mean)))
-            .filter(|(_, d)| *d <= self.params.merge_gate_m)
+            .filter(|(_, gt)| self.looks_like(gt, &r.appearance))
+            .map(|(g, gt)| {
+                (
+                    *g,
+                    dist(gt.position_at(r.time), &r.mean),
+                    alike(&gt.appearance, &r.appearance),
+                )
+            })
+            .filter(|(_, d, _)| *d <= gate)
+            .map(|(g, d, s)| (g, d / gate + f64::from(1.0 - s)))
             .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
             .map(|(g, _)| g)
     }
@@ -232,6 +267,7 @@ impl Tracks {
             .any(|gt| {
                 now - gt.last_report <= self.params.track_timeout_ns
                     && dist(gt.position_at(r.time), &r.mean) <= self.params.merge_gate_m
+                    && self.looks_like(gt, &r.appearance)
             })
     }
 

@@ -11,6 +11,7 @@
 //! is right-handed with z up; camera frames follow OpenCV (x right, y down, z forward).
 
 pub mod acoustic;
+pub mod appearance;
 pub mod camera;
 pub mod examples;
 pub mod geo;

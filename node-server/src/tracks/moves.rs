@@ -22,6 +22,8 @@ impl Tracks {
             .globals
             .range(..g)
             .filter(|(_, o)| now - o.last_report <= self.params.owner_stale_ns)
+            // Two people of other colours standing together stay two.
+            .filter(|(_, o)| self.looks_like(o, &gt.appearance))
             .map(|(id, o)| {
                 let q = o.position_at(t);
                 (

@@ -290,6 +290,9 @@ impl Tracks {
             gt.time = rep.r.time;
             gt.mean = rep.r.mean;
             gt.cov = rep.r.cov;
+            if !rep.r.appearance.is_empty() {
+                gt.appearance.clone_from(&rep.r.appearance);
+            }
         }
         if let Some(d) = self.region_handover(g, rep.members) {
             out.push(d);
