@@ -2,12 +2,13 @@
 //! itself kills (`SIGKILL`) random nodes — cameras, heads, the server — at random times and its
 //! supervisor starts them again, over iceoryx2 and over TCP (mutual TLS). Afterwards every
 //! record of the recording is valid, nothing the server recorded before a crash is lost,
-//! tracking recovers within a few seconds of each kill, and the nodes' memory, file descriptors
-//! and `/dev/shm` files have not grown.
+//! tracking recovers within a few seconds of each kill, nothing of a dead node is left in
+//! `/dev/shm`, and the nodes' memory, file descriptors and shared-memory files have not grown
+//! beyond what their lazily opened links need.
 //!
 //! The launcher writes each kill to `chaos.jsonl` in the run's folder (cluster time, node,
 //! pid, the recording's length at the kill); this harness follows it. CI runs a short soak;
-//! `OCELLI_CHAOS_SECONDS=600` gives the figures of the note (printed as one `chaos …` JSON line
+//! `OCELLI_CHAOS_SECONDS=600` (with `--profile soak`) gives the figures of the note (printed as one `chaos …` JSON line
 //! per transport, `--no-capture` to see it); `OCELLI_CHAOS_SEED` picks the victims and times.
 
 use crate::cluster::{Launch, f, median, robot_error};
@@ -26,8 +27,12 @@ const CHAOS_AFTER_S: f64 = 12.0;
 const MEAN_GAP_S: f64 = 3.5;
 /// A kill is recovered from when the robot is estimated within this of the truth again.
 const RECOVERED_ERROR_M: f64 = 0.5;
-/// ... within this many seconds of the kill.
+/// ... within this many seconds of a camera's or a head's kill,
 const RECOVERY_BOUND_S: f64 = 5.0;
+/// ... and of the server's (it starts again 0.5 s after the kill, reads its recording and is
+/// handshaken by every node: 1.5 s median, 5.4 s at most in a 10-minute soak on a loaded
+/// 2-core machine).
+const SERVER_RECOVERY_BOUND_S: f64 = 10.0;
 
 fn env_or<T: std::str::FromStr>(name: &str, default: T) -> T {
     std::env::var(name)
@@ -67,6 +72,57 @@ fn usage(pids: &[u32], run: &Launch) -> Usage {
         shm_files: shm_names.len(),
         shm_names,
     }
+}
+
+/// What dead iceoryx2 nodes of the run's domain still hold: a dead node the live nodes have
+/// not cleaned up (looked at for a few seconds, the janitors' period), and every publisher data
+/// segment in `/dev/shm` whose port has no tag in any node's folder of iceoryx2's node
+/// directory (an orphan: its node is gone, the segment stayed). Empty when nothing is left.
+fn dead_nodes_files(run: &Launch, shm: &std::collections::BTreeSet<String>) -> Vec<String> {
+    let mut dead = runtime::transport::ipc_nodes(&run.domain).expect("listing the domain's nodes");
+    for _ in 0..20 {
+        if dead.dead == 0 {
+            break;
+        }
+        sleep_s(0.5);
+        dead = runtime::transport::ipc_nodes(&run.domain).expect("listing the domain's nodes");
+    }
+    let mut left: Vec<String> = (dead.dead > 0)
+        .then(|| format!("{} dead nodes not cleaned up after 10 s", dead.dead))
+        .into_iter()
+        .collect();
+    // iceoryx2 0.10's layout (the version is pinned): a port's tag is
+    // `<root>/nodes/<node id>/iox2_<domain>_<port id>.port_tag`, its data segment
+    // `/dev/shm/iox2_<domain>_<hash>_<port id>.data`.
+    let prefix = format!("iox2_{}_", run.domain);
+    let tags: std::collections::BTreeSet<String> = std::fs::read_dir("/tmp/iceoryx2/nodes")
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(|node| std::fs::read_dir(node.path()).ok())
+        .flatten()
+        .flatten()
+        .filter_map(|f| {
+            let name = f.file_name().to_string_lossy().into_owned();
+            let port = name.strip_prefix(&prefix)?.strip_suffix(".port_tag")?;
+            Some(port.to_string())
+        })
+        .collect();
+    assert!(
+        !tags.is_empty(),
+        "no port tags of {} found: iceoryx2's layout moved",
+        run.domain
+    );
+    left.extend(
+        shm.iter()
+            .filter(|f| {
+                f.strip_suffix(".data")
+                    .and_then(|s| s.rsplit_once('_'))
+                    .is_some_and(|(_, port)| !tags.contains(port))
+            })
+            .cloned(),
+    );
+    left
 }
 
 fn sleep_s(s: f64) {
@@ -168,6 +224,7 @@ fn chaos(transport: &str) {
         })
         .min_by_key(|u| u.shm_files)
         .expect("five looks");
+    let left_by_the_dead = (transport == "ipc").then(|| dead_nodes_files(&run, &after.shm_names));
     let kills: Vec<Kill> = kill_lines(&run)
         .into_iter()
         .enumerate()
@@ -216,7 +273,14 @@ fn chaos(transport: &str) {
             (k.node.clone(), back)
         })
         .collect();
-    let worst = recovery.iter().map(|(_, s)| *s).fold(0.0, f64::max);
+    let bound = |node: &str| {
+        if node.starts_with("server-") {
+            SERVER_RECOVERY_BOUND_S
+        } else {
+            RECOVERY_BOUND_S
+        }
+    };
+    let late: Vec<&(String, f64)> = recovery.iter().filter(|(n, s)| *s > bound(n)).collect();
     let by_role = |prefix: &str| -> Value {
         let v: Vec<f64> = recovery
             .iter()
@@ -243,20 +307,31 @@ fn chaos(transport: &str) {
         "no server kill in {seconds} s: {summary}"
     );
     assert!(
-        worst <= RECOVERY_BOUND_S,
-        "{transport}: tracking not recovered within {RECOVERY_BOUND_S} s of a kill: {recovery:?}"
+        late.is_empty(),
+        "{transport}: tracking not recovered within {RECOVERY_BOUND_S} s of a kill \
+         ({SERVER_RECOVERY_BOUND_S} s of the server's): {late:?} of {recovery:?}"
     );
-    // Nothing grows with the kills: descriptors within a quarter of what the cluster held
-    // before, `/dev/shm` files not at all (every live node's janitor removes what a dead node
-    // of the domain left, within seconds; iceoryx2's own cleanup at a node's start alone left
-    // a dead server's segments behind under load), memory at most half again (restarted nodes start small, the server's state grows with the
-    // run). Figures in docs/chaos.md.
+    // Nothing of a dead node stays in `/dev/shm`: every live node's janitor removes what a
+    // dead node of the domain left within seconds (iceoryx2's own cleanup at a node's start
+    // alone left a dead server's segments behind under load). The files may still grow in
+    // number: a node opens its link to a peer the first time it sends to it and keeps it (a
+    // camera moved to the other head by a failover keeps its link to the first, a head opens
+    // links to the cameras it is given), at most one per peer; the count is bounded loosely
+    // for that. Descriptors likewise within a quarter of what the cluster held before, memory
+    // at most half again (restarted nodes start small, the server's state grows with the run).
+    // Figures in docs/chaos.md.
+    if let Some(left) = &left_by_the_dead {
+        assert!(
+            left.is_empty(),
+            "{transport}: files of dead iceoryx2 nodes left in /dev/shm: {left:?}\n{summary}"
+        );
+    }
     assert!(
         after.fds <= before.fds + before.fds / 4 + 8,
         "{transport}: descriptors grew: {summary}"
     );
     assert!(
-        after.shm_files <= before.shm_files,
+        after.shm_files <= before.shm_files + before.shm_files / 4 + 4,
         "{transport}: /dev/shm files grew: {summary}"
     );
     assert!(
