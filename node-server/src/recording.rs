@@ -42,8 +42,9 @@ pub use recorder::Recorder;
 /// File magic.
 pub const MAGIC: [u8; 8] = *b"OCELLIRC";
 /// Format version of the recording file. Records hold wire envelopes, so it moves with
-/// `proto::PROTOCOL_VERSION`: format 1 was recorded with protocol 1, format 2 with protocol 2, format 3 with protocol 3.
-pub const FORMAT_VERSION: u16 = 3;
+/// `proto::PROTOCOL_VERSION`: format 1 was recorded with protocol 1, format 2 with protocol 2, format 3 with protocol 3,
+/// format 4 with protocol 4.
+pub const FORMAT_VERSION: u16 = 4;
 /// Largest record payload accepted; a length beyond it is corruption, not an allocation.
 pub const MAX_RECORD_BYTES: u32 = 16 * 1024 * 1024;
 /// Permissions of a new recording: not world-readable (further narrowed by the umask).

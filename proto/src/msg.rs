@@ -5,7 +5,7 @@
 //! byte vectors in `wire`'s tests pin the current layout.
 
 use crate::ids::{NodeId, Role, TargetId};
-pub use crate::observation::{Kinds, Observation, ObservationKind, RssiReading};
+pub use crate::observation::{GroundPerson, Kinds, Observation, ObservationKind, RssiReading};
 use crate::time::ClusterTime;
 pub use crate::view::{ViewSubscribe, ViewUpdate};
 use serde::{Deserialize, Serialize};
@@ -179,6 +179,24 @@ pub struct FrameReport {
     pub mode: Mode,
     /// Detections the frame had (each sent as a `Measurement`).
     pub detections: u32,
+}
+
+/// Every person a camera's particle filters track in one frame (paper 004's mode, `[method]
+/// camera-tracker = "particle"`), in one message: the capture time, the mode and the tag
+/// readings once, then each person quantised ([`GroundPerson`]). No camera pose: the positions
+/// are already on the world's floor, and heads take each camera's geometry from the scenario.
+/// A camera sends at most one per head step (`[method] step-ms`), the newest frame's.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PeopleFrame {
+    /// When the frame was captured, the camera's cluster time.
+    pub captured: ClusterTime,
+    pub mode: Mode,
+    /// The node's fresh tag readings when a person is gated to a prior (they go with the
+    /// people gated to a track, as they go with a contribution); at most
+    /// [`crate::observation::MAX_OBSERVATIONS`].
+    pub rssi: Vec<RssiReading>,
+    /// At most [`crate::observation::MAX_OBSERVATIONS`], each `local` once.
+    pub people: Vec<GroundPerson>,
 }
 
 // ---------------------------------------------------------------- head → camera
@@ -420,6 +438,8 @@ pub enum Message {
     ViewSubscribe(ViewSubscribe),
     /// server → viewer: the tracks, nodes and handovers, every step.
     ViewUpdate(ViewUpdate),
+    /// camera → head: a frame's ground-plane people (paper 004's cameras).
+    PeopleFrame(PeopleFrame),
 }
 
 impl Message {
@@ -445,6 +465,7 @@ impl Message {
             Message::FrameReport(_) => "frame_report",
             Message::ViewSubscribe(_) => "view_subscribe",
             Message::ViewUpdate(_) => "view_update",
+            Message::PeopleFrame(_) => "people_frame",
         }
     }
 
@@ -465,6 +486,7 @@ impl Message {
                 | Message::FrameReport(_)
                 | Message::ViewSubscribe(_)
                 | Message::ViewUpdate(_)
+                | Message::PeopleFrame(_)
         )
     }
 }

@@ -526,3 +526,85 @@ fn empty_contribution(
         observations: rssi.into_iter().map(Observation::Rssi).collect(),
     }
 }
+
+/// A people frame of `node` captured at `captured`: a person at `at` (floor, m) gated to
+/// `target`, σ 0.1 m, 1.6 m tall.
+fn people_frame(at: [f64; 2], target: Option<TargetId>, captured: ClusterTime) -> proto::msg::PeopleFrame {
+    let point = proto::observation::GroundPoint {
+        local: 3,
+        position: at,
+        cov: [0.01, 0.0, 0.01],
+        width_m: 0.5,
+        height_m: 1.6,
+        confidence: 0.9,
+        histogram: Vec::new(),
+        captured,
+        ml_position: at,
+    };
+    proto::msg::PeopleFrame {
+        captured,
+        mode: Mode::Active,
+        rssi: Vec::new(),
+        people: vec![proto::observation::GroundPerson::quantise(&point, target, false).unwrap()],
+    }
+}
+
+/// Each person of a people frame is a floor detection with the frame's capture time and the
+/// measured height; the frame's tag readings go with the people gated to a track only; a
+/// centralized head fuses the person at its capture time.
+#[test]
+fn a_people_frame_gives_one_floor_detection_per_person() {
+    let mut s = Scenario::default_scenario();
+    s.method.fusion = Fusion::CentralizedEif;
+    s.method.activation = Activation::AllOn;
+    let (cfg, mut h) = head_with_a_moving_track(&s);
+    let t1 = ClusterTime::from_millis(200);
+    h.tick(t1);
+    let node = cfg.nodes.iter().find(|n| n.member).unwrap();
+    let local = h.tracks()[0].local;
+    let captured = ClusterTime::from_millis(100);
+    let mut f = people_frame([3.1, 4.0], Some(local), captured);
+    let mut far = people_frame([9.0, 1.0], None, captured).people.remove(0);
+    far.local = 4;
+    f.people.push(far);
+    f.rssi.push(proto::msg::RssiReading {
+        tag: proto::TagId::simulated(1),
+        dbm: -60.0,
+        time: captured,
+    });
+    h.on_message(t1, env(node.id.0, Message::PeopleFrame(f)));
+    assert_eq!(h.detections.len(), 2);
+    let (gated, free) = (&h.detections[0], &h.detections[1]);
+    assert_eq!(gated.hint, Some(local));
+    assert_eq!((gated.rssi.len(), free.rssi.len()), (1, 0));
+    assert_eq!(gated.ground, Some(1.6));
+    assert_eq!(gated.captured, captured);
+    assert!((gated.point - Vector2::new(3.1, 4.0)).norm() < 1e-9);
+    assert!((gated.cov[(0, 0)] - 0.01).abs() < 1e-9 && gated.cov[(0, 1)] == 0.0);
+    h.tick(ClusterTime::from_millis(281));
+    assert_eq!(h.last_step().prediction_only, 0, "the person was fused");
+    let after = h.tracks()[0].filter.mean();
+    assert!((after[0] - 3.2).abs() < 0.01, "x {} (3.2 expected)", after[0]);
+}
+
+/// A people frame stamped seconds from the head's time is refused and counted; one from a node
+/// of another cluster is rejected.
+#[test]
+fn a_stale_or_foreign_people_frame_changes_nothing() {
+    let s = Scenario::default_scenario();
+    let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
+    let mut h = HeadNode::new(cfg.clone());
+    h.tick(ClusterTime::ZERO);
+    let node = cfg.nodes.iter().find(|n| n.member).unwrap();
+    let now = ClusterTime::from_secs_f64(20.0);
+    let stale = people_frame([3.0, 4.0], None, ClusterTime::from_secs_f64(10.0));
+    h.on_message(now, env(node.id.0, Message::PeopleFrame(stale)));
+    assert_eq!(h.counters().stale_measurements, 1);
+    // Node 13 belongs to head 3.
+    let fresh = people_frame([3.0, 4.0], None, now);
+    h.on_message(now, env(13, Message::PeopleFrame(fresh.clone())));
+    assert_eq!(h.counters().rejected, 1);
+    assert!(h.detections.is_empty());
+    h.on_message(now, env(node.id.0, Message::PeopleFrame(fresh)));
+    assert_eq!(h.detections.len(), 1);
+}

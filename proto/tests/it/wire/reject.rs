@@ -165,7 +165,6 @@ fn observation_f64s(o: &Observation) -> Vec<f64> {
             [p.point.to_vec(), p.prev_point.unwrap().to_vec(), p.cov.to_vec()].concat()
         }
         Observation::Rssi(r) => vec![r.dbm],
-        Observation::Ground(g) => [g.position.to_vec(), g.cov.to_vec()].concat(),
         Observation::Acoustic(_) => Vec::new(),
     }
 }
@@ -185,12 +184,6 @@ fn observation_f32s(o: &Observation) -> Vec<f32> {
             ]
         }
         Observation::Rssi(_) => Vec::new(),
-        Observation::Ground(g) => [
-            vec![g.width_m, g.height_m, g.confidence],
-            g.histogram.clone(),
-            g.ml_position.to_vec(),
-        ]
-        .concat(),
         Observation::Acoustic(a) => [vec![a.first_hz, a.step_hz], a.ild_db.clone()].concat(),
     }
 }
@@ -226,6 +219,7 @@ fn sample_f64s(m: &Message) -> Vec<f64> {
             .iter()
             .flat_map(|t| t.mean.into_iter().chain(t.cov_pos))
             .collect(),
+        Message::PeopleFrame(f) => f.rssi.iter().map(|r| r.dbm).collect(),
         _ => Vec::new(),
     }
 }
@@ -381,6 +375,100 @@ fn measured_frame_checks_name_the_field() {
     assert_eq!(decode(&encode(&empty).unwrap()).unwrap(), empty);
 }
 
+/// A camera's people frame: every quantised field that could stand for an impossible person,
+/// every list and every byte layout problem is rejected naming the field or the kind.
+#[test]
+fn people_frame_checks_name_the_field() {
+    use proto::observation::{HISTOGRAM_BINS, MAX_OBSERVATIONS};
+    const TAG: usize = 19;
+    let sample = samples()[TAG].clone();
+    let with = |f: &dyn Fn(&mut PeopleFrame)| {
+        let mut env = sample.clone();
+        let Message::PeopleFrame(p) = &mut env.body else {
+            panic!("sample 19 is a people frame")
+        };
+        f(p);
+        env
+    };
+    // (field, problem, the edit that makes it).
+    type Case<'a> = (&'a str, &'a str, &'a dyn Fn(&mut PeopleFrame));
+    let cases: [Case; 8] = [
+        ("people_frame.people.sigma_mm", "0 mm", &|p| {
+            p.people[0].sigma_mm[1] = 0
+        }),
+        ("people_frame.people.correlation", "singular", &|p| {
+            p.people[0].correlation = i8::MIN
+        }),
+        ("people_frame.people.histogram", "109 bins", &|p| {
+            p.people[1].histogram.as_mut().unwrap().pop();
+        }),
+        ("people_frame.people.histogram", "not 255", &|p| {
+            let h = p.people[1].histogram.as_mut().unwrap();
+            h.iter_mut().skip(100).for_each(|b| *b = (*b).min(254));
+        }),
+        ("people_frame.people.histogram", "not 255", &|p| {
+            p.people[0].histogram = Some(vec![0; HISTOGRAM_BINS])
+        }),
+        ("people_frame.people", "person 4 twice", &|p| {
+            p.people[1].local = 4
+        }),
+        ("people_frame.rssi", "outside", &|p| p.rssi[0].dbm = 31.0),
+        ("people_frame.people", "exceed the maximum of 64", &|p| {
+            let one = p.people[0].clone();
+            p.people = (0..=MAX_OBSERVATIONS as u32)
+                .map(|local| GroundPerson { local, ..one.clone() })
+                .collect();
+        }),
+    ];
+    for (want, problem, f) in cases {
+        let bad = with(f);
+        let (field, e) = invalid(&raw(&bad));
+        assert_eq!(field, want, "{e}");
+        assert!(e.contains(problem), "{e}");
+        assert!(
+            matches!(encode(&bad), Err(WireError::Invalid(_))),
+            "never sent either"
+        );
+    }
+    let too_many_readings = with(&|p| p.rssi = vec![p.rssi[0]; MAX_OBSERVATIONS + 1]);
+    assert_eq!(invalid(&raw(&too_many_readings)).0, "people_frame.rssi");
+    // The most people, and none at all, are fine.
+    let most = with(&|p| {
+        let one = p.people[0].clone();
+        p.people = (0..MAX_OBSERVATIONS as u32)
+            .map(|local| GroundPerson { local, ..one.clone() })
+            .collect();
+    });
+    assert_eq!(decode(&encode(&most).unwrap()).unwrap(), most);
+    let empty = with(&|p| {
+        p.people.clear();
+        p.rssi.clear();
+    });
+    assert_eq!(decode(&encode(&empty).unwrap()).unwrap(), empty);
+    // Byte-level damage: a bad option tag (the first person's target, right after its local
+    // id), a varint that never ends, a frame cut inside the people.
+    let frame = encode(&sample).unwrap();
+    let header = encode(&with(&|p| {
+        p.people.clear();
+    }))
+    .unwrap();
+    // `people` is the last field: its length is the header's last byte, the first person
+    // follows (local 4, then the target's option tag).
+    let at = header.len() + 1;
+    assert_eq!(frame[at - 1], 4, "the first person's local id");
+    let mut bad = frame.clone();
+    bad[at] = 2;
+    let e = malformed(&bad);
+    assert!(e.contains("people_frame") && e.contains("option tag"), "{e}");
+    let mut bad = frame.clone();
+    bad.truncate(at + 2);
+    bad.extend([0xff; 12]);
+    let e = malformed(&bad);
+    assert!(e.contains("people_frame"), "{e}");
+    let e = malformed(&frame[..frame.len() - 40]);
+    assert!(e.contains("truncated") && e.contains("people_frame"), "{e}");
+}
+
 #[test]
 fn unknown_enum_tags() {
     // Top-level message tag: `MESSAGE_KINDS.len()` is one past the last kind.
@@ -480,16 +568,7 @@ fn other_range_checks_name_the_field() {
     let (field, e) = invalid(&raw(&env));
     assert_eq!(field, "measurement.observations");
     assert!(e.contains("pinhole.pixel_box"), "{e}");
-    // A ground-plane person with a confidence above 1, an acoustic frame with no band step.
-    let mut env = samples()[3].clone();
-    if let Message::Measurement(m) = &mut env.body {
-        m.observations.retain(|o| matches!(o, Observation::Ground(_)));
-        if let Observation::Ground(g) = &mut m.observations[0] {
-            g.confidence = 1.5;
-        }
-    }
-    let (_, e) = invalid(&raw(&env));
-    assert!(e.contains("ground.confidence"), "{e}");
+    // An acoustic frame with no band step.
     let mut env = samples()[3].clone();
     if let Message::Measurement(m) = &mut env.body {
         m.observations.retain(|o| matches!(o, Observation::Acoustic(_)));
