@@ -3,7 +3,7 @@
 //! readings.
 //!
 //! In distributed mode it answers every `Prior` with one `Contribution` built from the newest
-//! frame's detection gated to that target (all-zero Ω when it has none) and the fresh tag
+//! frame's detection gated to that target (no Ω, ξ when it has none) and the fresh tag
 //! readings; detections gated to no prior go out as `Measurement { target: None }` so heads
 //! can start tracks. In centralized mode every detection goes out as a `Measurement`; in grid
 //! mode each processed frame is also reported (`FrameReport`), so the head knows it looked. Modes
@@ -252,7 +252,7 @@ impl CameraNode {
                         .ground_answer(now, &p)
                         .unwrap_or_else(|| self.answer(now, &p));
                     self.counters.contributions += 1;
-                    self.counters.camera_contributions += u64::from(c.folded.camera());
+                    self.counters.camera_contributions += u64::from(c.camera());
                     out.push(Outgoing::new(env.source, Message::Contribution(c)));
                 }
                 self.priors.insert(p.target, (now, p));

@@ -3,10 +3,11 @@
 //! every person tracked becomes a ground-plane [`GroundPoint`] — the mean state's position,
 //! covariance from the sample spread through the ray geometry, width, height, the
 //! maximum-likelihood state's floor position and confidence, and the colour histogram.
-//! Distributed fusion folds the one gated to a prior into the `Contribution` with
-//! [`models::ground_contribution_aged`]; the others (all of them, in centralized fusion) leave
-//! in one [`PeopleFrame`] per head step ([`PeopleSender`]): each person quantised
-//! ([`GroundPerson`]), its histogram only when new, changed or due for a refresh. On a
+//! Distributed fusion answers a prior with the one gated to it, quantised, in the
+//! `Contribution` (the head folds it in, [`contribution`]); the others (all of them, in
+//! centralized fusion) leave in one [`PeopleFrame`] per head step ([`PeopleSender`]): each
+//! person quantised ([`GroundPerson`]), its histogram only when new, changed or due for a
+//! refresh. On a
 //! [`proto::msg::SampleRequest`] the camera answers with the filters' sample sets.
 //!
 //! The measurement-level simulation has no frames: its projected boxes are converted to the
@@ -18,10 +19,10 @@ use crate::tracker::manager::{Foreground, MultiTracker, PersonEstimate, TrackerE
 use crate::tracker::params::{ParamsError, ParticleParams};
 use nalgebra::{Matrix2, Vector2};
 use proto::camera::CameraModel;
-use proto::models::{self, State};
+use proto::models;
 use proto::msg::{Contribution, ImageSample, MAX_SAMPLES, Mode, PeopleFrame, Prior, SampleSet};
 use proto::observation::{
-    GroundPerson, GroundPoint, HISTOGRAM_BINS, HISTOGRAM_HS_BINS, ObservationKind, RssiReading,
+    GroundPerson, GroundPoint, HISTOGRAM_BINS, HISTOGRAM_HS_BINS, Kinds, Observation, RssiReading,
     dequantise_histogram,
 };
 use proto::sensor::{Detection, Frame};
@@ -228,28 +229,32 @@ pub fn nearest<'a>(
         .map(|(_, g)| g)
 }
 
-/// The contribution Ω_i, ξ_i of one ground point at the prior's mean — its floor position and
-/// the centre height its measured height gives (all zero, nothing folded,
-/// when there is none or it cannot be linearized); tag readings go along raw.
+/// The answer to `prior` with one ground point gated to it: the person itself, quantised, for
+/// the head to model (the floor position aged to the prior's time and the centre height its
+/// measured height gives are linear in the state, so the head computes from it the Ω_i, ξ_i
+/// [`models::ground_contribution_aged`] would give here, from a twentieth of the bytes); nothing
+/// when there is none or it cannot be quantised. Tag readings go along raw.
 pub fn contribution(
     prior: &Prior,
     person: Option<&GroundPoint>,
     captured: ClusterTime,
-    age_s: f64,
     mode: Mode,
     rssi: &[RssiReading],
 ) -> Contribution {
-    let mean: State = models::vec6_from_wire(&prior.mean);
-    let info = person.and_then(|g| {
-        let (p, c) = position_and_cov(g);
-        let (mut omega, mut xi) = models::ground_contribution_aged(&p, &c, &mean, age_s)?;
-        if let Some((o, x)) = models::ground_height_contribution(g.height_m, &mean) {
-            omega += o;
-            xi += x;
-        }
-        Some((omega, xi))
-    });
-    crate::measure::folded_contribution(prior, info, ObservationKind::Ground, captured, mode, rssi)
+    let person = person.and_then(|g| GroundPerson::quantise(g, None, false));
+    Contribution {
+        target: prior.target,
+        step: prior.step,
+        info: None,
+        folded: Kinds::NONE,
+        captured,
+        mode,
+        observations: person
+            .map(Observation::Ground)
+            .into_iter()
+            .chain(rssi.iter().copied().map(Observation::Rssi))
+            .collect(),
+    }
 }
 
 /// A person's histogram goes out again when it has drifted this far (Bhattacharyya distance,

@@ -17,7 +17,7 @@ use nalgebra::{Matrix2, Matrix6, Vector2};
 use proto::models::{State, mat6_from_wire, mat6_to_wire, vec6_from_wire, vec6_to_wire};
 use proto::msg::{Contribution, Handover, Measurement, NodeStatus, PeopleFrame, Prior};
 use proto::node::{Input, Node, Outgoing};
-use proto::observation::{Kinds, ObservationKind};
+use proto::observation::{GroundPerson, Kinds, ObservationKind};
 use proto::scenario::Activation;
 use proto::{ClusterTime, Envelope, Message, Mode, NodeId, TargetId};
 use std::collections::HashMap;
@@ -304,11 +304,9 @@ impl HeadNode {
     }
 
     fn on_contribution(&mut self, now: ClusterTime, slot: usize, c: Contribution, out: &mut Vec<Outgoing>) {
-        if c.info_matrix
-            .iter()
-            .flatten()
-            .chain(&c.info_vector)
-            .any(|x| !x.is_finite())
+        if c.info
+            .as_ref()
+            .is_some_and(|i| i.matrix.iter().flatten().chain(&i.vector).any(|x| !x.is_finite()))
         {
             self.counters.rejected += 1;
             if let Some(more) = self.log.admit(now.0, "non-finite contribution") {
@@ -324,7 +322,13 @@ impl HeadNode {
         match self.window.offer(slot, t, c.step, now) {
             Offer::Apply => {
                 self.counters.applied += 1;
-                let camera = c.folded.camera();
+                // A ground-plane person the camera gated to the prior, folded in here (at the
+                // capture time, by the same linear model the camera would use).
+                let ground = c
+                    .ground()
+                    .filter(|_| self.fresh(now, c.captured, slot, "ground person"))
+                    .map(|p| self.ground_detection(slot, p, c.captured));
+                let camera = c.folded.camera() || ground.is_some();
                 let rssi: Vec<_> = if self.nodes[slot].info.rssi {
                     let readings: Vec<_> = c.rssi().copied().collect();
                     readings
@@ -344,11 +348,19 @@ impl HeadNode {
                 let track = &mut self.tracks[t];
                 if camera {
                     self.planner.camera_delivered(node.info.id);
-                    track.acc.add_wire(&c.info_matrix, &c.info_vector);
-                    track.aux_acc.add_wire(&c.info_matrix, &c.info_vector);
+                    if let Some(info) = c.info.as_ref().filter(|_| c.folded.camera()) {
+                        track.acc.add_wire(&info.matrix, &info.vector);
+                        track.aux_acc.add_wire(&info.matrix, &info.vector);
+                    }
+                    if let Some(d) = &ground {
+                        crate::observe::ground(track, d);
+                    }
                     track.last_seen = now;
                 }
                 let mut kinds = if camera { c.folded } else { Kinds::NONE };
+                if ground.is_some() {
+                    kinds.insert(ObservationKind::Ground);
+                }
                 for r in &rssi {
                     if track.hear_once(slot, r.time, r.dbm) {
                         kinds.insert(ObservationKind::Rssi);
@@ -468,6 +480,22 @@ impl HeadNode {
                 captured: f.captured,
                 ground: Some(p.height_m()),
             });
+        }
+    }
+
+    /// A camera's ground-plane person as a detection on the floor, captured at `captured`.
+    fn ground_detection(&self, slot: usize, p: &GroundPerson, captured: ClusterTime) -> Detection {
+        let cov = p.cov();
+        Detection {
+            node: self.nodes[slot].info.id,
+            slot,
+            point: Vector2::from(p.position()),
+            cov: Matrix2::new(cov[0], cov[1], cov[1], cov[2]),
+            prev_point: None,
+            rssi: Vec::new(),
+            hint: p.target,
+            captured,
+            ground: Some(p.height_m()),
         }
     }
 

@@ -93,6 +93,18 @@ pub fn observations() -> Vec<Observation> {
             dbm: -61.5,
             time: ClusterTime(1_499_995_000),
         }),
+        Observation::Ground(GroundPerson {
+            local: 6,
+            target: None,
+            position_cm: [-410, 655],
+            sigma_mm: [301, 287],
+            correlation: 12,
+            width_cm: 51,
+            height_cm: 172,
+            confidence: 230,
+            ml_offset_cm: [0, 4],
+            histogram: None,
+        }),
         Observation::Acoustic(IldVector {
             first_hz: 187.3,
             step_hz: 93.7,
@@ -128,8 +140,10 @@ pub fn messages() -> Vec<Envelope> {
         env(Message::Contribution(Contribution {
             target: TargetId(5),
             step: 300,
-            info_matrix: spd(1),
-            info_vector: vec6(1),
+            info: Some(Information {
+                matrix: spd(1),
+                vector: vec6(1),
+            }),
             folded: Kinds::of(ObservationKind::Pinhole),
             captured: ClusterTime(1_499_990_000),
             mode: Mode::CameraOff,

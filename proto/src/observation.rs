@@ -1,9 +1,9 @@
 //! What sensors observe, as typed kinds. A measurement or contribution carries a list of
 //! observations; the head chooses the model for each kind in one place. A new sensor is a new
 //! kind here (appended: variant order is the wire format), its model in [`crate::models`] and
-//! its source in [`crate::sensor`]. Ground-plane people are the one kind that travels in a
-//! message of its own, a camera's [`crate::msg::PeopleFrame`]: every person of a frame in one
-//! message, each a quantised [`GroundPerson`] ([`GroundPoint`] is its floating-point form).
+//! its source in [`crate::sensor`]. Ground-plane people travel quantised ([`GroundPerson`];
+//! [`GroundPoint`] is their floating-point form), a frame's together in a camera's
+//! [`crate::msg::PeopleFrame`].
 
 use crate::ids::{TagId, TargetId};
 use crate::msg::{ColourSignature, PixelBox};
@@ -23,12 +23,15 @@ pub enum Observation {
     Pinhole(PinholePoint),
     /// The received signal strength of a radio tag (paper 002).
     Rssi(RssiReading),
+    /// A person on the ground plane a camera's per-person tracker sees (paper 004 §3.2.3),
+    /// quantised; its capture time is its message's. In a `Contribution`, the person gated
+    /// to the prior; a frame's people travel together in a [`crate::msg::PeopleFrame`].
+    Ground(GroundPerson),
     /// The interaural level differences of a two-microphone node (paper 001 §3.3).
     Acoustic(IldVector),
 }
 
-/// The kind of an observation, for accounting and bitsets. `Ground` people travel in a
-/// [`crate::msg::PeopleFrame`] (or folded into a contribution), not as an [`Observation`].
+/// The kind of an [`Observation`], for accounting and bitsets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum ObservationKind {
     Pinhole,
@@ -66,6 +69,7 @@ impl Observation {
         match self {
             Observation::Pinhole(_) => ObservationKind::Pinhole,
             Observation::Rssi(_) => ObservationKind::Rssi,
+            Observation::Ground(_) => ObservationKind::Ground,
             Observation::Acoustic(_) => ObservationKind::Acoustic,
         }
     }

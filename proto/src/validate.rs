@@ -161,9 +161,31 @@ impl Validate for Message {
                 check_observations("measurement.observations", &m.observations)
             }
             Message::Contribution(c) => {
-                check_psd6("contribution.info_matrix", &c.info_matrix)?;
-                finite("contribution.info_vector", &c.info_vector)?;
-                check_observations("contribution.observations", &c.observations)
+                if let Some(info) = &c.info {
+                    check_psd6("contribution.info.matrix", &info.matrix)?;
+                    finite("contribution.info.vector", &info.vector)?;
+                }
+                check_observations("contribution.observations", &c.observations)?;
+                let mut ground = c.observations.iter().filter_map(|o| match o {
+                    Observation::Ground(p) => Some(p),
+                    _ => None,
+                });
+                if let Some(p) = ground.next()
+                    && p.target.is_some_and(|t| t != c.target)
+                {
+                    return Err(err(
+                        "contribution.observations",
+                        format!(
+                            "a ground person gated to {} in a contribution to {}",
+                            p.target.unwrap_or(c.target),
+                            c.target
+                        ),
+                    ));
+                }
+                if ground.next().is_some() {
+                    return Err(err("contribution.observations", "more than one ground person"));
+                }
+                Ok(())
             }
             Message::NodeStatus(_) => Ok(()),
             Message::Prior(p) => {
@@ -317,21 +339,20 @@ fn check_people_frame(f: &PeopleFrame) -> Result<(), ValidationError> {
         if f.people[..i].iter().any(|q| q.local == p.local) {
             return Err(err("people_frame.people", format!("person {} twice", p.local)));
         }
-        check_person(p)?;
+        check_person(p).map_err(|e| err("people_frame.people", format!("{}: {}", e.field, e.problem)))?;
     }
     Ok(())
 }
 
+/// A quantised person: proper standard deviations and correlation (so its covariance is
+/// positive definite), a histogram of the right size with each part's fullest bin at 255.
 fn check_person(p: &GroundPerson) -> Result<(), ValidationError> {
     if p.sigma_mm.contains(&0) {
-        return Err(err(
-            "people_frame.people.sigma_mm",
-            "a standard deviation of 0 mm",
-        ));
+        return Err(err("ground.sigma_mm", "a standard deviation of 0 mm"));
     }
     if p.correlation == i8::MIN {
         return Err(err(
-            "people_frame.people.correlation",
+            "ground.correlation",
             "-128 (a correlation of -1: the covariance is singular)",
         ));
     }
@@ -340,16 +361,13 @@ fn check_person(p: &GroundPerson) -> Result<(), ValidationError> {
     };
     if h.len() != HISTOGRAM_BINS {
         return Err(err(
-            "people_frame.people.histogram",
+            "ground.histogram",
             format!("{} bins (expected {HISTOGRAM_BINS})", h.len()),
         ));
     }
     let (hs, v) = h.split_at(HISTOGRAM_HS_BINS);
     if hs.iter().max() != Some(&255) || v.iter().max() != Some(&255) {
-        return Err(err(
-            "people_frame.people.histogram",
-            "a part whose fullest bin is not 255",
-        ));
+        return Err(err("ground.histogram", "a part whose fullest bin is not 255"));
     }
     Ok(())
 }
@@ -384,6 +402,7 @@ impl Validate for Observation {
                 )
             }
             Observation::Rssi(r) => check_dbm("rssi.dbm", r.dbm),
+            Observation::Ground(p) => check_person(p),
             Observation::Acoustic(a) => {
                 finite32("acoustic.bands", &[a.first_hz, a.step_hz])?;
                 if a.first_hz < 0.0 || a.step_hz <= 0.0 {

@@ -1,9 +1,10 @@
 //! The camera core in paper 004's mode (`camera-tracker = "particle"`): frames go through the
 //! segmentation (regions and foreground mask) into the per-person particle filters, and people
 //! leave as ground-plane observations ([`crate::ground_people`]) — the same split as the
-//! pin-hole points: gated to a prior they are folded into that prior's `Contribution`
-//! (distributed) or sent naming it (centralized); ungated ones are sent without a target so
-//! heads can start tracks. What is sent goes in one `PeopleFrame` per head step.
+//! pin-hole points: gated to a prior they go in that prior's `Contribution` (distributed; the
+//! person itself, which the head folds in: its model is linear) or are sent naming it
+//! (centralized); ungated ones are sent without a target so heads can start tracks. What is
+//! sent goes in one `PeopleFrame` per head step.
 
 use super::CameraNode;
 use crate::ground_people;
@@ -128,7 +129,6 @@ impl CameraNode {
             prior,
             chosen,
             captured.unwrap_or(now),
-            age_s,
             self.mode,
             &rssi,
         ))

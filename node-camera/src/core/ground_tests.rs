@@ -5,7 +5,6 @@ use nalgebra::Matrix6;
 use proto::NodeId;
 use proto::models;
 use proto::msg::{Prior, SampleRequest};
-use proto::observation::ObservationKind;
 use proto::scenario::{CameraTracker, Fusion, Scenario};
 use world::render::Renderer;
 
@@ -146,12 +145,17 @@ fn a_prior_is_answered_with_the_ground_information() {
         other => panic!("{other:?}"),
     };
     let c = answer(&mut node, prior(0.0));
-    assert!(c.folded.contains(ObservationKind::Ground), "{:?}", c.folded);
-    // x, y and the centre height are informed; velocity only through the frame's age.
-    assert!(c.info_matrix[0][0] > 0.0 && c.info_matrix[1][1] > 0.0 && c.info_matrix[2][2] > 0.0);
+    // The person gated to it, near the robot, for the head to fold in; nothing folded here.
+    let person = c.ground().expect("a ground person").position();
+    let x = truth(&s, t);
+    assert!(
+        (person[0] - x[0]).hypot(person[1] - x[1]) < 0.6,
+        "{person:?} vs {x}"
+    );
+    assert!(c.info.is_none() && c.folded.is_empty() && c.camera());
     // A prior metres away gates nothing: an empty contribution.
     let far = answer(&mut node, prior(4.0));
-    assert!(far.folded.is_empty() && far.info_matrix.iter().flatten().all(|v| *v == 0.0));
+    assert!(far.folded.is_empty() && far.info.is_none() && far.ground().is_none());
 }
 
 #[test]
@@ -202,7 +206,7 @@ fn a_distributed_camera_leaves_the_gated_people_to_its_contributions() {
         );
         match &out[..] {
             [o] => match &o.body {
-                Message::Contribution(c) => c.folded,
+                Message::Contribution(c) => c.camera(),
                 other => panic!("{other:?}"),
             },
             other => panic!("{other:?}"),
@@ -211,7 +215,7 @@ fn a_distributed_camera_leaves_the_gated_people_to_its_contributions() {
     answer(&mut node, 3.0);
     let after = frames(&run(&mut node, &s, &r, 3.2, 3.4));
     assert!(
-        answer(&mut node, 3.45).contains(ObservationKind::Ground),
+        answer(&mut node, 3.45),
         "the robot is still tracked, in the contributions"
     );
     let near = |f: &proto::msg::PeopleFrame| {

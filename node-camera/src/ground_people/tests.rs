@@ -1,6 +1,6 @@
 use super::*;
+use proto::models::State;
 use proto::msg::PixelBox;
-use proto::observation::Kinds;
 use proto::scenario::Scenario;
 
 fn person(x: f64, y: f64) -> GroundPoint {
@@ -38,21 +38,39 @@ fn ground_points_gate_one_to_one_in_the_floor_plane() {
 }
 
 #[test]
-fn a_contribution_folds_the_floor_position_and_the_centre_height() {
+fn a_contribution_carries_the_gated_person_for_the_head_to_fold_in() {
     let p = prior(2.0, 2.0);
-    let c = contribution(
-        &p,
-        Some(&person(2.1, 2.0)),
-        ClusterTime::ZERO,
-        0.0,
-        Mode::Active,
-        &[],
+    let g = person(2.1, 2.0);
+    let c = contribution(&p, Some(&g), ClusterTime::ZERO, Mode::Active, &[]);
+    assert!(c.folded.is_empty() && c.info.is_none(), "nothing folded here");
+    assert!(c.camera());
+    let q = c.ground().expect("the person");
+    assert_eq!((q.local, q.target), (g.local, None));
+    // The information the head gets from it is what folding it here gave, to the quantisation.
+    let mean = models::vec6_from_wire(&p.mean);
+    let fold = |position: [f64; 2], cov: [f64; 3]| {
+        let (p, c) = (
+            Vector2::from(position),
+            Matrix2::new(cov[0], cov[1], cov[1], cov[2]),
+        );
+        models::ground_contribution_aged(&p, &c, &mean, 0.1).unwrap()
+    };
+    let back = q.point(c.captured);
+    let (o, x) = fold(g.position, g.cov);
+    let (oq, xq) = fold(back.position, back.cov);
+    assert!((o - oq).norm() <= 1e-2 * o.norm(), "{o} vs {oq}");
+    assert!((x - xq).norm() <= 1e-2 * x.norm(), "{x} vs {xq}");
+    assert!((back.height_m - g.height_m).abs() <= 0.005);
+    let none = contribution(&p, None, ClusterTime::ZERO, Mode::Active, &[]);
+    assert!(none.folded.is_empty() && none.ground().is_none() && !none.camera());
+    // An impossible person is not sent: an empty answer.
+    let mut bad = g.clone();
+    bad.position[0] = f64::NAN;
+    assert!(
+        contribution(&p, Some(&bad), ClusterTime::ZERO, Mode::Active, &[])
+            .ground()
+            .is_none()
     );
-    assert_eq!(c.folded, Kinds::of(ObservationKind::Ground));
-    assert!((c.info_matrix[0][0] - 25.0).abs() < 1e-9, "1 / 0.04 m²");
-    assert!(c.info_matrix[2][2] > 0.0);
-    let none = contribution(&p, None, ClusterTime::ZERO, 0.0, Mode::Active, &[]);
-    assert!(none.folded.is_empty());
 }
 
 #[test]

@@ -28,8 +28,7 @@ fn a_step_without_tracks_sends_nothing_and_strangers_are_rejected() {
     let c = Contribution {
         target: TargetId(1),
         step: 1,
-        info_matrix: [[0.0; 6]; 6],
-        info_vector: [0.0; 6],
+        info: None,
         folded: Kinds::NONE,
         captured: ClusterTime::ZERO,
         mode: Mode::Active,
@@ -466,8 +465,10 @@ fn head_after_one_rssi_packet(time: ClusterTime, camera: bool) -> (usize, HeadNo
     if camera {
         // Ω_i on the position, ξ_i = Ω_i μ̄: information that leaves the mean where it is.
         let omega = Matrix6::from_diagonal(&State::new(100.0, 100.0, 100.0, 0.0, 0.0, 0.0));
-        c.info_matrix = proto::models::mat6_to_wire(&omega);
-        c.info_vector = vec6_to_wire(&(omega * proto::models::vec6_from_wire(&prior.mean)));
+        c.info = Some(proto::msg::Information {
+            matrix: proto::models::mat6_to_wire(&omega),
+            vector: vec6_to_wire(&(omega * proto::models::vec6_from_wire(&prior.mean))),
+        });
         c.mode = Mode::Active;
     }
     h.on_message(t1, env(node.id.0, Message::Contribution(c)));
@@ -514,8 +515,7 @@ fn empty_contribution(
     Contribution {
         target: prior.target,
         step: prior.step,
-        info_matrix: [[0.0; 6]; 6],
-        info_vector: [0.0; 6],
+        info: None,
         folded: if camera {
             Kinds::of(ObservationKind::Pinhole)
         } else {
@@ -607,4 +607,67 @@ fn a_stale_or_foreign_people_frame_changes_nothing() {
     assert!(h.detections.is_empty());
     h.on_message(now, env(node.id.0, Message::PeopleFrame(fresh)));
     assert_eq!(h.detections.len(), 1);
+}
+
+/// A ground-plane person a camera gated to a prior comes in its contribution as itself; the
+/// head folds it in at the capture time and moves the track exactly as the Ω_i, ξ_i the camera
+/// would have folded (the model is linear), counting the node as a ground contributor.
+#[test]
+fn a_contribution_with_a_ground_person_is_folded_in_at_the_head() {
+    let mut s = Scenario::default_scenario();
+    s.method.activation = Activation::AllOn;
+    let run = |carried: bool| {
+        let (cfg, mut h) = head_with_a_moving_track(&s);
+        let t1 = ClusterTime::from_millis(200);
+        let out = h.tick(t1);
+        let node = cfg.nodes.iter().find(|n| n.member).unwrap().id;
+        let prior = out
+            .iter()
+            .find_map(|o| match &o.body {
+                Message::Prior(p) if o.to == node => Some(p.clone()),
+                _ => None,
+            })
+            .expect("a prior");
+        let captured = ClusterTime::from_millis(100);
+        let frame = people_frame([3.1, 4.0], None, captured);
+        let person = frame.people[0].clone();
+        let mut c = empty_contribution(&prior, false, captured, Mode::Active, None);
+        if carried {
+            c.observations.push(Observation::Ground(person));
+        } else {
+            // What the camera folded before: the same model at the prior's mean.
+            let back = person.point(captured);
+            let mean = proto::models::vec6_from_wire(&prior.mean);
+            let age = t1.secs_since(captured);
+            let pos = Vector2::from(back.position);
+            let cov = Matrix2::new(back.cov[0], back.cov[1], back.cov[1], back.cov[2]);
+            let (mut o, mut x) = proto::models::ground_contribution_aged(&pos, &cov, &mean, age).unwrap();
+            let (oh, xh) = proto::models::ground_height_contribution(back.height_m, &mean).unwrap();
+            o += oh;
+            x += xh;
+            c.info = Some(proto::msg::Information {
+                matrix: proto::models::mat6_to_wire(&o),
+                vector: vec6_to_wire(&x),
+            });
+            c.folded = Kinds::of(ObservationKind::Ground);
+        }
+        h.on_message(t1, env(node.0, Message::Contribution(c)));
+        let out = h.tick(ClusterTime::from_millis(281));
+        let report = out
+            .iter()
+            .find_map(|o| match &o.body {
+                Message::TrackReport(r) => Some(r.clone()),
+                _ => None,
+            })
+            .expect("a report");
+        (*h.tracks()[0].filter.mean(), report.contributors)
+    };
+    let (carried, who) = run(true);
+    let (folded, _) = run(false);
+    assert!((carried - folded).norm() < 1e-9, "{carried} vs {folded}");
+    assert!((carried[0] - 3.2).abs() < 0.01, "x {}", carried[0]);
+    assert!(
+        who.iter().any(|c| c.kinds.contains(ObservationKind::Ground)),
+        "{who:?}"
+    );
 }

@@ -192,17 +192,23 @@ fn observation() -> impl Strategy<Value = Observation> {
     prop_oneof![pinhole(), rssi().prop_map(Observation::Rssi), acoustic()]
 }
 
-/// Observations that fit one frame with the rest of a message: at most eight, each small.
+/// Observations that fit one frame with the rest of a message: at most eight, each small, at
+/// most one ground person (a contribution carries no more).
 fn observations() -> impl Strategy<Value = Vec<Observation>> {
-    prop::collection::vec(observation(), 0..=8).prop_filter("fits a frame", |v| {
-        v.iter()
-            .map(|o| match o {
-                Observation::Acoustic(a) => a.ild_db.len(),
-                _ => 0,
-            })
-            .sum::<usize>()
-            <= 2 * MAX_BINS
-    })
+    prop::collection::vec(observation(), 0..=8)
+        .prop_filter("fits a frame", |v| {
+            v.iter()
+                .map(|o| match o {
+                    Observation::Acoustic(a) => a.ild_db.len(),
+                    Observation::Ground(_) => HISTOGRAM_BINS,
+                    _ => 0,
+                })
+                .sum::<usize>()
+                <= 2 * MAX_BINS
+        })
+        .prop_filter("one ground person", |v| {
+            v.iter().filter(|o| matches!(o, Observation::Ground(_))).count() <= 1
+        })
 }
 
 fn measurement() -> impl Strategy<Value = Message> {
@@ -311,12 +317,13 @@ fn message() -> impl Strategy<Value = Message> {
             observations()
         )
             .prop_map(
-                |(t, step, info_matrix, info_vector, folded, captured, mode, observations)| {
+                |(t, step, matrix, vector, folded, captured, mode, observations)| {
                     Message::Contribution(Contribution {
                         target: TargetId(t),
                         step,
-                        info_matrix,
-                        info_vector,
+                        // Nothing folded when the matrix is all zeros.
+                        info: (matrix.iter().flatten().any(|x| *x != 0.0))
+                            .then_some(Information { matrix, vector }),
                         folded: Kinds(folded),
                         captured,
                         mode,
