@@ -39,6 +39,9 @@ pub struct CameraConfig {
     pub prior_timeout_ms: u64,
     /// Detections and RSSI readings older than this are not used.
     pub max_age_ms: u64,
+    /// The heads' filter step (`[method] step-ms`): ground-plane people go out at most once
+    /// per step.
+    pub step_ms: u64,
     /// Whether this node measures RSSI.
     pub rssi: bool,
     /// Include the previous frame's point in centralized measurements (paper 000 eq. 13).
@@ -89,6 +92,7 @@ impl CameraConfig {
             status_period_ms: 1000,
             prior_timeout_ms: m.track_timeout_ms,
             max_age_ms: m.capture_max_age_ms(),
+            step_ms: m.step_ms,
             rssi: node.rssi,
             previous_point: m.previous_point,
             initial_mode: if radio_only { Mode::CameraOff } else { Mode::Active },

@@ -3,7 +3,7 @@
 //! readings.
 //!
 //! In distributed mode it answers every `Prior` with one `Contribution` built from the newest
-//! frame's detection gated to that target (all-zero Ω when it has none) and the fresh tag
+//! frame's detection gated to that target (no Ω, ξ when it has none) and the fresh tag
 //! readings; detections gated to no prior go out as `Measurement { target: None }` so heads
 //! can start tracks. In centralized mode every detection goes out as a `Measurement`; in grid
 //! mode each processed frame is also reported (`FrameReport`), so the head knows it looked. Modes
@@ -15,7 +15,7 @@
 //! observations ([`ground`]).
 
 use crate::config::CameraConfig;
-use crate::ground_people::GroundPeople;
+use crate::ground_people::{GroundPeople, PeopleSender};
 use crate::measure::{self, Measured};
 use crate::previous::{Offer, previous_point};
 use crate::record_all::RecordAll;
@@ -66,6 +66,7 @@ pub struct Counters {
     pub priors_ignored: u64,
     pub contributions: u64,
     pub camera_contributions: u64,
+    /// Messages of detections to the head: `Measurement`s (pin-hole points), `PeopleFrame`s.
     pub measurements: u64,
     /// Detections that could not be undistorted.
     pub undistort_failures: u64,
@@ -78,6 +79,8 @@ pub struct Counters {
     pub still_unassociated: u64,
     /// Tag readings refused as impossible.
     pub tag_readings: u64,
+    /// Ground-plane people not sent because a number of theirs was not finite.
+    pub people_unsendable: u64,
 }
 
 /// The camera node core.
@@ -94,8 +97,10 @@ pub struct CameraNode {
     tags: BTreeMap<TagId, RssiReading>,
     /// A logging run's measuring of every frame, whatever the mode.
     record_all: Option<RecordAll>,
-    /// Paper 004's particle filters, when the scenario selects them.
+    /// Paper 004's particle filters, when the scenario selects them, and what of their people
+    /// is sent when.
     people: Option<GroundPeople>,
+    people_out: PeopleSender,
     mode: Mode,
     mode_since: ClusterTime,
     time_in_mode_ns: [u64; 3],
@@ -121,6 +126,7 @@ impl CameraNode {
                     .ok()
             });
         CameraNode {
+            people_out: PeopleSender::new(cfg.step_ms, f64::from(cfg.particle.hs_weight)),
             mode: cfg.initial_mode,
             cfg,
             segmenter,
@@ -246,7 +252,7 @@ impl CameraNode {
                         .ground_answer(now, &p)
                         .unwrap_or_else(|| self.answer(now, &p));
                     self.counters.contributions += 1;
-                    self.counters.camera_contributions += u64::from(c.folded.camera());
+                    self.counters.camera_contributions += u64::from(c.camera());
                     out.push(Outgoing::new(env.source, Message::Contribution(c)));
                 }
                 self.priors.insert(p.target, (now, p));

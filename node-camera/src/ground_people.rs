@@ -1,13 +1,14 @@
 //! The camera's paper 004 mode (`[method] camera-tracker = "particle"`): each frame's
 //! foreground regions feed the per-person colour particle filters ([`crate::tracker`]), and
-//! every person tracked leaves as a ground-plane [`GroundPoint`] — the mean state's position,
+//! every person tracked becomes a ground-plane [`GroundPoint`] — the mean state's position,
 //! covariance from the sample spread through the ray geometry, width, height, the
-//! maximum-likelihood state's floor position and confidence, and the colour histogram (sent
-//! with a person's first observation and then at most once per [`HISTOGRAM_PERIOD_NS`], to keep
-//! the bytes per person small). Centralized fusion gets them in `Measurement`s; distributed
-//! fusion folds the one gated to a prior into the `Contribution` with
-//! [`models::ground_contribution_aged`]. On a [`SampleRequest`] the camera answers with the
-//! filters' sample sets.
+//! maximum-likelihood state's floor position and confidence, and the colour histogram.
+//! Distributed fusion answers a prior with the one gated to it, quantised, in the
+//! `Contribution` (the head folds it in, [`contribution`]); the others (all of them, in
+//! centralized fusion) leave in one [`PeopleFrame`] per head step ([`PeopleSender`]): each
+//! person quantised ([`GroundPerson`]), its histogram only when new, changed or due for a
+//! refresh. On a
+//! [`proto::msg::SampleRequest`] the camera answers with the filters' sample sets.
 //!
 //! The measurement-level simulation has no frames: its projected boxes are converted to the
 //! ground plane directly ([`GroundPeople::from_boxes`]), with no spread and no histogram.
@@ -18,9 +19,12 @@ use crate::tracker::manager::{Foreground, MultiTracker, PersonEstimate, TrackerE
 use crate::tracker::params::{ParamsError, ParticleParams};
 use nalgebra::{Matrix2, Vector2};
 use proto::camera::CameraModel;
-use proto::models::{self, State};
-use proto::msg::{Contribution, ImageSample, MAX_SAMPLES, Measurement, Mode, Prior, SampleSet};
-use proto::observation::{GroundPoint, Observation, ObservationKind, RssiReading};
+use proto::models;
+use proto::msg::{Contribution, ImageSample, MAX_SAMPLES, Mode, PeopleFrame, Prior, SampleSet};
+use proto::observation::{
+    GroundPerson, GroundPoint, HISTOGRAM_BINS, HISTOGRAM_HS_BINS, Kinds, Observation, RssiReading,
+    dequantise_histogram,
+};
 use proto::sensor::{Detection, Frame};
 use proto::{ClusterTime, TargetId};
 use std::collections::BTreeMap;
@@ -30,8 +34,8 @@ use std::collections::BTreeMap;
 /// filter's mean box trails a moving person (model error the sample spread does not show).
 pub const GROUND_POSITION_FLOOR_M2: f64 = 0.25 * 0.25;
 
-/// A person's histogram goes out again after this long, ns.
-pub const HISTOGRAM_PERIOD_NS: i64 = 1_000_000_000;
+// The tracker's histogram layout is the wire's.
+const _: () = assert!(BINS == HISTOGRAM_BINS && crate::tracker::histogram::HS_BINS == HISTOGRAM_HS_BINS);
 
 /// The particle filters and the newest frame's people on the ground.
 #[derive(Debug)]
@@ -40,8 +44,6 @@ pub struct GroundPeople {
     corner_sigma_px: f64,
     people: Vec<GroundPoint>,
     captured: Option<ClusterTime>,
-    /// When each person's histogram last went out.
-    histogram_sent: BTreeMap<u32, ClusterTime>,
 }
 
 impl GroundPeople {
@@ -55,7 +57,6 @@ impl GroundPeople {
             corner_sigma_px: params.corner_sigma_px,
             people: Vec::new(),
             captured: None,
-            histogram_sent: BTreeMap::new(),
         })
     }
 
@@ -98,12 +99,10 @@ impl GroundPeople {
         for person in &estimates {
             if let Some(obs) = ground::observe(camera, person, 1.0, self.corner_sigma_px, captured) {
                 let ml = ml_position(camera, person).unwrap_or(obs.position);
-                let g = self.ground_point(person.id, person.ml_confidence, obs, ml);
-                self.people.push(g);
+                self.people
+                    .push(to_point(person.id, person.ml_confidence, obs, ml));
             }
         }
-        let live = self.tracker.ids();
-        self.histogram_sent.retain(|id, _| live.contains(id));
         self.captured = Some(captured);
         Ok(&self.people)
     }
@@ -132,27 +131,6 @@ impl GroundPeople {
             }
         }
         self.captured = Some(captured);
-    }
-
-    fn ground_point(
-        &mut self,
-        local: u32,
-        confidence: f32,
-        obs: GroundObservation,
-        ml: [f64; 2],
-    ) -> GroundPoint {
-        let captured = obs.captured;
-        let mut g = to_point(local, confidence, obs, ml);
-        let due = self
-            .histogram_sent
-            .get(&local)
-            .is_none_or(|&t| (captured - t).abs() >= HISTOGRAM_PERIOD_NS);
-        if due {
-            self.histogram_sent.insert(local, captured);
-        } else {
-            g.histogram.clear();
-        }
-        g
     }
 
     /// The sample sets of the newest frame: of person `local`, or of everyone. A filter with
@@ -198,12 +176,12 @@ fn to_point(local: u32, confidence: f32, obs: GroundObservation, ml: [f64; 2]) -
             c[1],
             c[2] + GROUND_POSITION_FLOOR_M2,
         ],
-        width_m: obs.width_m as f32,
-        height_m: obs.height_m as f32,
-        confidence: confidence.clamp(0.0, 1.0),
+        width_m: obs.width_m,
+        height_m: obs.height_m,
+        confidence: f64::from(confidence.clamp(0.0, 1.0)),
         histogram: obs.histogram.bins().to_vec(),
         captured: obs.captured,
-        ml_position: [ml[0] as f32, ml[1] as f32],
+        ml_position: ml,
     }
 }
 
@@ -251,47 +229,156 @@ pub fn nearest<'a>(
         .map(|(_, g)| g)
 }
 
-/// The contribution Ω_i, ξ_i of one ground point at the prior's mean — its floor position and
-/// the centre height its measured height gives (all zero, nothing folded,
-/// when there is none or it cannot be linearized); tag readings go along raw.
+/// The answer to `prior` with one ground point gated to it: the person itself, quantised, for
+/// the head to model (the floor position aged to the prior's time and the centre height its
+/// measured height gives are linear in the state, so the head computes from it the Ω_i, ξ_i
+/// [`models::ground_contribution_aged`] would give here, from a twentieth of the bytes); nothing
+/// when there is none or it cannot be quantised. Tag readings go along raw.
 pub fn contribution(
     prior: &Prior,
     person: Option<&GroundPoint>,
     captured: ClusterTime,
-    age_s: f64,
     mode: Mode,
     rssi: &[RssiReading],
 ) -> Contribution {
-    let mean: State = models::vec6_from_wire(&prior.mean);
-    let info = person.and_then(|g| {
-        let (p, c) = position_and_cov(g);
-        let (mut omega, mut xi) = models::ground_contribution_aged(&p, &c, &mean, age_s)?;
-        if let Some((o, x)) = models::ground_height_contribution(f64::from(g.height_m), &mean) {
-            omega += o;
-            xi += x;
-        }
-        Some((omega, xi))
-    });
-    crate::measure::folded_contribution(prior, info, ObservationKind::Ground, captured, mode, rssi)
-}
-
-/// A measurement carrying one ground point (and the tag readings of its frame).
-pub fn measurement(
-    camera: &CameraModel,
-    person: GroundPoint,
-    target: Option<(TargetId, u64)>,
-    mode: Mode,
-    rssi: &[RssiReading],
-) -> Measurement {
-    Measurement {
-        target: target.map(|t| t.0),
-        step: target.map_or(0, |t| t.1),
-        pose: camera.pose.to_wire(),
+    let person = person.and_then(|g| GroundPerson::quantise(g, None, false));
+    Contribution {
+        target: prior.target,
+        step: prior.step,
+        info: None,
+        folded: Kinds::NONE,
+        captured,
         mode,
-        observations: std::iter::once(Observation::Ground(person))
+        observations: person
+            .map(Observation::Ground)
+            .into_iter()
             .chain(rssi.iter().copied().map(Observation::Rssi))
             .collect(),
     }
+}
+
+/// A person's histogram goes out again when it has drifted this far (Bhattacharyya distance,
+/// blended HS:V as the filters weigh it) from the one last sent: a change the filters' colour
+/// likelihood (σ = 0.15 by default) tells apart.
+pub const HISTOGRAM_CHANGE: f64 = 0.1;
+/// ... but not sooner than this after the last, ns,
+pub const HISTOGRAM_MIN_PERIOD_NS: i64 = 2_000_000_000;
+/// ... and, changed or not, at least this often, so a head that lost one (people frames may be
+/// dropped) or took the camera over gets it, ns.
+pub const HISTOGRAM_REFRESH_NS: i64 = 10_000_000_000;
+
+/// What of the people leaves the camera and when: one [`PeopleFrame`] per head step at most
+/// (the head fuses at its steps, and the distributed filter's contributions answer each step
+/// from the newest frame alone), each person quantised, and each person's histogram with the
+/// first frame that carries the person, then only when it changed by [`HISTOGRAM_CHANGE`]
+/// (at most every [`HISTOGRAM_MIN_PERIOD_NS`]) or is [`HISTOGRAM_REFRESH_NS`] old.
+#[derive(Debug)]
+pub struct PeopleSender {
+    period_ns: i64,
+    hs_weight: f64,
+    /// When the next frame is due, and the previous frame's capture time.
+    next: Option<ClusterTime>,
+    previous: Option<ClusterTime>,
+    /// Per person: when its histogram last went out, and the histogram the head got.
+    histograms: BTreeMap<u32, (ClusterTime, Vec<f32>)>,
+    /// People left out of a frame because a number of theirs was not finite.
+    unsendable: u64,
+}
+
+impl PeopleSender {
+    /// At most one frame per `step_ms` (a head's step); histograms compared with `hs_weight`
+    /// (the filters' HS share of the similarity).
+    pub fn new(step_ms: u64, hs_weight: f64) -> PeopleSender {
+        PeopleSender {
+            period_ns: i64::try_from(step_ms.saturating_mul(1_000_000)).unwrap_or(i64::MAX),
+            hs_weight,
+            next: None,
+            previous: None,
+            histograms: BTreeMap::new(),
+            unsendable: 0,
+        }
+    }
+
+    /// People left out so far because a number of theirs was not finite.
+    pub fn unsendable(&self) -> u64 {
+        self.unsendable
+    }
+
+    /// Whether the frame captured at `captured` goes out: the first, then one per period, the
+    /// frame nearest each period's end (a frame counts as due half its interval early, so a
+    /// camera as fast as the steps sends every frame and a faster one every n-th).
+    pub fn due(&mut self, captured: ClusterTime) -> bool {
+        let interval = self.previous.map_or(0, |p| (captured - p).max(0));
+        self.previous = Some(captured);
+        if self.next.is_some_and(|next| captured + interval / 2 < next) {
+            return false;
+        }
+        // Keep the cadence, unless the camera fell a whole period behind (it was off).
+        let base = self
+            .next
+            .filter(|&next| captured - next < self.period_ns)
+            .unwrap_or(captured);
+        self.next = Some(base + self.period_ns);
+        true
+    }
+
+    /// The message of one frame captured at `captured`: `people` with the prior each was gated
+    /// to, `rssi` the tag readings that go with the gated ones. People whose numbers cannot be
+    /// quantised are left out (counted); histograms go as the policy says.
+    pub fn frame<'a>(
+        &mut self,
+        captured: ClusterTime,
+        mode: Mode,
+        people: impl IntoIterator<Item = (&'a GroundPoint, Option<TargetId>)>,
+        rssi: Vec<RssiReading>,
+    ) -> PeopleFrame {
+        let mut out = Vec::new();
+        for (p, target) in people {
+            let with_histogram = !p.histogram.is_empty() && self.histogram_due(captured, p);
+            let person = GroundPerson::quantise(p, target, with_histogram)
+                .or_else(|| GroundPerson::quantise(p, target, false));
+            let Some(person) = person else {
+                self.unsendable += 1;
+                continue;
+            };
+            if let Some(h) = &person.histogram {
+                self.histograms
+                    .insert(p.local, (captured, dequantise_histogram(h)));
+            }
+            out.push(person);
+        }
+        PeopleFrame {
+            captured,
+            mode,
+            rssi,
+            people: out,
+        }
+    }
+
+    fn histogram_due(&self, captured: ClusterTime, p: &GroundPoint) -> bool {
+        let Some((sent_at, sent)) = self.histograms.get(&p.local) else {
+            return true;
+        };
+        let age = captured - *sent_at;
+        age >= HISTOGRAM_REFRESH_NS
+            || (age >= HISTOGRAM_MIN_PERIOD_NS
+                && histogram_distance(sent, &p.histogram, self.hs_weight) > HISTOGRAM_CHANGE)
+    }
+
+    /// Forget the histograms of people no longer tracked (a returning id is new).
+    pub fn retain(&mut self, live: &[u32]) {
+        self.histograms.retain(|id, _| live.contains(id));
+    }
+}
+
+/// Bhattacharyya distance of two histograms (HS then V bins), the parts' coefficients blended
+/// `hs_weight : 1 − hs_weight` as the filters blend them (paper 004 eq. 6–7).
+pub fn histogram_distance(a: &[f32], b: &[f32], hs_weight: f64) -> f64 {
+    let rho = |x: &[f32], y: &[f32]| -> f64 { x.iter().zip(y).map(|(p, q)| f64::from(p * q).sqrt()).sum() };
+    let (ah, av) = a.split_at(HISTOGRAM_HS_BINS.min(a.len()));
+    let (bh, bv) = b.split_at(HISTOGRAM_HS_BINS.min(b.len()));
+    let r = hs_weight * rho(ah, bh) + (1.0 - hs_weight) * rho(av, bv);
+    (1.0 - r).max(0.0).sqrt()
 }
 
 #[cfg(test)]

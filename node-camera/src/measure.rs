@@ -6,7 +6,7 @@
 use nalgebra::{Matrix2, Vector2};
 use proto::camera::{CameraModel, UndistortError};
 use proto::models::{self, State};
-use proto::msg::{Contribution, Measurement, Mode, Prior};
+use proto::msg::{Contribution, Information, Measurement, Mode, Prior};
 use proto::observation::{Kinds, Observation, ObservationKind, PinholePoint, RssiReading};
 use proto::sensor::{Detection, ReferencePoint};
 use proto::{ClusterTime, TargetId};
@@ -95,8 +95,8 @@ pub fn nearest_pairs<T>(
     of_item
 }
 
-/// The contribution Ω_i, ξ_i of one measured point at the prior's mean, or the all-zero
-/// contribution (nothing folded) when there is none or it cannot be linearized. The point was
+/// The contribution Ω_i, ξ_i of one measured point at the prior's mean, or the contribution
+/// with nothing folded (no Ω_i, ξ_i) when there is none or it cannot be linearized. The point was
 /// captured `age_s` seconds before the prior's time ([`models::camera_contribution_aged`]). Tag
 /// readings go along raw, for the head to model.
 pub fn contribution(
@@ -115,7 +115,7 @@ pub fn contribution(
 }
 
 /// The answer to `prior` carrying `info` (Ω_i, ξ_i of one observation of `kind`, folded at the
-/// camera), or the all-zero contribution with nothing folded; tag readings go along raw.
+/// camera), or the contribution with nothing folded; tag readings go along raw.
 pub(crate) fn folded_contribution(
     prior: &Prior,
     info: Option<(nalgebra::Matrix6<f64>, nalgebra::Vector6<f64>)>,
@@ -124,19 +124,18 @@ pub(crate) fn folded_contribution(
     mode: Mode,
     rssi: &[RssiReading],
 ) -> Contribution {
-    let (info_matrix, info_vector, folded) = match info {
-        Some((omega, xi)) => (
-            models::mat6_to_wire(&omega),
-            models::vec6_to_wire(&xi),
-            Kinds::of(kind),
-        ),
-        None => ([[0.0; 6]; 6], [0.0; 6], Kinds::NONE),
+    let folded = if info.is_some() {
+        Kinds::of(kind)
+    } else {
+        Kinds::NONE
     };
     Contribution {
         target: prior.target,
         step: prior.step,
-        info_matrix,
-        info_vector,
+        info: info.map(|(omega, xi)| Information {
+            matrix: models::mat6_to_wire(&omega),
+            vector: models::vec6_to_wire(&xi),
+        }),
         folded,
         captured,
         mode,
@@ -297,8 +296,9 @@ mod tests {
         let mean = models::vec6_from_wire(&p.mean);
         let got = contribution(&c, &p, Some(&m), ClusterTime(5), 0.2, Mode::Active, &[]);
         let (omega, xi) = models::camera_contribution_aged(&c, &m.point, &m.cov, &mean, 0.2).unwrap();
-        assert_eq!(got.info_matrix, models::mat6_to_wire(&omega));
-        assert_eq!(got.info_vector, models::vec6_to_wire(&xi));
+        let info = got.info.unwrap();
+        assert_eq!(info.matrix, models::mat6_to_wire(&omega));
+        assert_eq!(info.vector, models::vec6_to_wire(&xi));
         // Fused alone into the prior, the old frame moves the mean nowhere (it agrees with the
         // prior once aged) and it observes velocity.
         let prior_info = models::mat6_from_wire(&p.cov).try_inverse().unwrap();
@@ -327,12 +327,13 @@ mod tests {
         assert_eq!(got.folded, Kinds::of(ObservationKind::Pinhole));
         let (omega, xi) =
             models::camera_contribution(&c, &m.point, &m.cov, &models::vec6_from_wire(&p.mean)).unwrap();
-        assert_eq!(got.info_matrix, models::mat6_to_wire(&omega));
-        assert_eq!(got.info_vector, models::vec6_to_wire(&xi));
+        let info = got.info.clone().unwrap();
+        assert_eq!(info.matrix, models::mat6_to_wire(&omega));
+        assert_eq!(info.vector, models::vec6_to_wire(&xi));
         assert_eq!((got.target, got.step), (TargetId(1), 7));
         let empty = contribution(&c, &p, None, ClusterTime(5), 0.0, Mode::CameraOff, &[]);
         assert!(empty.folded.is_empty());
-        assert!(empty.info_matrix.iter().flatten().all(|&v| v == 0.0));
+        assert_eq!(empty.info, None);
         let tag = RssiReading {
             tag: proto::TagId(9),
             dbm: -60.0,

@@ -15,9 +15,9 @@ use crate::step::{Offer, StepWindow};
 use crate::track::Track;
 use nalgebra::{Matrix2, Matrix6, Vector2};
 use proto::models::{State, mat6_from_wire, mat6_to_wire, vec6_from_wire, vec6_to_wire};
-use proto::msg::{Contribution, Handover, Measurement, NodeStatus, Prior};
+use proto::msg::{Contribution, Handover, Measurement, NodeStatus, PeopleFrame, Prior};
 use proto::node::{Input, Node, Outgoing};
-use proto::observation::{Kinds, ObservationKind};
+use proto::observation::{GroundPerson, Kinds, ObservationKind};
 use proto::scenario::Activation;
 use proto::{ClusterTime, Envelope, Message, Mode, NodeId, TargetId};
 use std::collections::HashMap;
@@ -234,6 +234,10 @@ impl HeadNode {
                 Some(slot) => self.on_measurement(now, slot, m),
                 None => self.reject(now, src, "measurement"),
             },
+            Message::PeopleFrame(f) => match member {
+                Some(slot) => self.on_people(now, slot, f),
+                None => self.reject(now, src, "people_frame"),
+            },
             Message::FrameReport(r) => match member {
                 Some(slot) => self.on_frame_report(slot, &r),
                 None => self.reject(now, src, "frame_report"),
@@ -300,11 +304,9 @@ impl HeadNode {
     }
 
     fn on_contribution(&mut self, now: ClusterTime, slot: usize, c: Contribution, out: &mut Vec<Outgoing>) {
-        if c.info_matrix
-            .iter()
-            .flatten()
-            .chain(&c.info_vector)
-            .any(|x| !x.is_finite())
+        if c.info
+            .as_ref()
+            .is_some_and(|i| i.matrix.iter().flatten().chain(&i.vector).any(|x| !x.is_finite()))
         {
             self.counters.rejected += 1;
             if let Some(more) = self.log.admit(now.0, "non-finite contribution") {
@@ -320,7 +322,13 @@ impl HeadNode {
         match self.window.offer(slot, t, c.step, now) {
             Offer::Apply => {
                 self.counters.applied += 1;
-                let camera = c.folded.camera();
+                // A ground-plane person the camera gated to the prior, folded in here (at the
+                // capture time, by the same linear model the camera would use).
+                let ground = c
+                    .ground()
+                    .filter(|_| self.fresh(now, c.captured, slot, "ground person"))
+                    .map(|p| self.ground_detection(slot, p, c.captured));
+                let camera = c.folded.camera() || ground.is_some();
                 let rssi: Vec<_> = if self.nodes[slot].info.rssi {
                     let readings: Vec<_> = c.rssi().copied().collect();
                     readings
@@ -340,12 +348,20 @@ impl HeadNode {
                 let track = &mut self.tracks[t];
                 if camera {
                     self.planner.camera_delivered(node.info.id);
-                    track.acc.add_wire(&c.info_matrix, &c.info_vector);
-                    track.aux_acc.add_wire(&c.info_matrix, &c.info_vector);
+                    if let Some(info) = c.info.as_ref().filter(|_| c.folded.camera()) {
+                        track.acc.add_wire(&info.matrix, &info.vector);
+                        track.aux_acc.add_wire(&info.matrix, &info.vector);
+                    }
+                    if let Some(d) = &ground {
+                        crate::observe::ground(track, d);
+                    }
                     track.last_seen = now;
                     track.fused_frame(c.captured);
                 }
                 let mut kinds = if camera { c.folded } else { Kinds::NONE };
+                if ground.is_some() {
+                    kinds.insert(ObservationKind::Ground);
+                }
                 for r in &rssi {
                     if track.hear_once(slot, r.time, r.dbm) {
                         kinds.insert(ObservationKind::Rssi);
@@ -402,19 +418,13 @@ impl HeadNode {
 
     fn on_measurement(&mut self, now: ClusterTime, slot: usize, m: Measurement) {
         self.nodes[slot].mode = m.mode;
-        let ground = m.observations.iter().find_map(|o| match o {
-            proto::observation::Observation::Ground(g) => Some(g),
-            _ => None,
-        });
-        let (point, cov, prev_point, captured) = match (m.pinhole(), ground) {
-            (Some(p), _) => (p.point, p.cov, p.prev_point.map(Vector2::from), p.captured),
-            (None, Some(g)) => (g.position, g.cov, None, g.captured),
-            (None, None) => {
-                // Only camera detections start or feed tracks here.
-                self.counters.unfused_observations += m.observations.len() as u64;
-                return;
-            }
+        let Some(p) = m.pinhole() else {
+            // Only camera detections start or feed tracks here.
+            self.counters.unfused_observations += m.observations.len() as u64;
+            return;
         };
+        let (point, cov, prev_point, captured) =
+            (p.point, p.cov, p.prev_point.map(Vector2::from), p.captured);
         if !self.fresh(now, captured, slot, "measurement") {
             return;
         }
@@ -424,11 +434,7 @@ impl HeadNode {
             .filter(|r| self.fresh(now, r.time, slot, "RSSI packet"))
             .collect();
         self.planner.camera_delivered(self.nodes[slot].info.id);
-        if self.detections.len() >= MAX_DETECTIONS_PER_STEP {
-            self.counters.overflow += 1;
-            return;
-        }
-        self.detections.push(Detection {
+        self.detect(Detection {
             node: self.nodes[slot].info.id,
             slot,
             point: Vector2::from(point),
@@ -437,10 +443,70 @@ impl HeadNode {
             rssi,
             hint: m.target,
             captured,
-            ground: ground
-                .filter(|_| m.pinhole().is_none())
-                .map(|g| f64::from(g.height_m)),
+            ground: None,
         });
+    }
+
+    /// A camera's ground-plane people of one frame: each a detection on the floor (its
+    /// position, covariance and measured height), the frame's tag readings with the people
+    /// the camera gated to a track.
+    fn on_people(&mut self, now: ClusterTime, slot: usize, f: PeopleFrame) {
+        self.nodes[slot].mode = f.mode;
+        if !self.fresh(now, f.captured, slot, "people frame") {
+            return;
+        }
+        let rssi: Vec<_> = f
+            .rssi
+            .iter()
+            .copied()
+            .filter(|r| self.fresh(now, r.time, slot, "RSSI packet"))
+            .collect();
+        if !f.people.is_empty() {
+            self.planner.camera_delivered(self.nodes[slot].info.id);
+        }
+        for p in &f.people {
+            let cov = p.cov();
+            self.detect(Detection {
+                node: self.nodes[slot].info.id,
+                slot,
+                point: Vector2::from(p.position()),
+                cov: Matrix2::new(cov[0], cov[1], cov[1], cov[2]),
+                prev_point: None,
+                rssi: if p.target.is_some() {
+                    rssi.clone()
+                } else {
+                    Vec::new()
+                },
+                hint: p.target,
+                captured: f.captured,
+                ground: Some(p.height_m()),
+            });
+        }
+    }
+
+    /// A camera's ground-plane person as a detection on the floor, captured at `captured`.
+    fn ground_detection(&self, slot: usize, p: &GroundPerson, captured: ClusterTime) -> Detection {
+        let cov = p.cov();
+        Detection {
+            node: self.nodes[slot].info.id,
+            slot,
+            point: Vector2::from(p.position()),
+            cov: Matrix2::new(cov[0], cov[1], cov[1], cov[2]),
+            prev_point: None,
+            rssi: Vec::new(),
+            hint: p.target,
+            captured,
+            ground: Some(p.height_m()),
+        }
+    }
+
+    /// Buffer a detection for the step's association, within the per-step limit.
+    fn detect(&mut self, d: Detection) {
+        if self.detections.len() >= MAX_DETECTIONS_PER_STEP {
+            self.counters.overflow += 1;
+            return;
+        }
+        self.detections.push(d);
     }
 
     fn on_handover(&mut self, now: ClusterTime, h: Handover) {

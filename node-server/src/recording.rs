@@ -43,7 +43,7 @@ pub use recorder::Recorder;
 pub const MAGIC: [u8; 8] = *b"OCELLIRC";
 /// Format version of the recording file. Records hold wire envelopes, so it moves with
 /// `proto::PROTOCOL_VERSION`: format N was recorded with protocol N (4: track reports carry
-/// their frames' capture time).
+/// their frames' capture time; cameras send people frames).
 pub const FORMAT_VERSION: u16 = 4;
 /// Largest record payload accepted; a length beyond it is corruption, not an allocation.
 pub const MAX_RECORD_BYTES: u32 = 16 * 1024 * 1024;

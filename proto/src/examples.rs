@@ -5,7 +5,7 @@
 
 use crate::ids::{NodeId, Role, TagId, TargetId};
 use crate::msg::*;
-use crate::observation::{GroundPoint, IldVector, PinholePoint};
+use crate::observation::{GroundPerson, IldVector, PinholePoint};
 use crate::{ClusterTime, Envelope, Message, Mode};
 
 /// A symmetric, diagonally dominant (so positive-definite) matrix whose upper-triangle entries
@@ -44,11 +44,11 @@ fn env(body: Message) -> Envelope {
 }
 
 /// The number of f64 and f32 slots of each sample, by tag (what the poison test must find).
-pub const FLOAT_SLOTS: [(usize, usize); 19] = [
+pub const FLOAT_SLOTS: [(usize, usize); 20] = [
     (0, 0),   // hello
     (0, 0),   // hello_ack
     (0, 0),   // heartbeat
-    (19, 21), // measurement: rvec 3, tvec 3, pin-hole 7, rssi 1, ground 5; box 4, colour 3, ground 3 + 3 + 2, ild 2 + 4
+    (14, 13), // measurement: rvec 3, tvec 3, pin-hole 7, rssi 1; box 4, colour 3, ild 2 + 4
     (43, 0),  // contribution: 36 + 6 + rssi 1
     (0, 0),   // node_status
     (42, 0),  // prior: mean 6 + cov 36
@@ -64,6 +64,7 @@ pub const FLOAT_SLOTS: [(usize, usize); 19] = [
     (0, 0),   // frame_report
     (0, 0),   // view_subscribe
     (12, 0),  // view_update: mean 6 + cov_pos 6
+    (1, 0),   // people_frame: rssi 1 (the people are integers)
 ];
 
 /// One observation of each kind, in wire-tag order.
@@ -92,16 +93,17 @@ pub fn observations() -> Vec<Observation> {
             dbm: -61.5,
             time: ClusterTime(1_499_995_000),
         }),
-        Observation::Ground(GroundPoint {
-            local: 4,
-            position: [3.25, -1.75],
-            cov: [0.0625, 0.0078125, 0.03125],
-            width_m: 0.55,
-            height_m: 1.65,
-            confidence: 0.85,
-            histogram: vec![0.55, 0.3, 0.15],
-            captured: ClusterTime(1_499_991_000),
-            ml_position: [3.3203125, -1.6953125],
+        Observation::Ground(GroundPerson {
+            local: 6,
+            target: None,
+            position_cm: [-410, 655],
+            sigma_mm: [301, 287],
+            correlation: 12,
+            width_cm: 51,
+            height_cm: 172,
+            confidence: 230,
+            ml_offset_cm: [0, 4],
+            histogram: None,
         }),
         Observation::Acoustic(IldVector {
             first_hz: 187.3,
@@ -138,8 +140,10 @@ pub fn messages() -> Vec<Envelope> {
         env(Message::Contribution(Contribution {
             target: TargetId(5),
             step: 300,
-            info_matrix: spd(1),
-            info_vector: vec6(1),
+            info: Some(Information {
+                matrix: spd(1),
+                vector: vec6(1),
+            }),
             folded: Kinds::of(ObservationKind::Pinhole),
             captured: ClusterTime(1_499_990_000),
             mode: Mode::CameraOff,
@@ -273,7 +277,53 @@ pub fn messages() -> Vec<Envelope> {
         })),
         env(Message::ViewSubscribe(ViewSubscribe { period_ms: 200 })),
         env(Message::ViewUpdate(view_update())),
+        env(Message::PeopleFrame(PeopleFrame {
+            captured: ClusterTime(1_499_994_000),
+            mode: Mode::Active,
+            rssi: vec![RssiReading {
+                tag: TagId(0x0200_0000_0003),
+                dbm: -66.125,
+                time: ClusterTime(1_499_993_500),
+            }],
+            people: vec![
+                GroundPerson {
+                    local: 4,
+                    target: Some(TargetId(5)),
+                    position_cm: [325, -175],
+                    sigma_mm: [250, 265],
+                    correlation: -9,
+                    width_cm: 55,
+                    height_cm: 165,
+                    confidence: 217,
+                    ml_offset_cm: [7, -3],
+                    histogram: None,
+                },
+                GroundPerson {
+                    local: 9,
+                    target: None,
+                    position_cm: [1210, 40],
+                    sigma_mm: [400, 310],
+                    correlation: 33,
+                    width_cm: 48,
+                    height_cm: 181,
+                    confidence: 140,
+                    ml_offset_cm: [-12, 0],
+                    histogram: Some(histogram()),
+                },
+            ],
+        })),
     ]
+}
+
+/// A quantised histogram: a few full hue-saturation bins, the value bins' fullest at 255.
+fn histogram() -> Vec<u8> {
+    let mut h = vec![0u8; crate::observation::HISTOGRAM_BINS];
+    h[23] = 255;
+    h[24] = 91;
+    h[33] = 17;
+    h[100 + 6] = 255;
+    h[100 + 7] = 120;
+    h
 }
 
 /// A view update with one track, one camera with its status, one head and one handover.

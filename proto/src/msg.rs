@@ -5,7 +5,7 @@
 //! byte vectors in `wire`'s tests pin the current layout.
 
 use crate::ids::{NodeId, Role, TargetId};
-pub use crate::observation::{Kinds, Observation, ObservationKind, RssiReading};
+pub use crate::observation::{GroundPerson, Kinds, Observation, ObservationKind, RssiReading};
 use crate::time::ClusterTime;
 pub use crate::view::{ViewSubscribe, ViewUpdate};
 use serde::{Deserialize, Serialize};
@@ -123,19 +123,28 @@ impl Measurement {
 pub struct Contribution {
     pub target: TargetId,
     pub step: u64,
-    /// Ω_i = Hᵀ Q⁻¹ H, symmetric positive semi-definite; all zero when the node folded
-    /// nothing in. H and h are taken where μ̄ puts the target at the frame's capture time
-    /// (`models::camera_contribution_aged`).
-    pub info_matrix: Mat6,
-    /// ξ_i = Hᵀ Q⁻¹ (z − h(μ̄) + H μ̄).
-    pub info_vector: Vec6,
-    /// The kinds of observation the node folded into Ω_i, ξ_i.
+    /// Ω_i, ξ_i of what the node folded in; `None` when it folded nothing (Ω_i = 0, ξ_i = 0:
+    /// a camera that does not see the target answers without 336 bytes of zeros).
+    pub info: Option<Information>,
+    /// The kinds of observation the node folded into `info`.
     pub folded: Kinds,
     pub captured: ClusterTime,
     pub mode: Mode,
-    /// Observations the head models itself (tag readings, linearized with the node's trained
-    /// RSSI model), at most [`crate::observation::MAX_OBSERVATIONS`].
+    /// Observations the head models itself, at most
+    /// [`crate::observation::MAX_OBSERVATIONS`]: tag readings (linearized with the node's
+    /// trained RSSI model) and at most one ground-plane person the node gated to the prior,
+    /// captured at `captured` (its model is linear, so the head gets the same Ω_i, ξ_i from it,
+    /// exactly but for the quantisation, from a twentieth of the bytes).
     pub observations: Vec<Observation>,
+}
+
+/// Ω_i = Hᵀ Q⁻¹ H, symmetric positive semi-definite, and ξ_i = Hᵀ Q⁻¹ (z − h(μ̄) + H μ̄), with
+/// H and h taken where μ̄ puts the target at the frame's capture time
+/// (`models::camera_contribution_aged`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Information {
+    pub matrix: Mat6,
+    pub vector: Vec6,
 }
 
 impl Contribution {
@@ -145,6 +154,19 @@ impl Contribution {
             Observation::Rssi(r) => Some(r),
             _ => None,
         })
+    }
+
+    /// The ground-plane person the head models itself, if the node sent one.
+    pub fn ground(&self) -> Option<&GroundPerson> {
+        self.observations.iter().find_map(|o| match o {
+            Observation::Ground(p) => Some(p),
+            _ => None,
+        })
+    }
+
+    /// Whether it brings camera information: folded in, or a ground-plane person.
+    pub fn camera(&self) -> bool {
+        self.folded.camera() || self.ground().is_some()
     }
 }
 
@@ -179,6 +201,24 @@ pub struct FrameReport {
     pub mode: Mode,
     /// Detections the frame had (each sent as a `Measurement`).
     pub detections: u32,
+}
+
+/// Every person a camera's particle filters track in one frame (paper 004's mode, `[method]
+/// camera-tracker = "particle"`), in one message: the capture time, the mode and the tag
+/// readings once, then each person quantised ([`GroundPerson`]). No camera pose: the positions
+/// are already on the world's floor, and heads take each camera's geometry from the scenario.
+/// A camera sends at most one per head step (`[method] step-ms`), the newest frame's.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PeopleFrame {
+    /// When the frame was captured, the camera's cluster time.
+    pub captured: ClusterTime,
+    pub mode: Mode,
+    /// The node's fresh tag readings when a person is gated to a prior (they go with the
+    /// people gated to a track, as they go with a contribution); at most
+    /// [`crate::observation::MAX_OBSERVATIONS`].
+    pub rssi: Vec<RssiReading>,
+    /// At most [`crate::observation::MAX_OBSERVATIONS`], each `local` once.
+    pub people: Vec<GroundPerson>,
 }
 
 // ---------------------------------------------------------------- head → camera
@@ -424,6 +464,8 @@ pub enum Message {
     ViewSubscribe(ViewSubscribe),
     /// server → viewer: the tracks, nodes and handovers, every step.
     ViewUpdate(ViewUpdate),
+    /// camera → head: a frame's ground-plane people (paper 004's cameras).
+    PeopleFrame(PeopleFrame),
 }
 
 impl Message {
@@ -449,6 +491,7 @@ impl Message {
             Message::FrameReport(_) => "frame_report",
             Message::ViewSubscribe(_) => "view_subscribe",
             Message::ViewUpdate(_) => "view_update",
+            Message::PeopleFrame(_) => "people_frame",
         }
     }
 
@@ -469,6 +512,7 @@ impl Message {
                 | Message::FrameReport(_)
                 | Message::ViewSubscribe(_)
                 | Message::ViewUpdate(_)
+                | Message::PeopleFrame(_)
         )
     }
 }

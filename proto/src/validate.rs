@@ -4,7 +4,7 @@
 //! indefinite beyond [`PSD_TOLERANCE`]; sane sizes; plausible ranges.
 
 use crate::msg::*;
-use crate::observation::{MAX_BINS, MAX_OBSERVATIONS};
+use crate::observation::{GroundPerson, HISTOGRAM_BINS, HISTOGRAM_HS_BINS, MAX_BINS, MAX_OBSERVATIONS};
 use crate::{MAX_CONTRIBUTORS, MAX_MEASURED_DETECTIONS, PROTOCOL_VERSION};
 use nalgebra::{Matrix6, SymmetricEigen};
 use thiserror::Error;
@@ -161,9 +161,31 @@ impl Validate for Message {
                 check_observations("measurement.observations", &m.observations)
             }
             Message::Contribution(c) => {
-                check_psd6("contribution.info_matrix", &c.info_matrix)?;
-                finite("contribution.info_vector", &c.info_vector)?;
-                check_observations("contribution.observations", &c.observations)
+                if let Some(info) = &c.info {
+                    check_psd6("contribution.info.matrix", &info.matrix)?;
+                    finite("contribution.info.vector", &info.vector)?;
+                }
+                check_observations("contribution.observations", &c.observations)?;
+                let mut ground = c.observations.iter().filter_map(|o| match o {
+                    Observation::Ground(p) => Some(p),
+                    _ => None,
+                });
+                if let Some(p) = ground.next()
+                    && p.target.is_some_and(|t| t != c.target)
+                {
+                    return Err(err(
+                        "contribution.observations",
+                        format!(
+                            "a ground person gated to {} in a contribution to {}",
+                            p.target.unwrap_or(c.target),
+                            c.target
+                        ),
+                    ));
+                }
+                if ground.next().is_some() {
+                    return Err(err("contribution.observations", "more than one ground person"));
+                }
+                Ok(())
             }
             Message::NodeStatus(_) => Ok(()),
             Message::Prior(p) => {
@@ -259,6 +281,7 @@ impl Validate for Message {
             }
             Message::ViewSubscribe(_) => Ok(()),
             Message::ViewUpdate(u) => check_view_update(u),
+            Message::PeopleFrame(f) => check_people_frame(f),
         }
     }
 }
@@ -304,6 +327,51 @@ fn check_view_update(u: &crate::view::ViewUpdate) -> Result<(), ValidationError>
     Ok(())
 }
 
+/// A camera's people: bounded lists, each person once, readings in range, every person's
+/// quantised covariance positive definite and its histogram a histogram.
+fn check_people_frame(f: &PeopleFrame) -> Result<(), ValidationError> {
+    at_most("people_frame.people", f.people.len(), MAX_OBSERVATIONS)?;
+    at_most("people_frame.rssi", f.rssi.len(), MAX_OBSERVATIONS)?;
+    for r in &f.rssi {
+        check_dbm("people_frame.rssi", r.dbm)?;
+    }
+    for (i, p) in f.people.iter().enumerate() {
+        if f.people[..i].iter().any(|q| q.local == p.local) {
+            return Err(err("people_frame.people", format!("person {} twice", p.local)));
+        }
+        check_person(p).map_err(|e| err("people_frame.people", format!("{}: {}", e.field, e.problem)))?;
+    }
+    Ok(())
+}
+
+/// A quantised person: proper standard deviations and correlation (so its covariance is
+/// positive definite), a histogram of the right size with each part's fullest bin at 255.
+fn check_person(p: &GroundPerson) -> Result<(), ValidationError> {
+    if p.sigma_mm.contains(&0) {
+        return Err(err("ground.sigma_mm", "a standard deviation of 0 mm"));
+    }
+    if p.correlation == i8::MIN {
+        return Err(err(
+            "ground.correlation",
+            "-128 (a correlation of -1: the covariance is singular)",
+        ));
+    }
+    let Some(h) = &p.histogram else {
+        return Ok(());
+    };
+    if h.len() != HISTOGRAM_BINS {
+        return Err(err(
+            "ground.histogram",
+            format!("{} bins (expected {HISTOGRAM_BINS})", h.len()),
+        ));
+    }
+    let (hs, v) = h.split_at(HISTOGRAM_HS_BINS);
+    if hs.iter().max() != Some(&255) || v.iter().max() != Some(&255) {
+        return Err(err("ground.histogram", "a part whose fullest bin is not 255"));
+    }
+    Ok(())
+}
+
 /// Each observation of a list: finite numbers, proper covariances, sane sizes.
 fn check_observations(field: &'static str, obs: &[Observation]) -> Result<(), ValidationError> {
     if obs.len() > MAX_OBSERVATIONS {
@@ -334,26 +402,7 @@ impl Validate for Observation {
                 )
             }
             Observation::Rssi(r) => check_dbm("rssi.dbm", r.dbm),
-            Observation::Ground(g) => {
-                finite("ground.position", &g.position)?;
-                check_cov2("ground.cov", &g.cov)?;
-                finite32("ground.size", &[g.width_m, g.height_m, g.confidence])?;
-                finite32("ground.ml_position", &g.ml_position)?;
-                if g.width_m < 0.0 || g.height_m < 0.0 {
-                    return Err(err("ground.size", "negative width or height"));
-                }
-                if !(0.0..=1.0).contains(&g.confidence) {
-                    return Err(err(
-                        "ground.confidence",
-                        format!("{} is outside 0..1", g.confidence),
-                    ));
-                }
-                check_bins("ground.histogram", &g.histogram)?;
-                if g.histogram.iter().any(|x| *x < 0.0) {
-                    return Err(err("ground.histogram", "negative bin"));
-                }
-                Ok(())
-            }
+            Observation::Ground(p) => check_person(p),
             Observation::Acoustic(a) => {
                 finite32("acoustic.bands", &[a.first_hz, a.step_hz])?;
                 if a.first_hz < 0.0 || a.step_hz <= 0.0 {

@@ -81,7 +81,7 @@ pub fn decode(frame: &[u8]) -> Result<Envelope, WireError> {
 
 /// Kind names of [`crate::Message`] by wire tag (variant index). A test pins it to
 /// [`crate::Message::kind`].
-pub const MESSAGE_KINDS: [&str; 19] = [
+pub const MESSAGE_KINDS: [&str; 20] = [
     "hello",
     "hello_ack",
     "heartbeat",
@@ -101,6 +101,7 @@ pub const MESSAGE_KINDS: [&str; 19] = [
     "frame_report",
     "view_subscribe",
     "view_update",
+    "people_frame",
 ];
 
 /// Turn a postcard failure into an error that names the message kind and the problem

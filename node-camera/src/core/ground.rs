@@ -1,9 +1,10 @@
 //! The camera core in paper 004's mode (`camera-tracker = "particle"`): frames go through the
 //! segmentation (regions and foreground mask) into the per-person particle filters, and people
 //! leave as ground-plane observations ([`crate::ground_people`]) — the same split as the
-//! pin-hole points: gated to a prior they are folded into that prior's `Contribution`
-//! (distributed) or sent as a `Measurement` naming it (centralized); ungated ones go as
-//! `Measurement { target: None }` so heads can start tracks.
+//! pin-hole points: gated to a prior they go in that prior's `Contribution` (distributed; the
+//! person itself, which the head folds in: its model is linear) or are sent naming it
+//! (centralized); ungated ones are sent without a target so heads can start tracks. What is
+//! sent goes in one `PeopleFrame` per head step.
 
 use super::CameraNode;
 use crate::ground_people;
@@ -11,6 +12,7 @@ use crate::segment::Segmenter;
 use crate::tracker::manager::Foreground;
 use proto::msg::{Message, Prior, SampleRequest};
 use proto::node::Outgoing;
+use proto::observation::GroundPoint;
 use proto::sensor::{Detection, Frame};
 use proto::{ClusterTime, NodeId, TargetId};
 
@@ -72,11 +74,16 @@ impl CameraNode {
         out
     }
 
-    /// Gate the newest people against the known priors and send what the mode asks for.
+    /// Gate the newest people against the known priors and send what the mode asks for, in
+    /// one `PeopleFrame`, if this frame is the step's (see [`ground_people::PeopleSender`]).
     fn send_people(&mut self, now: ClusterTime, captured: ClusterTime, out: &mut Vec<Outgoing>) {
         let Some(people) = self.people.as_ref() else {
             return;
         };
+        self.people_out.retain(&people.tracker().ids());
+        if !self.people_out.due(captured) {
+            return;
+        }
         let priors: Vec<(&Prior, f64)> = self
             .priors
             .values()
@@ -84,33 +91,30 @@ impl CameraNode {
             .map(|(t, p)| (p, t.secs_since(captured)))
             .collect();
         let assoc = ground_people::associate(&priors, people.latest(), self.cfg.gate_chi2);
-        let targets: Vec<Option<(TargetId, u64)>> = assoc
-            .iter()
-            .map(|a| a.map(|i| (priors[i].0.target, priors[i].0.step)))
-            .collect();
         let centralized = !self.cfg.fusion.distributed();
-        let mut msgs = Vec::new();
-        for (g, target) in people.latest().iter().zip(targets) {
-            if target.is_some() && !centralized {
-                continue;
-            }
-            let rssi = if target.is_some() {
-                self.fresh_tags(now)
-            } else {
-                Vec::new()
-            };
-            msgs.push(Message::Measurement(ground_people::measurement(
-                &self.cfg.camera,
-                g.clone(),
-                target,
-                self.mode,
-                &rssi,
-            )));
+        let chosen: Vec<(&GroundPoint, Option<TargetId>)> = people
+            .latest()
+            .iter()
+            .zip(assoc)
+            .map(|(g, a)| (g, a.map(|i| priors[i].0.target)))
+            .filter(|(_, target)| centralized || target.is_none())
+            .collect();
+        if chosen.is_empty() {
+            return;
         }
-        for body in msgs {
-            self.counters.measurements += 1;
-            self.send_to_head(body, out);
+        // Tag readings go with people gated to a track, as they go with a contribution.
+        let rssi = if chosen.iter().any(|(_, t)| t.is_some()) {
+            self.fresh_tags(now)
+        } else {
+            Vec::new()
+        };
+        let frame = self.people_out.frame(captured, self.mode, chosen, rssi);
+        self.counters.people_unsendable = self.people_out.unsendable();
+        if frame.people.is_empty() {
+            return;
         }
+        self.counters.measurements += 1;
+        self.send_to_head(Message::PeopleFrame(frame), out);
     }
 
     /// The contribution for one prior from the newest frame's people.
@@ -125,7 +129,6 @@ impl CameraNode {
             prior,
             chosen,
             captured.unwrap_or(now),
-            age_s,
             self.mode,
             &rssi,
         ))

@@ -5,7 +5,6 @@ use nalgebra::Matrix6;
 use proto::NodeId;
 use proto::models;
 use proto::msg::{Prior, SampleRequest};
-use proto::observation::{Observation, ObservationKind};
 use proto::scenario::{CameraTracker, Fusion, Scenario};
 use world::render::Renderer;
 
@@ -31,6 +30,11 @@ fn env(body: Message) -> Envelope {
 
 /// Frames from `t0` to `t1` at 5 fps; all outputs.
 fn run(node: &mut CameraNode, s: &Scenario, r: &Renderer, t0: f64, t1: f64) -> Vec<Outgoing> {
+    run_at(node, s, r, t0, t1, 5.0)
+}
+
+/// Frames from `t0` to `t1` at `fps`; all outputs.
+fn run_at(node: &mut CameraNode, s: &Scenario, r: &Renderer, t0: f64, t1: f64, fps: f64) -> Vec<Outgoing> {
     let targets = world::targets(s).unwrap();
     let mut out = Vec::new();
     let mut f = Frame::new(0, 0, ClusterTime::ZERO);
@@ -39,9 +43,19 @@ fn run(node: &mut CameraNode, s: &Scenario, r: &Renderer, t0: f64, t1: f64) -> V
         let now = ClusterTime::from_secs_f64(t);
         r.render(&targets, t, now, &mut f);
         out.extend(node.on_frame(now, &f));
-        t += 0.2;
+        t += 1.0 / fps;
     }
     out
+}
+
+/// The people frames among the outputs.
+fn frames(out: &[Outgoing]) -> Vec<proto::msg::PeopleFrame> {
+    out.iter()
+        .filter_map(|o| match &o.body {
+            Message::PeopleFrame(f) => Some(f.clone()),
+            _ => None,
+        })
+        .collect()
 }
 
 fn truth(s: &Scenario, t: f64) -> proto::models::State {
@@ -53,17 +67,15 @@ fn people_leave_as_ground_points_near_the_robot() {
     let (s, mut node, r) = setup(Fusion::CentralizedEif);
     assert!(node.tracks_people());
     let out = run(&mut node, &s, &r, 0.0, 4.0);
-    let grounds: Vec<_> = out
+    assert!(
+        out.iter().all(|o| !matches!(o.body, Message::Measurement(_))),
+        "people go in people frames"
+    );
+    let grounds: Vec<_> = frames(&out)
         .iter()
-        .filter_map(|o| match &o.body {
-            Message::Measurement(m) => m.observations.iter().find_map(|ob| match ob {
-                Observation::Ground(g) => Some(g.clone()),
-                _ => None,
-            }),
-            _ => None,
-        })
+        .flat_map(|f| f.people.iter().map(|p| p.point(f.captured)).collect::<Vec<_>>())
         .collect();
-    assert!(grounds.len() >= 5, "{} ground measurements", grounds.len());
+    assert!(grounds.len() >= 5, "{} ground points", grounds.len());
     // Of the last frame's people, one is the robot (another may be the first frame's ghost in
     // the background model, where the robot stood).
     let last_t = grounds.last().unwrap().captured;
@@ -78,7 +90,7 @@ fn people_leave_as_ground_points_near_the_robot() {
         .unwrap();
     assert!(err(last) < 0.6, "ground point {:?} vs truth {x:?}", last.position);
     assert!(last.cov[0] > 0.0 && last.cov[2] > 0.0 && last.width_m > 0.0 && last.height_m > 0.0);
-    // The histogram goes with a person's first point, then at most once a second.
+    // The histogram goes with a person's first point, then only when it changed or is old.
     assert_eq!(grounds[0].histogram.len(), 110);
     assert!(grounds.iter().filter(|g| g.histogram.is_empty()).count() >= grounds.len() / 2);
     // Asked, the camera sends each person's sample set back to the asker.
@@ -133,10 +145,90 @@ fn a_prior_is_answered_with_the_ground_information() {
         other => panic!("{other:?}"),
     };
     let c = answer(&mut node, prior(0.0));
-    assert!(c.folded.contains(ObservationKind::Ground), "{:?}", c.folded);
-    // x, y and the centre height are informed; velocity only through the frame's age.
-    assert!(c.info_matrix[0][0] > 0.0 && c.info_matrix[1][1] > 0.0 && c.info_matrix[2][2] > 0.0);
+    // The person gated to it, near the robot, for the head to fold in; nothing folded here.
+    let person = c.ground().expect("a ground person").position();
+    let x = truth(&s, t);
+    assert!(
+        (person[0] - x[0]).hypot(person[1] - x[1]) < 0.6,
+        "{person:?} vs {x}"
+    );
+    assert!(c.info.is_none() && c.folded.is_empty() && c.camera());
     // A prior metres away gates nothing: an empty contribution.
     let far = answer(&mut node, prior(4.0));
-    assert!(far.folded.is_empty() && far.info_matrix.iter().flatten().all(|v| *v == 0.0));
+    assert!(far.folded.is_empty() && far.info.is_none() && far.ground().is_none());
+}
+
+#[test]
+fn a_fast_camera_sends_its_people_once_per_step_in_one_message() {
+    let (s, mut node, r) = setup(Fusion::CentralizedEif);
+    // 15 fps against the default 200 ms step: every third frame.
+    let out = run_at(&mut node, &s, &r, 0.0, 4.0, 15.0);
+    let sent = frames(&out);
+    assert!(
+        (15..=21).contains(&sent.len()),
+        "{} frames sent in 4 s",
+        sent.len()
+    );
+    assert!(
+        sent.windows(2)
+            .all(|w| w[1].captured.secs_since(w[0].captured) > 0.15),
+        "{:?}",
+        sent.iter().map(|f| f.captured).collect::<Vec<_>>()
+    );
+    assert_eq!(node.counters().frames, 61, "every frame is tracked");
+    // Each frame's people in one message: ids once, all the tracker's people of that frame.
+    let last = sent.last().unwrap();
+    let mut locals: Vec<u32> = last.people.iter().map(|p| p.local).collect();
+    locals.dedup();
+    assert_eq!(locals.len(), last.people.len());
+    assert!(last.people.iter().all(|p| p.target.is_none()), "no priors yet");
+    assert!(last.rssi.is_empty());
+}
+
+#[test]
+fn a_distributed_camera_leaves_the_gated_people_to_its_contributions() {
+    let (s, mut node, r) = setup(Fusion::DistributedEif);
+    let before = frames(&run(&mut node, &s, &r, 0.0, 3.0));
+    assert!(!before.is_empty());
+    // A prior on the robot: from now on the robot is folded into contributions, not sent.
+    // (A prior stays fresh for 500 ms, the default `capture_max_age_ms`.)
+    let prior = |t: f64| Prior {
+        target: TargetId(1),
+        step: 7,
+        mean: models::vec6_to_wire(&truth(&s, t)),
+        cov: models::mat6_to_wire(&(Matrix6::identity() * 0.09)),
+        deadline: ClusterTime::from_secs_f64(t + 0.08),
+    };
+    let answer = |node: &mut CameraNode, t: f64| {
+        let out = node.handle(
+            ClusterTime::from_secs_f64(t),
+            Input::Message(env(Message::Prior(prior(t)))),
+        );
+        match &out[..] {
+            [o] => match &o.body {
+                Message::Contribution(c) => c.camera(),
+                other => panic!("{other:?}"),
+            },
+            other => panic!("{other:?}"),
+        }
+    };
+    answer(&mut node, 3.0);
+    let after = frames(&run(&mut node, &s, &r, 3.2, 3.4));
+    assert!(
+        answer(&mut node, 3.45),
+        "the robot is still tracked, in the contributions"
+    );
+    let near = |f: &proto::msg::PeopleFrame| {
+        f.people.iter().any(|p| {
+            let x = truth(&s, f.captured.secs_since(ClusterTime::ZERO));
+            let q = p.position();
+            (q[0] - x[0]).hypot(q[1] - x[1]) < 0.6
+        })
+    };
+    assert!(
+        before.iter().any(near),
+        "the robot was sent while no prior gated it"
+    );
+    assert!(!after.iter().any(near), "{after:?}");
+    assert!(after.iter().flat_map(|f| &f.people).all(|p| p.target.is_none()));
 }

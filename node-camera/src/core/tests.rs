@@ -164,10 +164,7 @@ fn answers_a_prior_with_the_gated_detection() {
         Mode::Active,
         &[],
     );
-    assert_eq!(
-        c.info_vector, expected.info_vector,
-        "built from the nearest detection"
-    );
+    assert_eq!(c.info, expected.info, "built from the nearest detection");
 }
 
 /// A frame of the camera's size: a textured floor and, at column `x`, a 30×40 block.
@@ -245,7 +242,7 @@ fn empty_answer_when_nothing_matches_and_bad_input_changes_nothing() {
         panic!()
     };
     assert!(!c.folded.camera());
-    assert!(c.info_matrix.iter().flatten().all(|&v| v == 0.0));
+    assert_eq!(c.info, None);
     let before = node.counters();
     let mut bad = prior(&s, 2.0, 0.0, 6);
     bad.mean[0] = f64::NAN;

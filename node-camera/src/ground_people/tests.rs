@@ -1,6 +1,6 @@
 use super::*;
+use proto::models::State;
 use proto::msg::PixelBox;
-use proto::observation::Kinds;
 use proto::scenario::Scenario;
 
 fn person(x: f64, y: f64) -> GroundPoint {
@@ -13,7 +13,7 @@ fn person(x: f64, y: f64) -> GroundPoint {
         confidence: 0.5,
         histogram: Vec::new(),
         captured: ClusterTime::ZERO,
-        ml_position: [x as f32, y as f32],
+        ml_position: [x, y],
     }
 }
 
@@ -38,29 +38,39 @@ fn ground_points_gate_one_to_one_in_the_floor_plane() {
 }
 
 #[test]
-fn a_contribution_folds_the_floor_position_and_the_centre_height() {
+fn a_contribution_carries_the_gated_person_for_the_head_to_fold_in() {
     let p = prior(2.0, 2.0);
-    let c = contribution(
-        &p,
-        Some(&person(2.1, 2.0)),
-        ClusterTime::ZERO,
-        0.0,
-        Mode::Active,
-        &[],
+    let g = person(2.1, 2.0);
+    let c = contribution(&p, Some(&g), ClusterTime::ZERO, Mode::Active, &[]);
+    assert!(c.folded.is_empty() && c.info.is_none(), "nothing folded here");
+    assert!(c.camera());
+    let q = c.ground().expect("the person");
+    assert_eq!((q.local, q.target), (g.local, None));
+    // The information the head gets from it is what folding it here gave, to the quantisation.
+    let mean = models::vec6_from_wire(&p.mean);
+    let fold = |position: [f64; 2], cov: [f64; 3]| {
+        let (p, c) = (
+            Vector2::from(position),
+            Matrix2::new(cov[0], cov[1], cov[1], cov[2]),
+        );
+        models::ground_contribution_aged(&p, &c, &mean, 0.1).unwrap()
+    };
+    let back = q.point(c.captured);
+    let (o, x) = fold(g.position, g.cov);
+    let (oq, xq) = fold(back.position, back.cov);
+    assert!((o - oq).norm() <= 1e-2 * o.norm(), "{o} vs {oq}");
+    assert!((x - xq).norm() <= 1e-2 * x.norm(), "{x} vs {xq}");
+    assert!((back.height_m - g.height_m).abs() <= 0.005);
+    let none = contribution(&p, None, ClusterTime::ZERO, Mode::Active, &[]);
+    assert!(none.folded.is_empty() && none.ground().is_none() && !none.camera());
+    // An impossible person is not sent: an empty answer.
+    let mut bad = g.clone();
+    bad.position[0] = f64::NAN;
+    assert!(
+        contribution(&p, Some(&bad), ClusterTime::ZERO, Mode::Active, &[])
+            .ground()
+            .is_none()
     );
-    assert_eq!(c.folded, Kinds::of(ObservationKind::Ground));
-    assert!((c.info_matrix[0][0] - 25.0).abs() < 1e-9, "1 / 0.04 m²");
-    assert!(c.info_matrix[2][2] > 0.0);
-    let none = contribution(&p, None, ClusterTime::ZERO, 0.0, Mode::Active, &[]);
-    assert!(none.folded.is_empty());
-    let m = measurement(
-        &Scenario::default_scenario().camera_model(10).unwrap(),
-        person(1.0, 1.0),
-        None,
-        Mode::Active,
-        &[],
-    );
-    assert!(matches!(m.observations[..], [Observation::Ground(_)]));
 }
 
 #[test]
@@ -92,4 +102,140 @@ fn projected_boxes_become_ground_points_and_boxes_above_the_horizon_are_dropped(
         people.samples(None).is_empty(),
         "no filters run on projected boxes"
     );
+}
+
+fn at_ms(ms: i64) -> ClusterTime {
+    ClusterTime(ms * 1_000_000)
+}
+
+/// Frames at `fps` for `seconds`: the capture times the sender lets through, ms.
+fn sent_frames(fps: f64, seconds: f64, step_ms: u64) -> Vec<i64> {
+    let mut s = PeopleSender::new(step_ms, 0.7);
+    let n = (fps * seconds).round() as usize;
+    (0..n)
+        .map(|k| (k as f64 * 1000.0 / fps).round() as i64)
+        .filter(|&ms| s.due(at_ms(ms)))
+        .collect()
+}
+
+#[test]
+fn people_go_out_once_per_head_step_whatever_the_frame_rate() {
+    // As fast as the steps: every frame; three times faster: every third, on the steps.
+    assert_eq!(sent_frames(5.0, 2.0, 200).len(), 10);
+    let fast = sent_frames(15.0, 2.0, 200);
+    assert_eq!(fast.len(), 10, "{fast:?}");
+    assert!(
+        fast.windows(2).all(|w| (w[1] - w[0] - 200).abs() <= 1),
+        "{fast:?}"
+    );
+    // Between the two: still one per step on average, never two within half a step.
+    let seven = sent_frames(7.0, 10.0, 200);
+    assert!((49..=51).contains(&seven.len()), "{} frames in 10 s", seven.len());
+    assert!(seven.windows(2).all(|w| w[1] - w[0] >= 100), "{seven:?}");
+    // Slower than the steps: every frame.
+    assert_eq!(sent_frames(2.0, 5.0, 200).len(), 10);
+    // After a gap (the camera was off) the next frame goes at once and the cadence restarts.
+    let mut s = PeopleSender::new(200, 0.7);
+    assert!(s.due(at_ms(0)));
+    assert!(!s.due(at_ms(67)));
+    assert!(s.due(at_ms(5_000)));
+    assert!(!s.due(at_ms(5_067)) && !s.due(at_ms(5_133)) && s.due(at_ms(5_200)));
+}
+
+fn coloured(local: u32, hue_bin: usize) -> GroundPoint {
+    let mut h = vec![0.0f32; HISTOGRAM_BINS];
+    h[hue_bin] = 0.8;
+    h[hue_bin + 1] = 0.2;
+    h[HISTOGRAM_HS_BINS + 5] = 1.0;
+    GroundPoint {
+        local,
+        histogram: h,
+        ..person(2.0, 3.0)
+    }
+}
+
+fn histograms_sent(s: &mut PeopleSender, ms: i64, people: &[GroundPoint]) -> Vec<u32> {
+    s.frame(
+        at_ms(ms),
+        Mode::Active,
+        people.iter().map(|p| (p, None)),
+        Vec::new(),
+    )
+    .people
+    .iter()
+    .filter(|p| p.histogram.is_some())
+    .map(|p| p.local)
+    .collect()
+}
+
+#[test]
+fn a_histogram_goes_with_a_new_person_then_when_it_changed_or_is_old() {
+    let mut s = PeopleSender::new(200, 0.7);
+    let (a, b) = (coloured(1, 20), coloured(2, 50));
+    assert_eq!(
+        histograms_sent(&mut s, 0, std::slice::from_ref(&a)),
+        vec![1],
+        "new"
+    );
+    assert!(histograms_sent(&mut s, 200, std::slice::from_ref(&a)).is_empty());
+    assert_eq!(
+        histograms_sent(&mut s, 400, &[a.clone(), b.clone()]),
+        vec![2],
+        "new"
+    );
+    // Person 1 changes colour: not again before two seconds, then at once.
+    let a2 = coloured(1, 60);
+    assert!(histogram_distance(&a.histogram, &a2.histogram, 0.7) > HISTOGRAM_CHANGE);
+    assert!(histograms_sent(&mut s, 1_800, &[a2.clone(), b.clone()]).is_empty());
+    assert_eq!(histograms_sent(&mut s, 2_000, &[a2.clone(), b.clone()]), vec![1]);
+    // Unchanged: again only after the refresh period.
+    assert!(histograms_sent(&mut s, 10_200, &[a2.clone(), b.clone()]).is_empty());
+    assert_eq!(
+        histograms_sent(&mut s, 10_400, &[a2.clone(), b.clone()]),
+        vec![2],
+        "refresh"
+    );
+    // A person no longer tracked is forgotten: back, it is new.
+    s.retain(&[2]);
+    assert_eq!(histograms_sent(&mut s, 10_600, &[a2.clone(), b.clone()]), vec![1]);
+    // A person without a histogram (projected boxes) goes without one.
+    assert!(histograms_sent(&mut s, 10_800, &[person(1.0, 1.0)]).is_empty());
+}
+
+#[test]
+fn a_frame_carries_every_person_quantised_and_leaves_out_impossible_ones() {
+    let mut s = PeopleSender::new(200, 0.7);
+    let mut bad = person(1.0, 1.0);
+    bad.position[0] = f64::NAN;
+    bad.local = 7;
+    let good = coloured(3, 20);
+    let mut broken_colour = coloured(4, 30);
+    broken_colour.histogram[0] = f32::NAN;
+    let frame = s.frame(
+        at_ms(40),
+        Mode::Active,
+        [(&good, Some(TargetId(9))), (&bad, None), (&broken_colour, None)],
+        Vec::new(),
+    );
+    assert_eq!(frame.captured, at_ms(40));
+    let locals: Vec<u32> = frame.people.iter().map(|p| p.local).collect();
+    assert_eq!(locals, vec![3, 4], "the NaN position left out");
+    assert_eq!(frame.people[0].target, Some(TargetId(9)));
+    assert!(frame.people[0].histogram.is_some());
+    assert!(
+        frame.people[1].histogram.is_none(),
+        "sent without its broken histogram"
+    );
+    assert_eq!(s.unsendable(), 1);
+    let back = frame.people[0].point(frame.captured);
+    assert!((back.position[0] - good.position[0]).abs() <= 0.005);
+    assert!(histogram_distance(&back.histogram, &good.histogram, 0.7) < 0.03);
+    // What the camera builds is what the wire takes.
+    let env = proto::Envelope {
+        source: proto::NodeId(10),
+        seq: 1,
+        time: at_ms(41),
+        body: proto::Message::PeopleFrame(frame),
+    };
+    assert_eq!(proto::decode(&proto::encode(&env).unwrap()).unwrap(), env);
 }

@@ -28,8 +28,7 @@ fn a_step_without_tracks_sends_nothing_and_strangers_are_rejected() {
     let c = Contribution {
         target: TargetId(1),
         step: 1,
-        info_matrix: [[0.0; 6]; 6],
-        info_vector: [0.0; 6],
+        info: None,
         folded: Kinds::NONE,
         captured: ClusterTime::ZERO,
         mode: Mode::Active,
@@ -466,8 +465,10 @@ fn head_after_one_rssi_packet(time: ClusterTime, camera: bool) -> (usize, HeadNo
     if camera {
         // Ω_i on the position, ξ_i = Ω_i μ̄: information that leaves the mean where it is.
         let omega = Matrix6::from_diagonal(&State::new(100.0, 100.0, 100.0, 0.0, 0.0, 0.0));
-        c.info_matrix = proto::models::mat6_to_wire(&omega);
-        c.info_vector = vec6_to_wire(&(omega * proto::models::vec6_from_wire(&prior.mean)));
+        c.info = Some(proto::msg::Information {
+            matrix: proto::models::mat6_to_wire(&omega),
+            vector: vec6_to_wire(&(omega * proto::models::vec6_from_wire(&prior.mean))),
+        });
         c.mode = Mode::Active;
     }
     h.on_message(t1, env(node.id.0, Message::Contribution(c)));
@@ -514,8 +515,7 @@ fn empty_contribution(
     Contribution {
         target: prior.target,
         step: prior.step,
-        info_matrix: [[0.0; 6]; 6],
-        info_vector: [0.0; 6],
+        info: None,
         folded: if camera {
             Kinds::of(ObservationKind::Pinhole)
         } else {
@@ -525,4 +525,149 @@ fn empty_contribution(
         mode,
         observations: rssi.into_iter().map(Observation::Rssi).collect(),
     }
+}
+
+/// A people frame of `node` captured at `captured`: a person at `at` (floor, m) gated to
+/// `target`, σ 0.1 m, 1.6 m tall.
+fn people_frame(at: [f64; 2], target: Option<TargetId>, captured: ClusterTime) -> proto::msg::PeopleFrame {
+    let point = proto::observation::GroundPoint {
+        local: 3,
+        position: at,
+        cov: [0.01, 0.0, 0.01],
+        width_m: 0.5,
+        height_m: 1.6,
+        confidence: 0.9,
+        histogram: Vec::new(),
+        captured,
+        ml_position: at,
+    };
+    proto::msg::PeopleFrame {
+        captured,
+        mode: Mode::Active,
+        rssi: Vec::new(),
+        people: vec![proto::observation::GroundPerson::quantise(&point, target, false).unwrap()],
+    }
+}
+
+/// Each person of a people frame is a floor detection with the frame's capture time and the
+/// measured height; the frame's tag readings go with the people gated to a track only; a
+/// centralized head fuses the person at its capture time.
+#[test]
+fn a_people_frame_gives_one_floor_detection_per_person() {
+    let mut s = Scenario::default_scenario();
+    s.method.fusion = Fusion::CentralizedEif;
+    s.method.activation = Activation::AllOn;
+    let (cfg, mut h) = head_with_a_moving_track(&s);
+    let t1 = ClusterTime::from_millis(200);
+    h.tick(t1);
+    let node = cfg.nodes.iter().find(|n| n.member).unwrap();
+    let local = h.tracks()[0].local;
+    let captured = ClusterTime::from_millis(100);
+    let mut f = people_frame([3.1, 4.0], Some(local), captured);
+    let mut far = people_frame([9.0, 1.0], None, captured).people.remove(0);
+    far.local = 4;
+    f.people.push(far);
+    f.rssi.push(proto::msg::RssiReading {
+        tag: proto::TagId::simulated(1),
+        dbm: -60.0,
+        time: captured,
+    });
+    h.on_message(t1, env(node.id.0, Message::PeopleFrame(f)));
+    assert_eq!(h.detections.len(), 2);
+    let (gated, free) = (&h.detections[0], &h.detections[1]);
+    assert_eq!(gated.hint, Some(local));
+    assert_eq!((gated.rssi.len(), free.rssi.len()), (1, 0));
+    assert_eq!(gated.ground, Some(1.6));
+    assert_eq!(gated.captured, captured);
+    assert!((gated.point - Vector2::new(3.1, 4.0)).norm() < 1e-9);
+    assert!((gated.cov[(0, 0)] - 0.01).abs() < 1e-9 && gated.cov[(0, 1)] == 0.0);
+    h.tick(ClusterTime::from_millis(281));
+    assert_eq!(h.last_step().prediction_only, 0, "the person was fused");
+    let after = h.tracks()[0].filter.mean();
+    assert!((after[0] - 3.2).abs() < 0.01, "x {} (3.2 expected)", after[0]);
+}
+
+/// A people frame stamped seconds from the head's time is refused and counted; one from a node
+/// of another cluster is rejected.
+#[test]
+fn a_stale_or_foreign_people_frame_changes_nothing() {
+    let s = Scenario::default_scenario();
+    let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
+    let mut h = HeadNode::new(cfg.clone());
+    h.tick(ClusterTime::ZERO);
+    let node = cfg.nodes.iter().find(|n| n.member).unwrap();
+    let now = ClusterTime::from_secs_f64(20.0);
+    let stale = people_frame([3.0, 4.0], None, ClusterTime::from_secs_f64(10.0));
+    h.on_message(now, env(node.id.0, Message::PeopleFrame(stale)));
+    assert_eq!(h.counters().stale_measurements, 1);
+    // Node 13 belongs to head 3.
+    let fresh = people_frame([3.0, 4.0], None, now);
+    h.on_message(now, env(13, Message::PeopleFrame(fresh.clone())));
+    assert_eq!(h.counters().rejected, 1);
+    assert!(h.detections.is_empty());
+    h.on_message(now, env(node.id.0, Message::PeopleFrame(fresh)));
+    assert_eq!(h.detections.len(), 1);
+}
+
+/// A ground-plane person a camera gated to a prior comes in its contribution as itself; the
+/// head folds it in at the capture time and moves the track exactly as the Ω_i, ξ_i the camera
+/// would have folded (the model is linear), counting the node as a ground contributor.
+#[test]
+fn a_contribution_with_a_ground_person_is_folded_in_at_the_head() {
+    let mut s = Scenario::default_scenario();
+    s.method.activation = Activation::AllOn;
+    let run = |carried: bool| {
+        let (cfg, mut h) = head_with_a_moving_track(&s);
+        let t1 = ClusterTime::from_millis(200);
+        let out = h.tick(t1);
+        let node = cfg.nodes.iter().find(|n| n.member).unwrap().id;
+        let prior = out
+            .iter()
+            .find_map(|o| match &o.body {
+                Message::Prior(p) if o.to == node => Some(p.clone()),
+                _ => None,
+            })
+            .expect("a prior");
+        let captured = ClusterTime::from_millis(100);
+        let frame = people_frame([3.1, 4.0], None, captured);
+        let person = frame.people[0].clone();
+        let mut c = empty_contribution(&prior, false, captured, Mode::Active, None);
+        if carried {
+            c.observations.push(Observation::Ground(person));
+        } else {
+            // What the camera folded before: the same model at the prior's mean.
+            let back = person.point(captured);
+            let mean = proto::models::vec6_from_wire(&prior.mean);
+            let age = t1.secs_since(captured);
+            let pos = Vector2::from(back.position);
+            let cov = Matrix2::new(back.cov[0], back.cov[1], back.cov[1], back.cov[2]);
+            let (mut o, mut x) = proto::models::ground_contribution_aged(&pos, &cov, &mean, age).unwrap();
+            let (oh, xh) = proto::models::ground_height_contribution(back.height_m, &mean).unwrap();
+            o += oh;
+            x += xh;
+            c.info = Some(proto::msg::Information {
+                matrix: proto::models::mat6_to_wire(&o),
+                vector: vec6_to_wire(&x),
+            });
+            c.folded = Kinds::of(ObservationKind::Ground);
+        }
+        h.on_message(t1, env(node.0, Message::Contribution(c)));
+        let out = h.tick(ClusterTime::from_millis(281));
+        let report = out
+            .iter()
+            .find_map(|o| match &o.body {
+                Message::TrackReport(r) => Some(r.clone()),
+                _ => None,
+            })
+            .expect("a report");
+        (*h.tracks()[0].filter.mean(), report.contributors)
+    };
+    let (carried, who) = run(true);
+    let (folded, _) = run(false);
+    assert!((carried - folded).norm() < 1e-9, "{carried} vs {folded}");
+    assert!((carried[0] - 3.2).abs() < 0.01, "x {}", carried[0]);
+    assert!(
+        who.iter().any(|c| c.kinds.contains(ObservationKind::Ground)),
+        "{who:?}"
+    );
 }

@@ -6,7 +6,7 @@ use nalgebra::{Matrix6, Vector3};
 use node_head::HeadConfig;
 use node_head::process::run;
 use proto::models::{State, camera_contribution, mat6_to_wire, vec6_to_wire};
-use proto::msg::{Contribution, Handover, Message, Mode, TrackReport};
+use proto::msg::{Contribution, Handover, Information, Message, Mode, TrackReport};
 use proto::node::Outgoing;
 use proto::observation::{Kinds, ObservationKind};
 use proto::{NodeId, Role, TargetId};
@@ -98,8 +98,10 @@ async fn head_process_tracks_and_survives_cameras_and_server_vanishing() {
                 let c = Contribution {
                     target: p.target,
                     step: p.step,
-                    info_matrix: mat6_to_wire(&o),
-                    info_vector: vec6_to_wire(&x),
+                    info: Some(Information {
+                        matrix: mat6_to_wire(&o),
+                        vector: vec6_to_wire(&x),
+                    }),
                     folded: Kinds::of(ObservationKind::Pinhole),
                     captured: clock.now(),
                     mode: Mode::Active,

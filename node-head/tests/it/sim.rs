@@ -10,7 +10,9 @@ use node_head::association::{Detection, distance2};
 use node_head::{HeadConfig, HeadNode};
 use proto::camera::CameraModel;
 use proto::models::{camera_contribution, mat6_to_wire, vec6_to_wire};
-use proto::msg::{ColourSignature, Contribution, Measurement, PixelBox, Prior, RssiReading, TrackReport};
+use proto::msg::{
+    ColourSignature, Contribution, Information, Measurement, PixelBox, Prior, RssiReading, TrackReport,
+};
 use proto::observation::{Kinds, Observation, ObservationKind, PinholePoint};
 use proto::scenario::Scenario;
 use proto::{ClusterTime, Envelope, Message, Mode, NodeId};
@@ -318,8 +320,10 @@ impl Sim {
                 let body = Message::Contribution(Contribution {
                     target: p.target,
                     step: p.step,
-                    info_matrix: mat6_to_wire(&info.0),
-                    info_vector: vec6_to_wire(&info.1),
+                    info: camera.then(|| Information {
+                        matrix: mat6_to_wire(&info.0),
+                        vector: vec6_to_wire(&info.1),
+                    }),
                     folded: if camera {
                         Kinds::of(ObservationKind::Pinhole)
                     } else {

@@ -74,8 +74,7 @@ fn duplicates_and_late_contributions_are_counted_and_never_applied() {
     let late = Contribution {
         target: a.head.tracks()[0].local,
         step: ra[0].step,
-        info_matrix: [[0.0; 6]; 6],
-        info_vector: [0.0; 6],
+        info: None,
         folded: proto::observation::Kinds::of(proto::observation::ObservationKind::Pinhole),
         captured: ra[0].time,
         mode: Mode::Active,

@@ -34,7 +34,7 @@ use proto::camera::{CameraModel, Distortion, Intrinsics, Pose};
 use proto::models::{
     MotionModel, RssiModel, State, camera_contribution, mat6_to_wire, pinhole, vec6_to_wire,
 };
-use proto::msg::{Contribution, Handover, RssiReading};
+use proto::msg::{Contribution, Handover, Information, RssiReading};
 use proto::msg::{Mat6, Vec6};
 use proto::observation::{Kinds, Observation, ObservationKind};
 use proto::scenario::PowerFigures;
@@ -294,8 +294,10 @@ fn head_step_us(n: usize, scale: f64, rssi: bool) -> Result<f64> {
                 body: Message::Contribution(Contribution {
                     target,
                     step: 0,
-                    info_matrix: mat6_to_wire(&o),
-                    info_vector: vec6_to_wire(&x),
+                    info: Some(Information {
+                        matrix: mat6_to_wire(&o),
+                        vector: vec6_to_wire(&x),
+                    }),
                     folded: Kinds::of(ObservationKind::Pinhole),
                     captured: ClusterTime::ZERO,
                     mode: Mode::Active,

@@ -19,6 +19,8 @@ fn paper004_short_run_has_every_study_with_finite_rows_and_evaluated_checks() {
         "2 dimming",
         "2 dimming with colour shift",
         "3 crowd",
+        "3 stream",
+        "4 bandwidth: five or more in view",
         "4 bandwidth",
     ] {
         assert!(
@@ -26,7 +28,7 @@ fn paper004_short_run_has_every_study_with_finite_rows_and_evaluated_checks() {
             "no rows of {study}: {table}"
         );
     }
-    assert_eq!(o.rows.len(), 12, "{table}");
+    assert_eq!(o.rows.len(), 16, "{table}");
     for r in &o.rows {
         assert!(!r.extra.is_empty(), "{} has no figures", r.method);
         let values = r.extra.iter().filter_map(|e| e.value).chain(r.mean_error_m);

@@ -199,12 +199,12 @@ fn a_viewer_has_no_say() {
         2,
         Message::ViewUpdate(
             proto::examples::messages()
-                .pop()
-                .map(|e| match e.body {
-                    Message::ViewUpdate(u) => u,
-                    other => panic!("{other:?}"),
+                .into_iter()
+                .find_map(|e| match e.body {
+                    Message::ViewUpdate(u) => Some(u),
+                    _ => None,
                 })
-                .unwrap(),
+                .expect("the ViewUpdate fixture"),
         ),
     );
     s.on_message(ms(20), fake);

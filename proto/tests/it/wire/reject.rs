@@ -165,7 +165,7 @@ fn observation_f64s(o: &Observation) -> Vec<f64> {
             [p.point.to_vec(), p.prev_point.unwrap().to_vec(), p.cov.to_vec()].concat()
         }
         Observation::Rssi(r) => vec![r.dbm],
-        Observation::Ground(g) => [g.position.to_vec(), g.cov.to_vec()].concat(),
+        Observation::Ground(_) => Vec::new(),
         Observation::Acoustic(_) => Vec::new(),
     }
 }
@@ -184,13 +184,7 @@ fn observation_f32s(o: &Observation) -> Vec<f32> {
                 p.colour.intensity,
             ]
         }
-        Observation::Rssi(_) => Vec::new(),
-        Observation::Ground(g) => [
-            vec![g.width_m, g.height_m, g.confidence],
-            g.histogram.clone(),
-            g.ml_position.to_vec(),
-        ]
-        .concat(),
+        Observation::Rssi(_) | Observation::Ground(_) => Vec::new(),
         Observation::Acoustic(a) => [vec![a.first_hz, a.step_hz], a.ild_db.clone()].concat(),
     }
 }
@@ -205,8 +199,8 @@ fn sample_f64s(m: &Message) -> Vec<f64> {
             v
         }
         Message::Contribution(c) => [
-            mat(&c.info_matrix),
-            c.info_vector.to_vec(),
+            c.info.as_ref().map(|i| mat(&i.matrix)).unwrap_or_default(),
+            c.info.as_ref().map(|i| i.vector.to_vec()).unwrap_or_default(),
             c.observations.iter().flat_map(observation_f64s).collect(),
         ]
         .concat(),
@@ -226,6 +220,7 @@ fn sample_f64s(m: &Message) -> Vec<f64> {
             .iter()
             .flat_map(|t| t.mean.into_iter().chain(t.cov_pos))
             .collect(),
+        Message::PeopleFrame(f) => f.rssi.iter().map(|r| r.dbm).collect(),
         _ => Vec::new(),
     }
 }
@@ -278,8 +273,8 @@ fn sample_f32s(m: &Message) -> Vec<f32> {
 fn asymmetric_or_indefinite_matrices() {
     type Get = fn(&mut Message) -> &mut Mat6;
     let fields: [(usize, &str, Get); 4] = [
-        (4, "contribution.info_matrix", |m| match m {
-            Message::Contribution(c) => &mut c.info_matrix,
+        (4, "contribution.info.matrix", |m| match m {
+            Message::Contribution(c) => &mut c.info.as_mut().unwrap().matrix,
             _ => unreachable!(),
         }),
         (6, "prior.cov", |m| match m {
@@ -381,6 +376,103 @@ fn measured_frame_checks_name_the_field() {
     assert_eq!(decode(&encode(&empty).unwrap()).unwrap(), empty);
 }
 
+/// A camera's people frame: every quantised field that could stand for an impossible person,
+/// every list and every byte layout problem is rejected naming the field or the kind.
+#[test]
+fn people_frame_checks_name_the_field() {
+    use proto::observation::{HISTOGRAM_BINS, MAX_OBSERVATIONS};
+    const TAG: usize = 19;
+    let sample = samples()[TAG].clone();
+    let with = |f: &dyn Fn(&mut PeopleFrame)| {
+        let mut env = sample.clone();
+        let Message::PeopleFrame(p) = &mut env.body else {
+            panic!("sample 19 is a people frame")
+        };
+        f(p);
+        env
+    };
+    // (field, problem, the edit that makes it).
+    type Case<'a> = (&'a str, &'a str, &'a dyn Fn(&mut PeopleFrame));
+    let cases: [Case; 8] = [
+        ("people_frame.people: ground.sigma_mm", "0 mm", &|p| {
+            p.people[0].sigma_mm[1] = 0
+        }),
+        ("people_frame.people: ground.correlation", "singular", &|p| {
+            p.people[0].correlation = i8::MIN
+        }),
+        ("people_frame.people: ground.histogram", "109 bins", &|p| {
+            p.people[1].histogram.as_mut().unwrap().pop();
+        }),
+        ("people_frame.people: ground.histogram", "not 255", &|p| {
+            let h = p.people[1].histogram.as_mut().unwrap();
+            h.iter_mut().skip(100).for_each(|b| *b = (*b).min(254));
+        }),
+        ("people_frame.people: ground.histogram", "not 255", &|p| {
+            p.people[0].histogram = Some(vec![0; HISTOGRAM_BINS])
+        }),
+        ("people_frame.people", "person 4 twice", &|p| {
+            p.people[1].local = 4
+        }),
+        ("people_frame.rssi", "outside", &|p| p.rssi[0].dbm = 31.0),
+        ("people_frame.people", "exceed the maximum of 64", &|p| {
+            let one = p.people[0].clone();
+            p.people = (0..=MAX_OBSERVATIONS as u32)
+                .map(|local| GroundPerson { local, ..one.clone() })
+                .collect();
+        }),
+    ];
+    for (want, problem, f) in cases {
+        let bad = with(f);
+        let (field, e) = invalid(&raw(&bad));
+        assert!(
+            want.starts_with(&field) && e.contains(&want[field.len()..]),
+            "{want}: {e}"
+        );
+        assert!(e.contains(problem), "{e}");
+        assert!(
+            matches!(encode(&bad), Err(WireError::Invalid(_))),
+            "never sent either"
+        );
+    }
+    let too_many_readings = with(&|p| p.rssi = vec![p.rssi[0]; MAX_OBSERVATIONS + 1]);
+    assert_eq!(invalid(&raw(&too_many_readings)).0, "people_frame.rssi");
+    // The most people, and none at all, are fine.
+    let most = with(&|p| {
+        let one = p.people[0].clone();
+        p.people = (0..MAX_OBSERVATIONS as u32)
+            .map(|local| GroundPerson { local, ..one.clone() })
+            .collect();
+    });
+    assert_eq!(decode(&encode(&most).unwrap()).unwrap(), most);
+    let empty = with(&|p| {
+        p.people.clear();
+        p.rssi.clear();
+    });
+    assert_eq!(decode(&encode(&empty).unwrap()).unwrap(), empty);
+    // Byte-level damage: a bad option tag (the first person's target, right after its local
+    // id), a varint that never ends, a frame cut inside the people.
+    let frame = encode(&sample).unwrap();
+    let header = encode(&with(&|p| {
+        p.people.clear();
+    }))
+    .unwrap();
+    // `people` is the last field: its length is the header's last byte, the first person
+    // follows (local 4, then the target's option tag).
+    let at = header.len() + 1;
+    assert_eq!(frame[at - 1], 4, "the first person's local id");
+    let mut bad = frame.clone();
+    bad[at] = 2;
+    let e = malformed(&bad);
+    assert!(e.contains("people_frame") && e.contains("option tag"), "{e}");
+    let mut bad = frame.clone();
+    bad.truncate(at + 2);
+    bad.extend([0xff; 12]);
+    let e = malformed(&bad);
+    assert!(e.contains("people_frame"), "{e}");
+    let e = malformed(&frame[..frame.len() - 40]);
+    assert!(e.contains("truncated") && e.contains("people_frame"), "{e}");
+}
+
 #[test]
 fn unknown_enum_tags() {
     // Top-level message tag: `MESSAGE_KINDS.len()` is one past the last kind.
@@ -480,16 +572,7 @@ fn other_range_checks_name_the_field() {
     let (field, e) = invalid(&raw(&env));
     assert_eq!(field, "measurement.observations");
     assert!(e.contains("pinhole.pixel_box"), "{e}");
-    // A ground-plane person with a confidence above 1, an acoustic frame with no band step.
-    let mut env = samples()[3].clone();
-    if let Message::Measurement(m) = &mut env.body {
-        m.observations.retain(|o| matches!(o, Observation::Ground(_)));
-        if let Observation::Ground(g) = &mut m.observations[0] {
-            g.confidence = 1.5;
-        }
-    }
-    let (_, e) = invalid(&raw(&env));
-    assert!(e.contains("ground.confidence"), "{e}");
+    // An acoustic frame with no band step.
     let mut env = samples()[3].clone();
     if let Message::Measurement(m) = &mut env.body {
         m.observations.retain(|o| matches!(o, Observation::Acoustic(_)));
@@ -508,6 +591,49 @@ fn other_range_checks_name_the_field() {
     let (field, e) = invalid(&raw(&env));
     assert_eq!(field, "contribution.observations");
     assert!(e.contains("outside"), "{e}");
+    // A contribution carries at most one ground person, gated to its own target, and a
+    // person's quantised numbers are checked there too.
+    let ground = proto::examples::observations()
+        .into_iter()
+        .find(|o| matches!(o, Observation::Ground(_)))
+        .unwrap();
+    let contribution_with = |obs: Vec<Observation>| {
+        let mut env = samples()[4].clone();
+        if let Message::Contribution(c) = &mut env.body {
+            c.observations = obs;
+        }
+        env
+    };
+    let ok = contribution_with(vec![ground.clone()]);
+    assert_eq!(decode(&encode(&ok).unwrap()).unwrap(), ok);
+    let two = contribution_with(vec![ground.clone(), ground.clone()]);
+    let (field, e) = invalid(&raw(&two));
+    assert_eq!(field, "contribution.observations");
+    assert!(e.contains("more than one ground person"), "{e}");
+    let Observation::Ground(p) = &ground else {
+        unreachable!()
+    };
+    let other = contribution_with(vec![Observation::Ground(GroundPerson {
+        target: Some(TargetId(99)),
+        ..p.clone()
+    })]);
+    assert!(
+        invalid(&raw(&other)).1.contains("gated to t99"),
+        "{:?}",
+        invalid(&raw(&other))
+    );
+    let own = contribution_with(vec![Observation::Ground(GroundPerson {
+        target: Some(TargetId(5)),
+        ..p.clone()
+    })]);
+    assert!(decode(&encode(&own).unwrap()).is_ok());
+    let singular = contribution_with(vec![Observation::Ground(GroundPerson {
+        correlation: i8::MIN,
+        ..p.clone()
+    })]);
+    let (field, e) = invalid(&raw(&singular));
+    assert_eq!(field, "contribution.observations");
+    assert!(e.contains("ground.correlation"), "{e}");
     let mut env = samples()[1].clone();
     let Message::HelloAck(a) = &mut env.body else {
         panic!()
@@ -527,9 +653,18 @@ fn other_range_checks_name_the_field() {
     let Message::Contribution(c) = &mut env.body else {
         panic!()
     };
-    c.info_matrix = [[0.0; 6]; 6];
+    c.info.as_mut().unwrap().matrix = [[0.0; 6]; 6];
     c.target = TargetId(0);
     assert!(decode(&encode(&env).unwrap()).is_ok());
+    // Nothing folded at all: no information, and the contribution shrinks by 336 bytes.
+    let with = encode(&env).unwrap().len();
+    let Message::Contribution(c) = &mut env.body else {
+        panic!()
+    };
+    c.info = None;
+    let without = encode(&env).unwrap();
+    assert_eq!(with - without.len(), 336);
+    assert_eq!(decode(&without).unwrap(), env);
 }
 
 /// Matrices so large that their eigen-decomposition would overflow are still judged: an

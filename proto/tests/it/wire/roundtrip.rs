@@ -3,7 +3,9 @@
 use proptest::prelude::*;
 use proto::ids::{NodeId, Role, TagId, TargetId};
 use proto::msg::*;
-use proto::observation::{GroundPoint, IldVector, Kinds, MAX_BINS, Observation, PinholePoint};
+use proto::observation::{
+    GroundPerson, HISTOGRAM_BINS, HISTOGRAM_HS_BINS, IldVector, Kinds, MAX_BINS, Observation, PinholePoint,
+};
 use proto::view::{
     HandoverCause, MAX_VIEW_CONTRIBUTORS, MAX_VIEW_HANDOVERS, MAX_VIEW_PARTS, ViewCounters, ViewHandover,
     ViewNode, ViewTrack,
@@ -101,31 +103,72 @@ fn pinhole() -> impl Strategy<Value = Observation> {
         })
 }
 
-fn ground() -> impl Strategy<Value = Observation> {
+/// A valid quantised histogram: any bytes with each part's fullest at 255.
+fn histogram() -> impl Strategy<Value = Vec<u8>> {
     (
-        any::<u32>(),
-        prop::array::uniform2(finite()),
-        cov2(),
-        (0.0..5.0f32, 0.0..3.0f32, 0.0..=1.0f32),
-        prop::collection::vec(0.0..1.0f32, 0..=MAX_BINS),
-        time(),
-        prop::array::uniform2(finite32()),
+        prop::collection::vec(any::<u8>(), HISTOGRAM_BINS),
+        0..HISTOGRAM_HS_BINS,
+        HISTOGRAM_HS_BINS..HISTOGRAM_BINS,
+    )
+        .prop_map(|(mut h, a, b)| {
+            h[a] = 255;
+            h[b] = 255;
+            h
+        })
+}
+
+fn person(local: u32) -> impl Strategy<Value = GroundPerson> {
+    (
+        prop::option::of(any::<u32>()),
+        any::<[i32; 2]>(),
+        (1..=u16::MAX, 1..=u16::MAX, -127..=127i8),
+        (any::<u16>(), any::<u16>(), any::<u8>()),
+        any::<[i16; 2]>(),
+        prop::option::of(histogram()),
     )
         .prop_map(
-            |(local, position, cov, (width_m, height_m, confidence), histogram, captured, ml_position)| {
-                Observation::Ground(GroundPoint {
+            move |(
+                target,
+                position_cm,
+                (sx, sy, correlation),
+                (width_cm, height_cm, confidence),
+                ml_offset_cm,
+                histogram,
+            )| {
+                GroundPerson {
                     local,
-                    position,
-                    cov,
-                    width_m,
-                    height_m,
+                    target: target.map(TargetId),
+                    position_cm,
+                    sigma_mm: [sx, sy],
+                    correlation,
+                    width_cm,
+                    height_cm,
                     confidence,
+                    ml_offset_cm,
                     histogram,
-                    captured,
-                    ml_position,
-                })
+                }
             },
         )
+}
+
+fn people_frame() -> impl Strategy<Value = Message> {
+    (
+        time(),
+        mode(),
+        prop::collection::vec(rssi(), 0..=4),
+        prop::collection::btree_set(any::<u32>(), 0..=8),
+    )
+        .prop_flat_map(|(captured, mode, rssi, locals)| {
+            let people: Vec<_> = locals.into_iter().map(person).collect();
+            people.prop_map(move |people| {
+                Message::PeopleFrame(PeopleFrame {
+                    captured,
+                    mode,
+                    rssi: rssi.clone(),
+                    people,
+                })
+            })
+        })
 }
 
 fn acoustic() -> impl Strategy<Value = Observation> {
@@ -146,26 +189,26 @@ fn acoustic() -> impl Strategy<Value = Observation> {
 }
 
 fn observation() -> impl Strategy<Value = Observation> {
-    prop_oneof![
-        pinhole(),
-        rssi().prop_map(Observation::Rssi),
-        ground(),
-        acoustic()
-    ]
+    prop_oneof![pinhole(), rssi().prop_map(Observation::Rssi), acoustic()]
 }
 
-/// Observations that fit one frame with the rest of a message: at most eight, each small.
+/// Observations that fit one frame with the rest of a message: at most eight, each small, at
+/// most one ground person (a contribution carries no more).
 fn observations() -> impl Strategy<Value = Vec<Observation>> {
-    prop::collection::vec(observation(), 0..=8).prop_filter("fits a frame", |v| {
-        v.iter()
-            .map(|o| match o {
-                Observation::Ground(g) => g.histogram.len(),
-                Observation::Acoustic(a) => a.ild_db.len(),
-                _ => 0,
-            })
-            .sum::<usize>()
-            <= 2 * MAX_BINS
-    })
+    prop::collection::vec(observation(), 0..=8)
+        .prop_filter("fits a frame", |v| {
+            v.iter()
+                .map(|o| match o {
+                    Observation::Acoustic(a) => a.ild_db.len(),
+                    Observation::Ground(_) => HISTOGRAM_BINS,
+                    _ => 0,
+                })
+                .sum::<usize>()
+                <= 2 * MAX_BINS
+        })
+        .prop_filter("one ground person", |v| {
+            v.iter().filter(|o| matches!(o, Observation::Ground(_))).count() <= 1
+        })
 }
 
 fn measurement() -> impl Strategy<Value = Message> {
@@ -274,12 +317,13 @@ fn message() -> impl Strategy<Value = Message> {
             observations()
         )
             .prop_map(
-                |(t, step, info_matrix, info_vector, folded, captured, mode, observations)| {
+                |(t, step, matrix, vector, folded, captured, mode, observations)| {
                     Message::Contribution(Contribution {
                         target: TargetId(t),
                         step,
-                        info_matrix,
-                        info_vector,
+                        // Nothing folded when the matrix is all zeros.
+                        info: (matrix.iter().flatten().any(|x| *x != 0.0))
+                            .then_some(Information { matrix, vector }),
                         folded: Kinds(folded),
                         captured,
                         mode,
@@ -400,6 +444,7 @@ fn message() -> impl Strategy<Value = Message> {
         )),
         any::<u32>().prop_map(|period_ms| Message::ViewSubscribe(ViewSubscribe { period_ms })),
         view_update(),
+        people_frame(),
     ]
 }
 

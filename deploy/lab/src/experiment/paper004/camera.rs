@@ -5,11 +5,12 @@
 //! or the camera's particle filters (`node_camera::ground_people`, the camera core's paper 004
 //! mode). Per frame it records the truth (for scoring only), each method's people (image box
 //! and ground position with the method's id) and, for the particle filters, the bytes each
-//! mode would put on the wire.
+//! mode would put on the wire: the camera core's people frames (`ground_people::PeopleSender`,
+//! one per head step) and, for comparison, the same frames had every frame been sent.
 
 use super::super::{ParticleTrace, PdfSlice, SampleSnapshot};
 use nalgebra::Vector3;
-use node_camera::ground_people::{self, GroundPeople};
+use node_camera::ground_people::{GroundPeople, PeopleSender};
 use node_camera::segment::{SegmentParams, Segmenter};
 use node_camera::tracker::ground::ground_point;
 use node_camera::tracker::manager::Foreground;
@@ -126,8 +127,16 @@ pub struct FrameRecord {
     pub t: f64,
     pub truth: Vec<TruePerson>,
     pub reported: Vec<Reported>,
-    /// Bytes of the ground observations the camera sends this frame (particle filters only).
+    /// Bytes of the people frame the camera sends this frame, if it is the step's (particle
+    /// filters only), the people in it and the histograms among them.
     pub observation_bytes: usize,
+    pub people_sent: usize,
+    pub histograms_sent: usize,
+    /// Bytes of this frame's people frame, were every frame sent.
+    pub every_frame_bytes: usize,
+    /// `observation_bytes` with a deployment's time stamps (nanoseconds since the Unix epoch,
+    /// [`WALL_CLOCK_EPOCH`] + the run's time) instead of the run's (from 0).
+    pub wall_clock_bytes: usize,
     /// Bytes of every filter's sample set, were they asked for this frame.
     pub sample_set_bytes: usize,
     /// Bytes of the frame as a JPEG, when asked for.
@@ -253,6 +262,15 @@ pub fn run(
         Tracker::Segmentation => None,
     };
     let mut recorder = people.as_ref().map(|_| ParticleRecorder::new(width, height));
+    // What the camera core sends (one people frame per head step), and every frame's.
+    let hs_weight = match tracker {
+        Tracker::Particle(p) => f64::from(p.hs_weight),
+        Tracker::Segmentation => 0.0,
+    };
+    let mut senders = [
+        PeopleSender::new(s.method.step_ms, hs_weight),
+        PeopleSender::new(0, hs_weight),
+    ];
     let mut linker = RegionLinker::default();
     let mut frame = Frame::new(0, 0, ClusterTime::ZERO);
     let mut regions: Vec<Detection> = Vec::new();
@@ -272,6 +290,10 @@ pub fn run(
             truth: present.iter().map(|p| truth_of(s, &camera, p, t)).collect(),
             reported: Vec::new(),
             observation_bytes: 0,
+            people_sent: 0,
+            histograms_sent: 0,
+            every_frame_bytes: 0,
+            wall_clock_bytes: 0,
             sample_set_bytes: 0,
             jpeg_bytes: (jpeg_every > 0 && k % jpeg_every == 0)
                 .then(|| jpeg_size(&frame))
@@ -284,7 +306,7 @@ pub fn run(
                     Segmenter::ColourDifference(_) => None,
                 };
                 people.track(&camera, &frame, &regions, foreground)?;
-                record_people(&camera, people, setup.camera, &mut rec)?;
+                record_people(people, &mut senders, setup.camera, &mut rec)?;
                 if let Some(r) = recorder.as_mut() {
                     r.record(t, &frame, people, &rec.truth, k == n / 2);
                 }
@@ -310,10 +332,17 @@ pub fn run(
     })
 }
 
-/// The particle filters' people of this frame into `rec`, with the bytes of each mode.
+/// A deployment's time 0 for [`FrameRecord::wall_clock_bytes`]: 2026-01-01T00:00:00Z, ns
+/// since the Unix epoch (cluster time is wall-clock time).
+pub const WALL_CLOCK_EPOCH: ClusterTime = ClusterTime(1_767_225_600_000_000_000);
+
+/// The particle filters' people of this frame into `rec`, with the bytes of each mode:
+/// `senders` are the camera core's (one people frame per step) and one that sends every frame.
+/// No head and no priors here: every person goes out ungated, as a camera's people do until a
+/// head tracks them (and all of them do in centralized fusion).
 fn record_people(
-    camera: &CameraModel,
     people: &GroundPeople,
+    senders: &mut [PeopleSender; 2],
     node: u32,
     rec: &mut FrameRecord,
 ) -> crate::error::Result<()> {
@@ -324,9 +353,38 @@ fn record_people(
         time,
         body,
     };
+    let ids = people.tracker().ids();
+    for (k, sender) in senders.iter_mut().enumerate() {
+        sender.retain(&ids);
+        if people.latest().is_empty() || !sender.due(time) {
+            continue;
+        }
+        let frame = sender.frame(
+            time,
+            Mode::Active,
+            people.latest().iter().map(|g| (g, None)),
+            Vec::new(),
+        );
+        let bytes = proto::wire::encode(&envelope(Message::PeopleFrame(frame.clone())))?.len();
+        if k == 0 {
+            let wall = |t: ClusterTime| ClusterTime(t.0 + WALL_CLOCK_EPOCH.0);
+            let deployed = Envelope {
+                time: wall(time),
+                body: Message::PeopleFrame(proto::msg::PeopleFrame {
+                    captured: wall(frame.captured),
+                    ..frame.clone()
+                }),
+                ..envelope(Message::Heartbeat)
+            };
+            rec.wall_clock_bytes = proto::wire::encode(&deployed)?.len();
+            rec.observation_bytes = bytes;
+            rec.people_sent = frame.people.len();
+            rec.histograms_sent = frame.people.iter().filter(|p| p.histogram.is_some()).count();
+        } else {
+            rec.every_frame_bytes = bytes;
+        }
+    }
     for g in people.latest() {
-        let m = ground_people::measurement(camera, g.clone(), None, Mode::Active, &[]);
-        rec.observation_bytes += proto::wire::encode(&envelope(Message::Measurement(m)))?.len();
         let bbox = people
             .tracker()
             .filter(g.local)
