@@ -355,6 +355,13 @@ impl HeadNode {
                     if let Some(d) = &ground {
                         crate::observe::ground(track, d);
                     }
+                    if let Some(h) = c
+                        .ground()
+                        .and_then(|p| p.histogram.as_deref())
+                        .filter(|_| ground.is_some())
+                    {
+                        track.see_colours(&proto::observation::dequantise_histogram(h));
+                    }
                     track.last_seen = now;
                     track.fused_frame(c.captured);
                 }

@@ -25,6 +25,8 @@ pub const CONFIRM_STEPS: u32 = 5;
 pub const CONFIRM_DISTANCE_M: f64 = 0.25;
 /// Camera steps after which a born track's position is taken as its anchor.
 const ANCHOR_STEPS: u32 = 2;
+/// How far a track's appearance moves towards each colour histogram a camera sends of it.
+pub const APPEARANCE_RATE: f32 = 0.3;
 
 /// A track.
 #[derive(Clone, Debug)]
@@ -197,6 +199,19 @@ impl Track {
         taken
     }
 
+    /// A camera's colour histogram of the person this track follows (sent on the person's
+    /// first frame and when it changed): the track's appearance moves [`APPEARANCE_RATE`] of
+    /// the way towards it, so one odd frame (a partial occlusion) does not replace it.
+    pub fn see_colours(&mut self, histogram: &[f32]) {
+        if self.appearance.len() == histogram.len() {
+            for (a, h) in self.appearance.iter_mut().zip(histogram) {
+                *a += APPEARANCE_RATE * (h - *a);
+            }
+        } else {
+            self.appearance = histogram.to_vec();
+        }
+    }
+
     /// A camera frame captured at `at` was fused this step.
     pub fn fused_frame(&mut self, at: ClusterTime) {
         self.captured = Some(self.captured.map_or(at, |c| c.min(at)));
@@ -235,6 +250,21 @@ mod tests {
             0.1,
         )
         .unwrap()
+    }
+
+    #[test]
+    fn appearance_starts_at_the_first_histogram_then_moves_part_of_the_way() {
+        let mut t = track(None);
+        assert!(t.appearance.is_empty());
+        t.see_colours(&[1.0, 0.0]);
+        assert_eq!(t.appearance, vec![1.0, 0.0]);
+        t.see_colours(&[0.0, 1.0]);
+        assert!(
+            (t.appearance[0] - (1.0 - APPEARANCE_RATE)).abs() < 1e-6,
+            "{:?}",
+            t.appearance
+        );
+        assert!((t.appearance[1] - APPEARANCE_RATE).abs() < 1e-6);
     }
 
     #[test]
