@@ -294,12 +294,7 @@ fn lost_cameras_are_left_alone_and_delivering_ones_count_as_before() {
 /// track where it is (as current, the frame would drag it 0.1 m back).
 #[test]
 fn centralized_fusion_takes_a_frame_at_its_capture_time() {
-    let mut s = Scenario::default_scenario();
-    s.method.fusion = Fusion::CentralizedEif;
-    s.method.activation = Activation::AllOn;
-    let (cfg, mut h) = head_with_a_moving_track(&s);
-    let t1 = ClusterTime::from_millis(200);
-    h.tick(t1);
+    let (cfg, mut h, t1) = centralized_head_stepped_once();
     let predicted = *h.tracks()[0].filter.mean();
     assert!((predicted[0] - 3.2).abs() < 1e-9, "{predicted}");
     let was = nalgebra::Vector3::new(3.1, 4.0, 0.25);
@@ -482,6 +477,18 @@ fn head_with_a_moving_track(s: &Scenario) -> (HeadConfig, HeadNode) {
     head_with_a_track(s, State::new(3.0, 4.0, 0.25, 1.0, 0.0, 0.0))
 }
 
+/// A centralized head, every camera on, whose moving track has been stepped to 200 ms (that
+/// time is returned too).
+fn centralized_head_stepped_once() -> (HeadConfig, HeadNode, ClusterTime) {
+    let mut s = Scenario::default_scenario();
+    s.method.fusion = Fusion::CentralizedEif;
+    s.method.activation = Activation::AllOn;
+    let (cfg, mut h) = head_with_a_moving_track(&s);
+    let t1 = ClusterTime::from_millis(200);
+    h.tick(t1);
+    (cfg, h, t1)
+}
+
 /// Head 2 of `s` with one track handed over at t = 0 at `mean`, σ 0.1 in every component.
 fn head_with_a_track(s: &Scenario, mean: State) -> (HeadConfig, HeadNode) {
     let cfg = HeadConfig::from_scenario(s, 2).unwrap();
@@ -554,12 +561,7 @@ fn people_frame(at: [f64; 2], target: Option<TargetId>, captured: ClusterTime) -
 /// centralized head fuses the person at its capture time.
 #[test]
 fn a_people_frame_gives_one_floor_detection_per_person() {
-    let mut s = Scenario::default_scenario();
-    s.method.fusion = Fusion::CentralizedEif;
-    s.method.activation = Activation::AllOn;
-    let (cfg, mut h) = head_with_a_moving_track(&s);
-    let t1 = ClusterTime::from_millis(200);
-    h.tick(t1);
+    let (cfg, mut h, t1) = centralized_head_stepped_once();
     let node = cfg.nodes.iter().find(|n| n.member).unwrap();
     let local = h.tracks()[0].local;
     let captured = ClusterTime::from_millis(100);
