@@ -715,9 +715,9 @@ fn a_member_with_a_live_link_never_flaps_and_goes_down_with_its_link() {
 
 /// A colour histogram (HS 10×10 then V 10 bins) with all its mass in one HS and one V bin.
 fn colours(hs_bin: usize, v_bin: usize) -> Vec<f32> {
-    let mut h = vec![0.0; proto::appearance::BINS];
+    let mut h = vec![0.0; proto::observation::HISTOGRAM_BINS];
     h[hs_bin] = 0.5;
-    h[proto::appearance::HS_BINS + v_bin] = 0.5;
+    h[proto::observation::HISTOGRAM_HS_BINS + v_bin] = 0.5;
     h
 }
 

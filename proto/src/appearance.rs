@@ -4,10 +4,8 @@
 //! fixed-size histograms; this is for the wire form (`TrackReport::appearance`), where the
 //! server tells people apart.
 
-/// Bins of the hue-saturation part.
-pub const HS_BINS: usize = 100;
-/// Bins of a whole histogram: HS then V.
-pub const BINS: usize = HS_BINS + 10;
+use crate::observation::{HISTOGRAM_BINS as BINS, HISTOGRAM_HS_BINS as HS_BINS};
+
 /// The HS part's weight in the blend (paper 004 §2.3).
 pub const HS_WEIGHT: f32 = 0.7;
 
@@ -39,6 +37,7 @@ pub fn similarity(a: &[f32], b: &[f32]) -> Option<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::observation::{HISTOGRAM_BINS as BINS, HISTOGRAM_HS_BINS as HS_BINS};
 
     fn hist(hs_bin: usize, v_bin: usize) -> Vec<f32> {
         let mut h = vec![0.0; BINS];
