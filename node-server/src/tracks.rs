@@ -233,7 +233,6 @@ impl Tracks {
         self.globals
             .iter()
             .filter(|(g, gt)| !fed.contains(g) && now - gt.last_report <= self.params.track_timeout_ns)
-            .filter(|(_, gt)| self.looks_like(gt, &r.appearance))
             .map(|(g, gt)| {
                 (
                     *g,
@@ -241,7 +240,7 @@ impl Tracks {
                     alike(&gt.appearance, &r.appearance),
                 )
             })
-            .filter(|(_, d, _)| *d <= gate)
+            .filter(|(_, d, s)| *d <= gate && *s >= self.params.min_appearance_similarity)
             .map(|(g, d, s)| (g, d / gate + f64::from(1.0 - s)))
             .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
             .map(|(g, _)| g)
