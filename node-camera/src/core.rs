@@ -291,13 +291,11 @@ impl CameraNode {
         // frame period), so the frame's age needs no clock shared with the head.
         let age_s = captured.map_or(0.0, |t| now.secs_since(t));
         let cam = &self.cfg.camera;
-        let chosen = captured.and_then(|_| {
-            self.measured
-                .iter()
-                .filter_map(|m| measure::mahalanobis2(cam, prior, m, age_s).map(|d2| (d2, m)))
-                .filter(|(d2, _)| *d2 <= self.cfg.gate_chi2)
-                .min_by(|a, b| a.0.total_cmp(&b.0))
-                .map(|(_, m)| m)
+        let chosen = captured.and_then(|c| {
+            let priors = self.answering(prior, age_s, c);
+            measure::joint_choice(&priors, 0, &self.measured, self.cfg.gate_chi2, |p, m, age| {
+                measure::mahalanobis2(cam, p, m, age)
+            })
         });
         measure::contribution(
             cam,
@@ -308,6 +306,30 @@ impl CameraNode {
             self.mode,
             &rssi,
         )
+    }
+
+    /// `prior` (first, its frame `age_s` old) with the priors it is answered jointly with: the
+    /// other tracks' newest, of this step or the one before (a track the head dropped sends no
+    /// more and drops out), each with the frame's age relative to its arrival.
+    pub(crate) fn answering<'a>(
+        &'a self,
+        prior: &'a Prior,
+        age_s: f64,
+        captured: ClusterTime,
+    ) -> Vec<(&'a Prior, f64)> {
+        let mut out = vec![(prior, age_s)];
+        out.extend(
+            self.priors
+                .values()
+                .filter(|(t, p)| {
+                    p.target != prior.target
+                        && p.step + 1 >= prior.step
+                        && p.step <= prior.step
+                        && self.fresh(captured, *t)
+                })
+                .map(|(t, p)| (p, t.secs_since(captured))),
+        );
+        out
     }
 
     /// The newest reading of every tag heard within the freshness bound.

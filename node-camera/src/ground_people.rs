@@ -214,21 +214,6 @@ pub fn associate(priors: &[(&Prior, f64)], people: &[GroundPoint], gate_chi2: f6
     crate::measure::nearest_pairs(priors, people, gate_chi2, gate_distance2)
 }
 
-/// The nearest ground point within the gate of one prior.
-pub fn nearest<'a>(
-    prior: &Prior,
-    people: &'a [GroundPoint],
-    age_s: f64,
-    gate_chi2: f64,
-) -> Option<&'a GroundPoint> {
-    people
-        .iter()
-        .filter_map(|g| gate_distance2(prior, g, age_s).map(|d2| (d2, g)))
-        .filter(|(d2, _)| *d2 <= gate_chi2)
-        .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, g)| g)
-}
-
 /// The answer to `prior` with one ground point gated to it: the person itself, quantised, for
 /// the head to model (the floor position aged to the prior's time and the centre height its
 /// measured height gives are linear in the state, so the head computes from it the Ω_i, ξ_i

@@ -63,36 +63,47 @@ pub fn associate(
     })
 }
 
-/// Greedy one-to-one assignment of `items` to `priors`, the pairs nearest by `distance2` (a
-/// squared gate distance for the prior, the item and the item's age relative to the prior, s)
-/// first, only within `gate_chi2`. Returns, per item, the index of its prior. Shared by the
-/// pin-hole detections and the ground-plane people.
+/// The optimal one-to-one assignment of `items` to `priors` (global nearest neighbour,
+/// `assign::gnn`): the pairs minimising the summed squared gate distance `distance2` (for the
+/// prior, the item and the item's age relative to the prior, s), an item left free costing the
+/// gate, and no pair outside `gate_chi2`. Returns, per item, the index of its prior. Shared by
+/// the pin-hole detections and the ground-plane people.
+///
+/// Optimal rather than nearest-first: two people close together in a view, each with a track,
+/// are a common sight in a crowd, and a greedy pass that gives the nearer track the wrong
+/// person leaves the other track with nobody (measured in `docs/multi-target.md`).
 pub fn nearest_pairs<T>(
     priors: &[(&Prior, f64)],
     items: &[T],
     gate_chi2: f64,
     distance2: impl Fn(&Prior, &T, f64) -> Option<f64>,
 ) -> Vec<Option<usize>> {
-    let mut pairs = Vec::new();
-    for (pi, &(p, age_s)) in priors.iter().enumerate() {
-        for (ii, item) in items.iter().enumerate() {
-            if let Some(d2) = distance2(p, item, age_s)
-                && d2 <= gate_chi2
-            {
-                pairs.push((d2, pi, ii));
-            }
-        }
+    let Ok(mut costs) = assign::GatedCosts::new(priors.len(), gate_chi2) else {
+        return vec![None; items.len()];
+    };
+    for item in items {
+        let row: Vec<Option<f64>> = priors
+            .iter()
+            .map(|&(p, age_s)| distance2(p, item, age_s).filter(|d2| d2.is_finite() && *d2 >= 0.0))
+            .collect();
+        // Every cost is finite and non-negative, so the row is always taken.
+        let _ = costs.push(0, &row);
     }
-    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut of_item = vec![None; items.len()];
-    let mut prior_taken = vec![false; priors.len()];
-    for (_, pi, ii) in pairs {
-        if of_item[ii].is_none() && !prior_taken[pi] {
-            of_item[ii] = Some(pi);
-            prior_taken[pi] = true;
-        }
-    }
-    of_item
+    assign::assign(&costs)
+}
+
+/// The item answering `priors[of]` when every prior is answered jointly with the others (see
+/// [`nearest_pairs`]): a camera answers one prior at a time, as each arrives, but the
+/// detection it gives one track is then never the one the optimal pairing gives another.
+pub fn joint_choice<'a, T>(
+    priors: &[(&Prior, f64)],
+    of: usize,
+    items: &'a [T],
+    gate_chi2: f64,
+    distance2: impl Fn(&Prior, &T, f64) -> Option<f64>,
+) -> Option<&'a T> {
+    let pairs = nearest_pairs(priors, items, gate_chi2, distance2);
+    pairs.iter().position(|&p| p == Some(of)).map(|i| &items[i])
 }
 
 /// The contribution Ω_i, ξ_i of one measured point at the prior's mean, or the contribution

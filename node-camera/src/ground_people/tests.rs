@@ -33,8 +33,26 @@ fn ground_points_gate_one_to_one_in_the_floor_plane() {
     let people = [person(5.1, 3.0), person(2.0, 2.1), person(9.0, 1.0)];
     let got = associate(&[(&a, 0.0), (&b, 0.0)], &people, 13.8);
     assert_eq!(got, vec![Some(1), Some(0), None]);
-    assert_eq!(nearest(&a, &people, 0.0, 13.8), Some(&people[1]));
-    assert_eq!(nearest(&prior(7.0, 6.0), &people, 0.0, 13.8), None);
+    let joint = |priors: &[(&Prior, f64)], of| {
+        crate::measure::joint_choice(priors, of, &people, 13.8, gate_distance2)
+    };
+    assert_eq!(joint(&[(&a, 0.0), (&b, 0.0)], 0), Some(&people[1]));
+    let far = prior(7.0, 6.0);
+    assert_eq!(joint(&[(&far, 0.0)], 0), None);
+}
+
+#[test]
+fn joint_answers_give_two_close_tracks_two_people() {
+    // Track a is nearer person 0 than person 1, but b gates only person 0: the nearest-first
+    // answer would give a person 0 and b nobody.
+    let (a, b) = (prior(2.0, 2.0), prior(2.9, 2.0));
+    let people = [person(2.4, 2.0), person(1.5, 2.0)];
+    let priors = [(&a, 0.0), (&b, 0.0)];
+    let joint = |of| crate::measure::joint_choice(&priors, of, &people, 13.8, gate_distance2);
+    assert!(gate_distance2(&a, &people[0], 0.0) < gate_distance2(&a, &people[1], 0.0));
+    assert_eq!(gate_distance2(&b, &people[1], 0.0).filter(|d| *d <= 13.8), None);
+    assert_eq!(joint(0), Some(&people[1]));
+    assert_eq!(joint(1), Some(&people[0]));
 }
 
 #[test]
