@@ -50,10 +50,14 @@ pub struct ServerConfig {
 /// well above it and fall back on position alone.
 pub const MIN_APPEARANCE_SIMILARITY: f32 = 0.5;
 
+/// How long a head's second track on one of its globals waits for an id: longer than the
+/// 0.2–2.4 s a failover survivor's duplicate lived in the end-to-end runs (see `tracks`).
+pub const DUPLICATE_WAIT_NS: i64 = 3_000_000_000;
+
 impl ServerConfig {
     /// Defaults from the scenario: merge gate 1 m, hysteresis 3 reports, handover margin
     /// 0.25 m, track timeout from `method.track-timeout-ms`, owner staleness three steps,
-    /// appearance gate [`MIN_APPEARANCE_SIMILARITY`].
+    /// appearance gate [`MIN_APPEARANCE_SIMILARITY`], duplicate wait [`DUPLICATE_WAIT_NS`].
     pub fn from_scenario(scenario: Scenario, id: NodeId) -> Self {
         let ms = |v: u64| i64::try_from(v).unwrap_or(i64::MAX / 1_000_000) * 1_000_000;
         let tracks = TrackParams {
@@ -63,6 +67,7 @@ impl ServerConfig {
             track_timeout_ns: ms(scenario.method.track_timeout_ms),
             owner_stale_ns: ms(3 * scenario.method.step_ms),
             min_appearance_similarity: MIN_APPEARANCE_SIMILARITY,
+            duplicate_wait_ns: DUPLICATE_WAIT_NS,
         };
         ServerConfig {
             id,

@@ -575,27 +575,48 @@ fn a_track_that_leaves_its_global_for_another_joins_that_one() {
 #[test]
 fn two_globals_that_stay_together_become_one() {
     let mut s = started();
-    let x = |k: i64| 1.0 + 0.2 * k as f64;
-    // Head 2 starts a second track 1.5 m off (beyond the gate): a separate global at first…
+    // On the cluster border (x = 6) each head's cameras start a track of their own, 1.5 m
+    // apart (beyond the gate): two globals at first…
+    let x = |k: i64| 6.0 + 0.02 * k as f64;
     s.on_message(ms(0), report(H2, 1, None, ms(0), x(0), 2.0));
-    s.on_message(ms(0), report(H2, 2, None, ms(0), x(0), 3.5));
+    s.on_message(ms(0), report(H3, 9, None, ms(0), x(0), 3.5));
     let (a, b) = (
         s.global_of(H2, TargetId(1)).unwrap(),
-        s.global_of(H2, TargetId(2)).unwrap(),
+        s.global_of(H3, TargetId(9)).unwrap(),
     );
     assert_ne!(a, b);
     // …then both converge on the same target: after the hysteresis the younger is absorbed.
     for k in 1..6i64 {
         let t = ms(k * 200);
         s.on_message(t, report(H2, 1, None, t, x(k), 2.0));
-        s.on_message(t, report(H2, 2, None, t, x(k), 2.1));
+        s.on_message(t, report(H3, 9, None, t, x(k), 2.1));
         if k < 3 {
             assert_eq!(s.globals().count(), 2, "not before the hysteresis (step {k})");
         }
     }
     assert_eq!(s.globals().count(), 1);
-    assert_eq!(s.global_of(H2, TargetId(2)), Some(a));
+    assert_eq!(s.global_of(H3, TargetId(9)), Some(a));
     assert!(decisions(&mut s).contains(&Decision::Absorbed { global: b, into: a }));
+}
+
+#[test]
+fn two_people_one_head_tracks_side_by_side_keep_two_globals() {
+    let mut s = started();
+    let x = |k: i64| 1.0 + 0.1 * k as f64;
+    // Two people walk side by side 0.6 m apart (inside the 1 m gate): head 2 tracks each.
+    for k in 0..20i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H2, 1, None, t, x(k), 2.0));
+        s.on_message(t, report(H2, 2, None, t, x(k), 2.6));
+    }
+    let (a, b) = (s.global_of(H2, TargetId(1)), s.global_of(H2, TargetId(2)));
+    assert!(a.is_some() && b.is_some() && a != b, "{a:?} {b:?}");
+    assert_eq!(s.globals().count(), 2);
+    assert!(
+        !decisions(&mut s)
+            .iter()
+            .any(|d| matches!(d, Decision::Absorbed { .. }))
+    );
 }
 
 #[test]

@@ -12,14 +12,19 @@
 //! - A track within the merge gate of a global its own head already feeds is that head's
 //!   duplicate of the target (after a failover the survivor may briefly hold two, until its
 //!   duplicate merge drops one): it waits without an id, looked at afresh each report, and
-//!   founds one only once it lies outside that gate. Given an id at once, the duplicate was a
-//!   second global id for 0.2–2.4 s in about half the end-to-end cluster runs.
+//!   founds one once it lies outside that gate, or once the head has kept it for the
+//!   duplicate wait — then it is a second person beside the first (side by side, meeting),
+//!   whom the head tells apart. Given an id at once, the duplicate was a second global id for
+//!   0.2–2.4 s in about half the end-to-end cluster runs; never given one, the second of two
+//!   people walking side by side had none at all.
 //! - A merged track that disagrees with its global's owner for `hysteresis` consecutive reports
 //!   joins another global it now lies on (`Merged`), or else is split off with a new global id
 //!   (`Split`).
 //! - Two global tracks whose owners keep reporting them within the gate of each other for
 //!   `hysteresis` reports are one target: the younger is absorbed into the older (`Absorbed`)
-//!   and its local tracks rebound to it (`Merged`).
+//!   and its local tracks rebound to it (`Merged`). Never two that one head feeds each with a
+//!   live local track of its own: that head sees two targets (people side by side, or
+//!   meeting), and would have merged its tracks if its cameras saw one.
 //! - When the owner's estimate leaves the owner's region by more than the handover margin and
 //!   lies in a live head's region, the track is handed over to that head (`Handover`, reason
 //!   `Region`); the margin is the hysteresis band that stops a target on a border from
@@ -84,6 +89,10 @@ pub struct TrackParams {
     /// Two tracks whose colour histograms are less alike than this (blended Bhattacharyya
     /// coefficient, `proto::appearance`) are different people however close they are.
     pub min_appearance_similarity: f32,
+    /// How long a head's track lying on a global the same head already feeds waits without an
+    /// id, ns: a duplicate the head merges away within it; a track the head still keeps beside
+    /// the other after it is a second person (side by side, or meeting) and founds its own.
+    pub duplicate_wait_ns: i64,
 }
 
 /// One global track.
@@ -136,6 +145,8 @@ pub struct Tracks {
     locals: BTreeMap<(NodeId, TargetId), LocalTrack>,
     /// Consecutive owner reports of the younger global found within the gate of the older one.
     close: BTreeMap<(TargetId, TargetId), u32>,
+    /// Since when each local track has been waiting on a global its own head feeds.
+    waiting: BTreeMap<(NodeId, TargetId), ClusterTime>,
 }
 
 impl GlobalTrack {
@@ -167,6 +178,7 @@ impl Tracks {
             globals: BTreeMap::new(),
             locals: BTreeMap::new(),
             close: BTreeMap::new(),
+            waiting: BTreeMap::new(),
         }
     }
 
@@ -256,6 +268,17 @@ impl Tracks {
                 Binding::Bound(g) | Binding::Pending(g) => g,
             })
             .collect()
+    }
+
+    /// Whether `head`'s track `r` lies on a global `head` already feeds and has waited less
+    /// than the duplicate wait there (the wait starts with its first such report).
+    fn waits_as_duplicate(&mut self, now: ClusterTime, head: NodeId, r: &TrackReport) -> bool {
+        if !self.on_own_global(now, head, r) {
+            self.waiting.remove(&(head, r.target));
+            return false;
+        }
+        let since = *self.waiting.entry((head, r.target)).or_insert(now);
+        now - since < self.params.duplicate_wait_ns
     }
 
     /// Whether `r` lies within the merge gate of a live global that `head` already feeds.

@@ -24,6 +24,9 @@ impl Tracks {
             .filter(|(_, o)| now - o.last_report <= self.params.owner_stale_ns)
             // Two people of other colours standing together stay two.
             .filter(|(_, o)| self.looks_like(o, &gt.appearance))
+            // So do two that one head tracks as two: its own duplicate merge would have made
+            // them one if its cameras saw one target (two people side by side, or meeting).
+            .filter(|(id, _)| !self.one_head_feeds_both(now, g, **id))
             .map(|(id, o)| {
                 let q = o.position_at(t);
                 (
@@ -63,6 +66,23 @@ impl Tracks {
             into: keep,
         });
         out
+    }
+
+    /// Whether some head feeds `a` and `b` each with a live local track of its own.
+    fn one_head_feeds_both(&self, now: ClusterTime, a: TargetId, b: TargetId) -> bool {
+        let heads = |g: TargetId| -> Vec<NodeId> {
+            self.locals
+                .iter()
+                .filter(|(_, l)| {
+                    matches!(l.binding, Binding::Bound(x) if x == g)
+                        && !l.released
+                        && now - l.last <= self.params.owner_stale_ns
+                })
+                .map(|((h, _), _)| *h)
+                .collect()
+        };
+        let of_a = heads(a);
+        heads(b).iter().any(|h| of_a.contains(h))
     }
 
     /// Hand `g` to the head whose region it entered, if it left its owner's.
@@ -117,6 +137,7 @@ impl Tracks {
             .filter(|(_, l)| now - l.last > timeout)
             .map(|(k, _)| *k)
             .collect();
+        self.waiting.retain(|_, since| now - *since <= timeout);
         for (head, local) in stale {
             self.locals.remove(&(head, local));
             out.push(Decision::Forgotten { head, local });

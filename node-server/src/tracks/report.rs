@@ -107,8 +107,9 @@ impl Tracks {
             // duplicate of that target (after a failover the survivor may briefly hold two),
             // which the head merges away. Given an id at once, it was a second id for seconds;
             // if it is another target, it founds one once it parts.
-            None if self.on_own_global(now, head, r) => None,
+            None if self.waits_as_duplicate(now, head, r) => None,
             None => {
+                self.waiting.remove(&rep.key());
                 let g = self.new_global(now, head, r);
                 out.push(rep.new_global(g));
                 self.locals
