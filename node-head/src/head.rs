@@ -528,13 +528,10 @@ impl HeadNode {
         }
         let mean = vec6_from_wire(&h.mean);
         let cov = mat6_from_wire(&h.cov);
-        // The server naming one of our tracks: adopt the global id.
-        let gate = self.cfg.method.gate_chi2;
-        if let Some(t) = self.tracks.iter_mut().filter(|t| t.global.is_none()).find(|t| {
-            let d = t.position() - mean.fixed_rows::<3>(0);
-            let s = t.filter.cov().fixed_view::<3, 3>(0, 0) + cov.fixed_view::<3, 3>(0, 0);
-            s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate)
-        }) {
+        // The server naming one of our tracks: adopt the global id. The nearest of our unnamed
+        // tracks within the gate: in a crowd the first one within it may be the neighbour.
+        if let Some(i) = self.nearest_unnamed(&mean, &cov) {
+            let t = &mut self.tracks[i];
             t.global = Some(h.global);
             t.confirmed = true;
             return;
@@ -560,29 +557,32 @@ impl HeadNode {
     fn release(&mut self, h: &Handover) {
         let before = self.tracks.len();
         self.tracks.retain(|t| t.global != Some(h.global));
-        if self.tracks.len() == before {
-            let mean = vec6_from_wire(&h.mean);
-            let cov = mat6_from_wire(&h.cov);
-            let gate = self.cfg.method.gate_chi2;
-            let nearest = self
-                .tracks
-                .iter()
-                .enumerate()
-                .filter(|(_, t)| t.global.is_none())
-                .filter_map(|(i, t)| {
-                    let d = t.position() - mean.fixed_rows::<3>(0);
-                    let s = t.filter.cov().fixed_view::<3, 3>(0, 0) + cov.fixed_view::<3, 3>(0, 0);
-                    let d2 = d.dot(&s.cholesky()?.solve(&d));
-                    (d2 <= gate).then_some((i, d2))
-                })
-                .min_by(|a, b| a.1.total_cmp(&b.1));
-            if let Some((i, _)) = nearest {
-                self.tracks.remove(i);
-            }
+        if self.tracks.len() == before
+            && let Some(i) = self.nearest_unnamed(&vec6_from_wire(&h.mean), &mat6_from_wire(&h.cov))
+        {
+            self.tracks.remove(i);
         }
         if self.tracks.len() < before {
             info!(global = %h.global, to = %h.to_head, "track handed to another head; dropped");
         }
+    }
+
+    /// Our track without a global id nearest (Mahalanobis, positions, summed covariances) to a
+    /// posterior the server sent, within the gate.
+    fn nearest_unnamed(&self, mean: &State, cov: &Matrix6<f64>) -> Option<usize> {
+        let gate = self.cfg.method.gate_chi2;
+        self.tracks
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| t.global.is_none())
+            .filter_map(|(i, t)| {
+                let d = t.position() - mean.fixed_rows::<3>(0);
+                let s = t.filter.cov().fixed_view::<3, 3>(0, 0) + cov.fixed_view::<3, 3>(0, 0);
+                let d2 = d.dot(&s.cholesky()?.solve(&d));
+                (d2 <= gate).then_some((i, d2))
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, _)| i)
     }
 
     fn alloc_local(&mut self) -> TargetId {

@@ -104,6 +104,25 @@ fn handover_starts_a_track_that_reports_its_global_id_and_leaves_again() {
     assert!(h.tracks().is_empty());
 }
 
+#[test]
+fn a_naming_handover_names_the_nearest_unnamed_track() {
+    let s = Scenario::default_scenario();
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    h.tick(ClusterTime::ZERO);
+    // Two people of ours, 0.5 m apart, neither named yet; the server names the second.
+    for x in [3.0, 3.5] {
+        let local = h.alloc_local();
+        let mean = State::new(x, 4.0, 0.2, 0.0, 0.0, 0.0);
+        let t = h
+            .new_track(local, None, mean, Matrix6::identity() * 0.04, ClusterTime::ZERO)
+            .unwrap();
+        h.tracks.push(t);
+    }
+    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.5)));
+    let named: Vec<_> = h.tracks().iter().map(|t| t.global).collect();
+    assert_eq!(named, vec![None, Some(TargetId(7))], "no new track, the nearer one named");
+}
+
 /// A track that strays more than `OUTSIDE_MARGIN_M` outside the world's box is dropped.
 #[test]
 fn a_track_that_leaves_the_world_is_dropped() {
