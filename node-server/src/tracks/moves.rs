@@ -68,13 +68,14 @@ impl Tracks {
         out
     }
 
-    /// Whether some head feeds `a` and `b` each with a live local track of its own.
+    /// Whether some head feeds `a` and `b` each with a live local track of its own (bound or
+    /// pending).
     fn one_head_feeds_both(&self, now: ClusterTime, a: TargetId, b: TargetId) -> bool {
         let heads = |g: TargetId| -> Vec<NodeId> {
             self.locals
                 .iter()
                 .filter(|(_, l)| {
-                    matches!(l.binding, Binding::Bound(x) if x == g)
+                    matches!(l.binding, Binding::Bound(x) | Binding::Pending(x) if x == g)
                         && !l.released
                         && now - l.last <= self.params.owner_stale_ns
                 })

@@ -135,6 +135,7 @@ impl Tracks {
                 Some(_) => gone,
                 None => false,
             };
+        let other = self.feeds_other(head, local, g, now);
         let l = self.locals.get_mut(&rep.key()).expect("present");
         l.last = now;
         l.posterior = (r.time, r.mean, r.cov);
@@ -167,10 +168,25 @@ impl Tracks {
                 });
             }
             Some(Binding::Bound(g))
-        } else if agrees && l.agree >= n {
+        } else if agrees && l.agree >= n && !other {
             l.binding = Binding::Bound(g);
             out.push(rep.merged(g));
             Some(Binding::Bound(g))
+        } else if agrees && l.agree >= n {
+            // Its head already feeds g with another track: two tracks of one head on one
+            // global would take turns moving its posterior. The head's duplicate, merged away
+            // soon; one the head keeps past the duplicate wait is a second person, who gets
+            // an id of their own.
+            let since = *self.waiting.entry(rep.key()).or_insert(now);
+            if !rep.foreign && now - since >= self.params.duplicate_wait_ns {
+                self.waiting.remove(&rep.key());
+                let g = self.new_global(now, head, r);
+                *self.locals.get_mut(&rep.key()).expect("present") = LocalTrack::new(Binding::Bound(g), now, r);
+                out.push(rep.new_global(g));
+                Some(Binding::Bound(g))
+            } else {
+                Some(Binding::Pending(g))
+            }
         } else if rep.foreign && !self.globals.contains_key(&g) {
             self.locals.remove(&rep.key());
             None
