@@ -120,7 +120,11 @@ fn a_naming_handover_names_the_nearest_unnamed_track() {
     }
     h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.5)));
     let named: Vec<_> = h.tracks().iter().map(|t| t.global).collect();
-    assert_eq!(named, vec![None, Some(TargetId(7))], "no new track, the nearer one named");
+    assert_eq!(
+        named,
+        vec![None, Some(TargetId(7))],
+        "no new track, the nearer one named"
+    );
 }
 
 /// A track that strays more than `OUTSIDE_MARGIN_M` outside the world's box is dropped.

@@ -181,7 +181,8 @@ impl Tracks {
             if !rep.foreign && now - since >= self.params.duplicate_wait_ns {
                 self.waiting.remove(&rep.key());
                 let g = self.new_global(now, head, r);
-                *self.locals.get_mut(&rep.key()).expect("present") = LocalTrack::new(Binding::Bound(g), now, r);
+                *self.locals.get_mut(&rep.key()).expect("present") =
+                    LocalTrack::new(Binding::Bound(g), now, r);
                 out.push(rep.new_global(g));
                 Some(Binding::Bound(g))
             } else {
