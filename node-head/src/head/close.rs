@@ -3,7 +3,7 @@
 
 use super::HeadNode;
 use crate::activation::{Candidate, Expected, Variant};
-use crate::association::{Detection, associate, births, gated_by_any};
+use crate::association::{Detection, associate, births};
 use crate::observe;
 use crate::rssi_training::distance_variance;
 use crate::stats::StepStats;
@@ -28,8 +28,7 @@ impl HeadNode {
             .iter()
             .map(|t| (*t.filter.mean(), *t.filter.cov(), t.time))
             .collect();
-        let gate = self.cfg.method.gate_chi2;
-        let assigned = associate(&priors, &dets, &self.cameras, gate);
+        let assigned = associate(&priors, &dets, &self.cameras, self.cfg.method.gate_chi2);
         let mut free = Vec::new();
         for (d, a) in dets.into_iter().zip(assigned) {
             match a {
@@ -38,11 +37,6 @@ impl HeadNode {
                     self.tracks[t].detections.push(d);
                 }
                 Some(_) => {}
-                // A detection inside a live track's gate that the assignment left over (a
-                // camera's second frame within one step, or one sent before the track's first
-                // prior reached it) is that track's, not a new person: births never duplicate
-                // a live track.
-                None if gated_by_any(&priors, &d, &self.cameras, gate) => {}
                 None => free.push(d),
             }
         }
