@@ -291,8 +291,8 @@ impl CameraNode {
         // frame period), so the frame's age needs no clock shared with the head.
         let age_s = captured.map_or(0.0, |t| now.secs_since(t));
         let cam = &self.cfg.camera;
-        let chosen = captured.and_then(|_| {
-            let priors = self.answering(prior, age_s);
+        let chosen = captured.and_then(|c| {
+            let priors = self.answering(prior, age_s, c);
             measure::joint_choice(&priors, 0, &self.measured, self.cfg.gate_chi2, |p, m, age| {
                 measure::mahalanobis2(cam, p, m, age)
             })
@@ -308,14 +308,28 @@ impl CameraNode {
         )
     }
 
-    /// The priors `prior` is answered with: itself alone. Answering jointly with the other
-    /// tracks' held priors (each detection to one of them) was measured and left out: it
-    /// raised crowd MOTA at measurement level, but split a robot's cameras between the head's
-    /// duplicate tracks of it, which then never converged and merged (default scenario, 60 s,
-    /// seeds 2 and 3: 0.25 and 0.45 m instead of 0.16 and 0.12). The joint assignment of a
-    /// frame's ungated detections ([`measure::associate`]) stays.
-    pub(crate) fn answering<'a>(&'a self, prior: &'a Prior, age_s: f64) -> [(&'a Prior, f64); 1] {
-        [(prior, age_s)]
+    /// `prior` (first, its frame `age_s` old) with the priors it is answered jointly with: the
+    /// other tracks' newest, of this step or the one before (a track the head dropped sends no
+    /// more and drops out), each with the frame's age relative to its arrival.
+    pub(crate) fn answering<'a>(
+        &'a self,
+        prior: &'a Prior,
+        age_s: f64,
+        captured: ClusterTime,
+    ) -> Vec<(&'a Prior, f64)> {
+        let mut out = vec![(prior, age_s)];
+        out.extend(
+            self.priors
+                .values()
+                .filter(|(t, p)| {
+                    p.target != prior.target
+                        && p.step + 1 >= prior.step
+                        && p.step <= prior.step
+                        && self.fresh(captured, *t)
+                })
+                .map(|(t, p)| (p, t.secs_since(captured))),
+        );
+        out
     }
 
     /// The newest reading of every tag heard within the freshness bound.

@@ -96,6 +96,20 @@ pub fn associate(
     out
 }
 
+/// Whether `det` lies inside the gate of any of `tracks` (as in [`associate`]).
+pub fn gated_by_any(
+    tracks: &[(State, Matrix6<f64>, ClusterTime)],
+    det: &Detection,
+    cameras: &[CameraModel],
+    gate: f64,
+) -> bool {
+    cameras.get(det.slot).is_some_and(|cam| {
+        tracks
+            .iter()
+            .any(|(mean, cov, at)| distance2(cam, det, mean, cov, *at).is_some_and(|d2| d2 <= gate))
+    })
+}
+
 /// A new track to start.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Birth {

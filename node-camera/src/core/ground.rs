@@ -123,8 +123,8 @@ impl CameraNode {
         let rssi = self.fresh_tags(now);
         let captured = self.captured.filter(|&t| self.fresh(t, now));
         let age_s = captured.map_or(0.0, |t| now.secs_since(t));
-        let chosen = captured.and_then(|_| {
-            let priors = self.answering(prior, age_s);
+        let chosen = captured.and_then(|c| {
+            let priors = self.answering(prior, age_s, c);
             crate::measure::joint_choice(
                 &priors,
                 0,

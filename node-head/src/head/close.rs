@@ -3,7 +3,7 @@
 
 use super::HeadNode;
 use crate::activation::{Candidate, Expected, Variant};
-use crate::association::{Detection, associate, births};
+use crate::association::{Detection, associate, births, gated_by_any};
 use crate::observe;
 use crate::rssi_training::distance_variance;
 use crate::stats::StepStats;
@@ -28,7 +28,8 @@ impl HeadNode {
             .iter()
             .map(|t| (*t.filter.mean(), *t.filter.cov(), t.time))
             .collect();
-        let assigned = associate(&priors, &dets, &self.cameras, self.cfg.method.gate_chi2);
+        let gate = self.cfg.method.gate_chi2;
+        let assigned = associate(&priors, &dets, &self.cameras, gate);
         let mut free = Vec::new();
         for (d, a) in dets.into_iter().zip(assigned) {
             match a {
@@ -37,6 +38,11 @@ impl HeadNode {
                     self.tracks[t].detections.push(d);
                 }
                 Some(_) => {}
+                // Distributed: detections reach the head only to start tracks, and one inside a
+                // live track's gate that the assignment left over (a camera's second frame in
+                // a step, or one sent before the track's first prior reached it) is that
+                // track's, not a new person: such births made a second track of one robot.
+                None if self.fusion.distributed() && gated_by_any(&priors, &d, &self.cameras, gate) => {}
                 None => free.push(d),
             }
         }
