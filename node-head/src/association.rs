@@ -1,10 +1,10 @@
-//! Several targets: gated nearest-neighbour association of detections to tracks, and track
+//! Several targets: gated global-nearest-neighbour association of detections to tracks, and track
 //! birth when unassociated detections from two or more cameras agree.
 //!
 //! Association: for every (detection, track) pair the innovation ν = p − h(μ̄) and its
-//! covariance S = H Σ̄ Hᵀ + C give d² = νᵀ S⁻¹ ν; pairs inside the χ² gate are taken greedily
-//! from the smallest d², each detection to one track and each track to one detection per
-//! camera. Birth: the largest group of leftover detections from distinct cameras whose
+//! covariance S = H Σ̄ Hᵀ + C give d² = νᵀ S⁻¹ ν; the optimal assignment over the pairs
+//! inside the χ² gate gives each detection at most one track and each track at most one
+//! detection per camera. Birth: the largest group of leftover detections from distinct cameras whose
 //! triangulated point reprojects inside the gate for every member. Ground-plane people (paper
 //! 004's cameras) gate in the floor plane (`models::ground_gate_distance2`) and are born from
 //! groups of agreeing floor positions ([`ground_births`]).
@@ -65,35 +65,34 @@ pub fn distance2(
 }
 
 /// Assign detections to tracks (`tracks[t] = (μ̄, Σ̄, the time of μ̄)`); entry `i` is the track
-/// of detection `i`, or `None`.
+/// of detection `i`, or `None`. Global nearest neighbour (`assign::gnn`): the optimal
+/// assignment over the gated d², each detection to at most one track and each track to at
+/// most one detection per camera, a detection left free costing the gate. Nearest-first, the
+/// nearer track of two people side by side could take the wrong one and leave the other with
+/// nothing.
 pub fn associate(
     tracks: &[(State, Matrix6<f64>, ClusterTime)],
     dets: &[Detection],
     cameras: &[CameraModel],
     gate: f64,
 ) -> Vec<Option<usize>> {
-    let mut pairs = Vec::new();
-    for (i, d) in dets.iter().enumerate() {
-        let Some(cam) = cameras.get(d.slot) else { continue };
-        for (t, (mean, cov, at)) in tracks.iter().enumerate() {
-            if let Some(d2) = distance2(cam, d, mean, cov, *at)
-                && d2 <= gate
-            {
-                pairs.push((d2, t, i));
-            }
-        }
+    let Ok(mut costs) = assign::GatedCosts::new(tracks.len(), gate) else {
+        return vec![None; dets.len()];
+    };
+    for d in dets {
+        let row: Vec<Option<f64>> = match cameras.get(d.slot) {
+            Some(cam) => tracks
+                .iter()
+                .map(|(mean, cov, at)| {
+                    distance2(cam, d, mean, cov, *at).filter(|x| x.is_finite() && *x >= 0.0)
+                })
+                .collect(),
+            None => vec![None; tracks.len()],
+        };
+        // Finite, non-negative costs of the right width: always taken.
+        let _ = costs.push(d.slot, &row);
     }
-    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut out = vec![None; dets.len()];
-    let mut taken: Vec<(usize, usize)> = Vec::new(); // (track, slot)
-    for (_, t, i) in pairs {
-        if out[i].is_some() || taken.contains(&(t, dets[i].slot)) {
-            continue;
-        }
-        out[i] = Some(t);
-        taken.push((t, dets[i].slot));
-    }
-    out
+    assign::assign(&costs)
 }
 
 /// Whether `det` lies inside the gate of any of `tracks` (as in [`associate`]).

@@ -132,6 +132,20 @@ mod tests {
     }
 
     #[test]
+    fn two_people_side_by_side_each_get_their_track() {
+        // Person A lies nearer track 0 than person B does, but B gates only track 0:
+        // nearest-first gave track 0 person A and left B free (a birth next to a live track).
+        let cov = nalgebra::Matrix6::identity() * 0.05;
+        let tracks = [
+            (State::new(2.0, 3.0, 0.9, 0.0, 0.0, 0.0), cov, ClusterTime::ZERO),
+            (State::new(2.9, 3.0, 0.9, 0.0, 0.0, 0.0), cov, ClusterTime::ZERO),
+        ];
+        let cams = vec![crate::init::tests::cam([0.0, 0.0, 2.5], [3.0, 3.0, 0.0])];
+        let dets = vec![det(0, 2.4, 3.0), det(0, 1.5, 3.0)];
+        assert_eq!(associate(&tracks, &dets, &cams, 13.8), vec![Some(1), Some(0)]);
+    }
+
+    #[test]
     fn floor_positions_gate_in_the_floor_plane() {
         let cov = nalgebra::Matrix6::identity() * 0.05;
         let tracks = [
