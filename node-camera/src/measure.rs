@@ -99,7 +99,7 @@ pub fn nearest_pairs<T>(
 /// crowd's tracks then lost their people and swapped), and the fallback keeps the head's
 /// duplicate or lagging track of one robot fed as before, so that it converges and is merged
 /// (given nothing, it lived on RSSI beside the robot's other track: default scenario, 60 s,
-/// seeds 2–5 erred 0.25–0.73 m instead of 0.16–0.22).
+/// seeds 2–5 erred 0.25–0.73 m instead of 0.14–0.21).
 pub fn joint_choice<'a, T>(
     priors: &[(&Prior, f64)],
     of: usize,

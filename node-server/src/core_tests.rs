@@ -603,11 +603,13 @@ fn two_globals_that_stay_together_become_one() {
 fn two_people_one_head_tracks_side_by_side_keep_two_globals() {
     let mut s = started();
     let x = |k: i64| 1.0 + 0.1 * k as f64;
-    // Two people walk side by side 0.6 m apart (inside the 1 m gate): head 2 tracks each.
-    for k in 0..20i64 {
+    // Two people walk side by side 0.6 m apart (inside the 1 m gate): head 2 tracks each; the
+    // server ticks between reports.
+    for k in 0..25i64 {
         let t = ms(k * 200);
         s.on_message(t, report(H2, 1, None, t, x(k), 2.0));
         s.on_message(t, report(H2, 2, None, t, x(k), 2.6));
+        s.tick(ms(k * 200 + 100));
     }
     let (a, b) = (s.global_of(H2, TargetId(1)), s.global_of(H2, TargetId(2)));
     assert!(a.is_some() && b.is_some() && a != b, "{a:?} {b:?}");

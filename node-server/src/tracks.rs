@@ -145,8 +145,9 @@ pub struct Tracks {
     locals: BTreeMap<(NodeId, TargetId), LocalTrack>,
     /// Consecutive owner reports of the younger global found within the gate of the older one.
     close: BTreeMap<(TargetId, TargetId), u32>,
-    /// Since when each local track has been waiting on a global its own head feeds.
-    waiting: BTreeMap<(NodeId, TargetId), ClusterTime>,
+    /// Since when each local track has been waiting on a global its own head feeds, and the
+    /// server time of its last report.
+    waiting: BTreeMap<(NodeId, TargetId), (ClusterTime, ClusterTime)>,
 }
 
 impl GlobalTrack {
@@ -277,8 +278,15 @@ impl Tracks {
             self.waiting.remove(&(head, r.target));
             return false;
         }
-        let since = *self.waiting.entry((head, r.target)).or_insert(now);
-        now - since < self.params.duplicate_wait_ns
+        now - self.waited_since(now, (head, r.target)) < self.params.duplicate_wait_ns
+    }
+
+    /// When `key` began waiting as its head's second track on one global (now, if it did not
+    /// wait before); notes the report.
+    fn waited_since(&mut self, now: ClusterTime, key: (NodeId, TargetId)) -> ClusterTime {
+        let w = self.waiting.entry(key).or_insert((now, now));
+        w.1 = now;
+        w.0
     }
 
     /// Whether `r` lies within the merge gate of a live global that `head` already feeds.

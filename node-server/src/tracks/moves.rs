@@ -138,7 +138,9 @@ impl Tracks {
             .filter(|(_, l)| now - l.last > timeout)
             .map(|(k, _)| *k)
             .collect();
-        self.waiting.retain(|_, since| now - *since <= timeout);
+        // A waiting track silent for the timeout is gone (one still reporting keeps its wait,
+        // however long: the timeout and the duplicate wait are both 3 s by default).
+        self.waiting.retain(|_, (_, last)| now - *last <= timeout);
         for (head, local) in stale {
             self.locals.remove(&(head, local));
             out.push(Decision::Forgotten { head, local });

@@ -177,7 +177,7 @@ impl Tracks {
             // global would take turns moving its posterior. The head's duplicate, merged away
             // soon; one the head keeps past the duplicate wait is a second person, who gets
             // an id of their own.
-            let since = *self.waiting.entry(rep.key()).or_insert(now);
+            let since = self.waited_since(now, rep.key());
             if !rep.foreign && now - since >= self.params.duplicate_wait_ns {
                 self.waiting.remove(&rep.key());
                 let g = self.new_global(now, head, r);
