@@ -106,7 +106,8 @@ impl Tracks {
             // So does a track lying on a global its own head already feeds: the head's
             // duplicate of that target (after a failover the survivor may briefly hold two),
             // which the head merges away. Given an id at once, it was a second id for seconds;
-            // if it is another target, it founds one once it parts.
+            // if it is another target, it founds one once it parts or the head has kept it for
+            // the duplicate wait.
             None if self.waits_as_duplicate(now, head, r) => None,
             None => {
                 self.waiting.remove(&rep.key());
@@ -120,7 +121,8 @@ impl Tracks {
     }
 
     /// A pending track: bound after `n` agreeing reports (at once when it follows a global
-    /// whose owner is gone), or founding its own global after `n` disagreeing ones.
+    /// whose owner is gone), or founding its own global after `n` disagreeing ones, or after
+    /// the duplicate wait on a global its head feeds with another track.
     fn update_pending(&mut self, rep: &Report, g: TargetId, out: &mut Vec<Decision>) -> Option<Binding> {
         let (now, head, r, n) = (rep.now, rep.head, rep.r, rep.n);
         let local = r.target;
@@ -129,13 +131,19 @@ impl Tracks {
         let gone = self.owner_gone(now, g, rep.members);
         // The head follows g: it was told this track is g, or it lies on g.
         let follows = r.global == Some(g) || agrees;
+        // Its head already feeds g with another track: two tracks of one head on one global
+        // would take turns moving its posterior. It is the head's duplicate, merged away soon;
+        // one the head keeps on g past the duplicate wait is a second person, who founds a
+        // global of their own.
+        let other = self.feeds_other(head, local, g, now);
         let takes = follows
             && match owner {
-                Some(o) if o == head => !self.feeds_other(head, local, g, now),
+                Some(o) if o == head => !other,
                 Some(_) => gone,
                 None => false,
             };
-        let other = self.feeds_other(head, local, g, now);
+        let waited_out =
+            agrees && other && now - self.waited_since(now, rep.key()) >= self.params.duplicate_wait_ns;
         let l = self.locals.get_mut(&rep.key()).expect("present");
         l.last = now;
         l.posterior = (r.time, r.mean, r.cov);
@@ -172,26 +180,13 @@ impl Tracks {
             l.binding = Binding::Bound(g);
             out.push(rep.merged(g));
             Some(Binding::Bound(g))
-        } else if agrees && l.agree >= n {
-            // Its head already feeds g with another track: two tracks of one head on one
-            // global would take turns moving its posterior. The head's duplicate, merged away
-            // soon; one the head keeps past the duplicate wait is a second person, who gets
-            // an id of their own.
-            let since = self.waited_since(now, rep.key());
-            if !rep.foreign && now - since >= self.params.duplicate_wait_ns {
-                self.waiting.remove(&rep.key());
-                let g = self.new_global(now, head, r);
-                *self.locals.get_mut(&rep.key()).expect("present") =
-                    LocalTrack::new(Binding::Bound(g), now, r);
-                out.push(rep.new_global(g));
-                Some(Binding::Bound(g))
-            } else {
-                Some(Binding::Pending(g))
-            }
         } else if rep.foreign && !self.globals.contains_key(&g) {
             self.locals.remove(&rep.key());
             None
-        } else if !rep.foreign && (!self.globals.contains_key(&g) || (!agrees && l.disagree >= n)) {
+        } else if !rep.foreign
+            && (!self.globals.contains_key(&g) || (!agrees && l.disagree >= n) || waited_out)
+        {
+            self.waiting.remove(&rep.key());
             let g = self.new_global(now, head, r);
             *self.locals.get_mut(&rep.key()).expect("present") = LocalTrack::new(Binding::Bound(g), now, r);
             out.push(rep.new_global(g));
