@@ -65,20 +65,29 @@ pub fn distance2(
 }
 
 /// Assign detections to tracks (`tracks[t] = (μ̄, Σ̄, the time of μ̄)`); entry `i` is the track
-/// of detection `i`, or `None`. Global nearest neighbour (`assign::gnn`): the optimal
-/// assignment over the gated d², each detection to at most one track and each track to at
-/// most one detection per camera, a detection left free costing the gate. Nearest-first, the
-/// nearer track of two people side by side could take the wrong one and leave the other with
-/// nothing.
+/// of detection `i`, or `None`. Global nearest neighbour (`assign::gnn`) over
+/// [`gated_costs`]: the optimal assignment, each detection to at most one track and each track
+/// to at most one detection per camera, a detection left free costing the gate. Nearest-first,
+/// the nearer track of two people side by side could take the wrong one and leave the other
+/// with nothing.
 pub fn associate(
     tracks: &[(State, Matrix6<f64>, ClusterTime)],
     dets: &[Detection],
     cameras: &[CameraModel],
     gate: f64,
 ) -> Vec<Option<usize>> {
-    let Ok(mut costs) = assign::GatedCosts::new(tracks.len(), gate) else {
-        return vec![None; dets.len()];
-    };
+    gated_costs(tracks, dets, cameras, gate).map_or_else(|| vec![None; dets.len()], |c| assign::assign(&c))
+}
+
+/// The association problem: each detection's [`distance2`] to every track, by camera (`None`
+/// when the gate is not a finite number > 0).
+pub fn gated_costs(
+    tracks: &[(State, Matrix6<f64>, ClusterTime)],
+    dets: &[Detection],
+    cameras: &[CameraModel],
+    gate: f64,
+) -> Option<assign::GatedCosts> {
+    let mut costs = assign::GatedCosts::new(tracks.len(), gate).ok()?;
     for d in dets {
         let row: Vec<Option<f64>> = match cameras.get(d.slot) {
             Some(cam) => tracks
@@ -92,21 +101,7 @@ pub fn associate(
         // Finite, non-negative costs of the right width: always taken.
         let _ = costs.push(d.slot, &row);
     }
-    assign::assign(&costs)
-}
-
-/// Whether `det` lies inside the gate of any of `tracks` (as in [`associate`]).
-pub fn gated_by_any(
-    tracks: &[(State, Matrix6<f64>, ClusterTime)],
-    det: &Detection,
-    cameras: &[CameraModel],
-    gate: f64,
-) -> bool {
-    cameras.get(det.slot).is_some_and(|cam| {
-        tracks
-            .iter()
-            .any(|(mean, cov, at)| distance2(cam, det, mean, cov, *at).is_some_and(|d2| d2 <= gate))
-    })
+    Some(costs)
 }
 
 /// A new track to start.

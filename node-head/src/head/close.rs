@@ -3,7 +3,7 @@
 
 use super::HeadNode;
 use crate::activation::{Candidate, Expected, Variant};
-use crate::association::{Detection, associate, births, gated_by_any};
+use crate::association::{Detection, births, gated_costs};
 use crate::observe;
 use crate::rssi_training::distance_variance;
 use crate::stats::StepStats;
@@ -28,10 +28,13 @@ impl HeadNode {
             .iter()
             .map(|t| (*t.filter.mean(), *t.filter.cov(), t.time))
             .collect();
-        let gate = self.cfg.method.gate_chi2;
-        let assigned = associate(&priors, &dets, &self.cameras, gate);
+        let costs = gated_costs(&priors, &dets, &self.cameras, self.cfg.method.gate_chi2);
+        let assigned = costs
+            .as_ref()
+            .map_or_else(|| vec![None; dets.len()], assign::assign);
+        let gated = |i: usize| costs.as_ref().is_some_and(|c| c.gated(i));
         let mut free = Vec::new();
-        for (d, a) in dets.into_iter().zip(assigned) {
+        for (i, (d, a)) in dets.into_iter().zip(assigned).enumerate() {
             match a {
                 Some(t) if !self.fusion.distributed() => {
                     self.tracks[t].last_seen = now;
@@ -42,7 +45,7 @@ impl HeadNode {
                 // live track's gate that the assignment left over (a camera's second frame in
                 // a step, or one sent before the track's first prior reached it) is that
                 // track's, not a new person: such births made a second track of one robot.
-                None if self.fusion.distributed() && gated_by_any(&priors, &d, &self.cameras, gate) => {}
+                None if self.fusion.distributed() && gated(i) => {}
                 None => free.push(d),
             }
         }

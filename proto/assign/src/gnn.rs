@@ -141,6 +141,11 @@ impl GatedCosts {
         Some(self.d2[detection * self.tracks + track]).filter(|x| x.is_finite())
     }
 
+    /// Whether a detection has a pair inside the gate with any track.
+    pub fn gated(&self, detection: usize) -> bool {
+        (0..self.tracks).any(|t| self.cost(detection, t).is_some())
+    }
+
     /// The total cost of an assignment (d² per pair, the gate per free detection), or `None` when
     /// it is not feasible: wrong length, a pair outside the gate, or a track given two detections
     /// of one camera.
@@ -294,6 +299,7 @@ mod tests {
             (None, None, Some(1.0))
         );
         assert_eq!(assign(&c), vec![None, Some(1)]);
+        assert!(!c.gated(0) && c.gated(1) && !c.gated(2), "out of range: not gated");
         // A lone pair just outside the gate stays apart; one on the gate may pair (same cost).
         assert_eq!(assign(&table(4.0, &[(0, &[Some(4.000001)])])), vec![None]);
         assert_eq!(table(4.0, &[(0, &[Some(4.0)])]).cost(0, 0), Some(4.0));
@@ -305,6 +311,7 @@ mod tests {
         // one camera compete: the closer one wins and the other stays free.
         let c = table(9.0, &[(3, &[Some(1.0)]), (5, &[Some(2.0)]), (3, &[Some(0.5)])]);
         assert_eq!(assign(&c), vec![None, Some(0), Some(0)]);
+        assert!(c.gated(0), "left free, but inside the gate");
     }
 
     #[test]
