@@ -131,31 +131,34 @@ mod tests {
         assert_eq!(births(&dets, &[], 13.8, 2, 0.9, ROOM).len(), 1);
     }
 
+    /// Ground detections of one camera associated with tracks standing at `at` (floor
+    /// positions, 0.9 m centre height, covariance 0.05 I).
+    fn associate_at(at: &[(f64, f64)], dets: &[Detection]) -> Vec<Option<usize>> {
+        let cov = nalgebra::Matrix6::identity() * 0.05;
+        let tracks: Vec<_> = at
+            .iter()
+            .map(|&(x, y)| (State::new(x, y, 0.9, 0.0, 0.0, 0.0), cov, ClusterTime::ZERO))
+            .collect();
+        let cams = vec![crate::init::tests::cam([0.0, 0.0, 2.5], [3.0, 3.0, 0.0])];
+        associate(&tracks, dets, &cams, 13.8)
+    }
+
     #[test]
     fn two_people_side_by_side_each_get_their_track() {
         // Person A lies nearer track 0 than person B does, but B gates only track 0:
         // nearest-first gave track 0 person A and left B free (a birth next to a live track).
-        let cov = nalgebra::Matrix6::identity() * 0.05;
-        let tracks = [
-            (State::new(2.0, 3.0, 0.9, 0.0, 0.0, 0.0), cov, ClusterTime::ZERO),
-            (State::new(2.9, 3.0, 0.9, 0.0, 0.0, 0.0), cov, ClusterTime::ZERO),
-        ];
-        let cams = vec![crate::init::tests::cam([0.0, 0.0, 2.5], [3.0, 3.0, 0.0])];
-        let dets = vec![det(0, 2.4, 3.0), det(0, 1.5, 3.0)];
-        assert_eq!(associate(&tracks, &dets, &cams, 13.8), vec![Some(1), Some(0)]);
+        let dets = [det(0, 2.4, 3.0), det(0, 1.5, 3.0)];
+        assert_eq!(
+            associate_at(&[(2.0, 3.0), (2.9, 3.0)], &dets),
+            vec![Some(1), Some(0)]
+        );
     }
 
     #[test]
     fn floor_positions_gate_in_the_floor_plane() {
-        let cov = nalgebra::Matrix6::identity() * 0.05;
-        let tracks = [
-            (State::new(2.0, 3.0, 0.9, 0.0, 0.0, 0.0), cov, ClusterTime::ZERO),
-            (State::new(6.0, 5.0, 0.9, 0.0, 0.0, 0.0), cov, ClusterTime::ZERO),
-        ];
-        let cams = vec![crate::init::tests::cam([0.0, 0.0, 2.5], [3.0, 3.0, 0.0])];
-        let dets = vec![det(0, 6.1, 5.0), det(0, 2.0, 2.9), det(0, 9.0, 1.0)];
+        let dets = [det(0, 6.1, 5.0), det(0, 2.0, 2.9), det(0, 9.0, 1.0)];
         assert_eq!(
-            associate(&tracks, &dets, &cams, 13.8),
+            associate_at(&[(2.0, 3.0), (6.0, 5.0)], &dets),
             vec![Some(1), Some(0), None]
         );
     }

@@ -299,7 +299,10 @@ mod tests {
             (None, None, Some(1.0))
         );
         assert_eq!(assign(&c), vec![None, Some(1)]);
-        assert!(!c.gated(0) && c.gated(1) && !c.gated(2), "out of range: not gated");
+        assert!(
+            !c.gated(0) && c.gated(1) && !c.gated(2),
+            "out of range: not gated"
+        );
         // A lone pair just outside the gate stays apart; one on the gate may pair (same cost).
         assert_eq!(assign(&table(4.0, &[(0, &[Some(4.000001)])])), vec![None]);
         assert_eq!(table(4.0, &[(0, &[Some(4.0)])]).cost(0, 0), Some(4.0));
