@@ -16,7 +16,6 @@ pub use ground::{GROUND_BIRTH_Z_SIGMA, ground_births};
 use nalgebra::{Matrix2, Matrix6, Vector2};
 use proto::camera::CameraModel;
 use proto::models::{State, gate_distance2, ground_gate_distance2, pinhole};
-use proto::observation::RssiReading;
 use proto::{ClusterTime, NodeId, TargetId};
 
 /// One detection as the head sees it.
@@ -29,8 +28,6 @@ pub struct Detection {
     pub point: Vector2<f64>,
     pub cov: Matrix2<f64>,
     pub prev_point: Option<Vector2<f64>>,
-    /// Tag readings of the same frame (sent with detections gated to a track).
-    pub rssi: Vec<RssiReading>,
     /// The track the camera gated it to, if any.
     pub hint: Option<TargetId>,
     /// When the camera captured the frame.
@@ -240,7 +237,6 @@ mod tests {
             point: cams[slot].normalized(&p).0,
             cov: Matrix2::identity() * (18.0f64 / 320.0).powi(2),
             prev_point: None,
-            rssi: Vec::new(),
             hint: None,
             captured: ClusterTime::ZERO,
             ground: None,

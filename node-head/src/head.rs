@@ -58,6 +58,8 @@ pub struct HeadNode {
     step_time: ClusterTime,
     next_step_at: Option<ClusterTime>,
     detections: Vec<Detection>,
+    /// The step's tag readings, the evidence of which tag is on which track, the bindings.
+    tags: crate::tags::TagBook,
     planner: Planner,
     expected: Vec<bool>,
     counters: Counters,
@@ -107,6 +109,7 @@ impl HeadNode {
             step_time: ClusterTime::ZERO,
             next_step_at: None,
             detections: Vec::new(),
+            tags: crate::tags::TagBook::default(),
             planner,
             expected: Vec::new(),
             counters: Counters::default(),
@@ -329,15 +332,7 @@ impl HeadNode {
                     .filter(|_| self.fresh(now, c.captured, slot, "ground person"))
                     .map(|p| self.ground_detection(slot, p, c.captured));
                 let camera = c.folded.camera() || ground.is_some();
-                let rssi: Vec<_> = if self.nodes[slot].info.rssi {
-                    let readings: Vec<_> = c.rssi().copied().collect();
-                    readings
-                        .into_iter()
-                        .filter(|r| self.fresh(now, r.time, slot, "RSSI packet"))
-                        .collect()
-                } else {
-                    Vec::new()
-                };
+                self.offer_readings(now, slot, c.rssi());
                 self.counters.unfused_observations += c
                     .observations
                     .iter()
@@ -368,11 +363,6 @@ impl HeadNode {
                 let mut kinds = if camera { c.folded } else { Kinds::NONE };
                 if ground.is_some() {
                     kinds.insert(ObservationKind::Ground);
-                }
-                for r in &rssi {
-                    if track.hear_once(slot, r.time, r.dbm) {
-                        kinds.insert(ObservationKind::Rssi);
-                    }
                 }
                 if !kinds.is_empty() {
                     track.contributors.push(proto::msg::Contributor {
@@ -435,11 +425,7 @@ impl HeadNode {
         if !self.fresh(now, captured, slot, "measurement") {
             return;
         }
-        let readings: Vec<_> = m.rssi().copied().collect();
-        let rssi = readings
-            .into_iter()
-            .filter(|r| self.fresh(now, r.time, slot, "RSSI packet"))
-            .collect();
+        self.offer_readings(now, slot, m.rssi());
         self.planner.camera_delivered(self.nodes[slot].info.id);
         self.detect(Detection {
             node: self.nodes[slot].info.id,
@@ -447,7 +433,6 @@ impl HeadNode {
             point: Vector2::from(point),
             cov: Matrix2::new(cov[0], cov[1], cov[1], cov[2]),
             prev_point,
-            rssi,
             hint: m.target,
             captured,
             ground: None,
@@ -462,12 +447,7 @@ impl HeadNode {
         if !self.fresh(now, f.captured, slot, "people frame") {
             return;
         }
-        let rssi: Vec<_> = f
-            .rssi
-            .iter()
-            .copied()
-            .filter(|r| self.fresh(now, r.time, slot, "RSSI packet"))
-            .collect();
+        self.offer_readings(now, slot, &f.rssi);
         if !f.people.is_empty() {
             self.planner.camera_delivered(self.nodes[slot].info.id);
         }
@@ -479,11 +459,6 @@ impl HeadNode {
                 point: Vector2::from(p.position()),
                 cov: Matrix2::new(cov[0], cov[1], cov[1], cov[2]),
                 prev_point: None,
-                rssi: if p.target.is_some() {
-                    rssi.clone()
-                } else {
-                    Vec::new()
-                },
                 hint: p.target,
                 captured: f.captured,
                 ground: Some(p.height_m()),
@@ -500,7 +475,6 @@ impl HeadNode {
             point: Vector2::from(p.position()),
             cov: Matrix2::new(cov[0], cov[1], cov[1], cov[2]),
             prev_point: None,
-            rssi: Vec::new(),
             hint: p.target,
             captured,
             ground: Some(p.height_m()),
@@ -704,5 +678,6 @@ impl Node for HeadNode {
 mod close;
 mod radio;
 mod sensed;
+mod tagged;
 #[cfg(test)]
 mod tests;

@@ -25,6 +25,7 @@ pub mod rssi_noise;
 pub mod rssi_training;
 pub mod stats;
 pub mod step;
+pub mod tags;
 pub mod track;
 
 pub use config::{ConfigError, HeadConfig};

@@ -65,17 +65,10 @@ pub struct Track {
     pub anchor: Option<Vector3<f64>>,
     /// Reported to the server (see [`CONFIRM_STEPS`]).
     pub confirmed: bool,
-    /// (node slot, reception time) of the RSSI readings taken in the last
-    /// [`TAKEN_MEMORY_NS`]: a node repeats its newest reading of a tag in every answer while
-    /// it is fresh, and a reading is information once.
-    pub taken: Vec<(usize, ClusterTime)>,
     /// The colour histogram the ground-plane observations fused into it carried, blended
     /// over time (empty until one came): its appearance for identity at the server.
     pub appearance: Vec<f32>,
 }
-
-/// How long the readings a track took are remembered (longer than any freshness bound).
-pub const TAKEN_MEMORY_NS: i64 = 10_000_000_000;
 
 impl Track {
     /// A track from a Gaussian at `now`, with `nodes` RSSI trainers.
@@ -118,7 +111,6 @@ impl Track {
             camera_steps: 0,
             anchor: None,
             confirmed: global.is_some(),
-            taken: Vec::new(),
             appearance: Vec::new(),
         })
     }
@@ -143,7 +135,6 @@ impl Track {
         self.ml_points.clear();
         self.contributors.clear();
         self.captured = None;
-        self.taken.retain(|&(_, t)| now - t < TAKEN_MEMORY_NS);
         Ok(())
     }
 
@@ -184,19 +175,6 @@ impl Track {
             *h = true;
         }
         true
-    }
-
-    /// As [`Track::hear`], for node `slot`'s reading received at `time`, unless that reading
-    /// was taken before (it came again in a later answer).
-    pub fn hear_once(&mut self, slot: usize, time: ClusterTime, dbm: f64) -> bool {
-        if self.taken.contains(&(slot, time)) {
-            return false;
-        }
-        let taken = self.hear(slot, dbm, self.time.secs_since(time));
-        if taken {
-            self.taken.push((slot, time));
-        }
-        taken
     }
 
     /// A camera's colour histogram of the person this track follows (sent on the person's
@@ -281,19 +259,5 @@ mod tests {
         assert!(t.rssi_heard[1]);
         // A handed-over track is confirmed from the start.
         assert!(track(Some(TargetId(7))).hear(0, -60.0, 0.0));
-    }
-
-    #[test]
-    fn a_reading_repeated_in_later_answers_is_taken_once() {
-        let mut t = track(Some(TargetId(7)));
-        let at = ClusterTime::from_secs_f64(1.0);
-        assert!(t.hear_once(1, at, -60.0));
-        assert!(!t.hear_once(1, at, -60.0), "the same reading again");
-        assert!(t.hear_once(2, at, -61.0), "another node's");
-        assert!(t.hear_once(1, at + 1, -62.0), "a newer one");
-        assert_eq!(t.rssi.len(), 3);
-        let motion = MotionModel::default();
-        t.begin_step(&motion, at + TAKEN_MEMORY_NS + 2).unwrap();
-        assert!(t.taken.is_empty(), "forgotten after the memory");
     }
 }

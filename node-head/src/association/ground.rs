@@ -109,7 +109,6 @@ mod tests {
             point: Vector2::new(x, y),
             cov: Matrix2::identity() * 0.1f64.powi(2),
             prev_point: None,
-            rssi: Vec::new(),
             hint: None,
             captured: ClusterTime::ZERO,
             ground: Some(1.8),

@@ -61,6 +61,7 @@ impl HeadNode {
         };
         let mut rssi_nodes = vec![false; self.nodes.len()];
         self.hand_sensed_to_fusion();
+        self.hand_readings_to_tracks(now);
         for t in 0..self.tracks.len() {
             self.hold_height(t);
             self.fuse_track(t, now, &mut stats, &mut rssi_nodes);
@@ -118,22 +119,16 @@ impl HeadNode {
     fn fuse_track(&mut self, t: usize, now: ClusterTime, stats: &mut StepStats, rssi_nodes: &mut [bool]) {
         let fuse_rssi = self.uses_rssi() && self.fusion.fuses_rssi();
         let track = &mut self.tracks[t];
-        let at = track.time;
         let mean_bar = *track.filter.mean();
         let dets = std::mem::take(&mut track.detections);
         for d in &dets {
             let node = &self.cfg.nodes[d.slot];
             self.fusion.absorb(track, d, node, &self.cfg);
-            let mut kinds = Kinds::of(if d.ground.is_some() {
+            let kinds = Kinds::of(if d.ground.is_some() {
                 ObservationKind::Ground
             } else {
                 ObservationKind::Pinhole
             });
-            for r in d.rssi.iter().filter(|_| node.rssi) {
-                if track.hear(d.slot, r.dbm, at.secs_since(r.time)) {
-                    kinds.insert(ObservationKind::Rssi);
-                }
-            }
             track.note(node.id, kinds);
             track.fused_frame(d.captured);
         }
@@ -228,11 +223,15 @@ impl HeadNode {
 
     /// Two tracks on one target (a track born next to another, or two converging on the same
     /// detections, which cameras may gate to both priors) would be updated together forever.
-    /// When their states (position and velocity) agree within the gate (Mahalanobis with the
-    /// summed covariances), keep the one with a global id, else the confirmed one, else the
-    /// older, and drop the other. A tentative track (never reported) next to a confirmed one
-    /// is dropped on position alone: its velocity is still a guess (a ghost's track swept onto
-    /// a target, or a second track born on one target), and nobody knows it yet.
+    /// When their states on the floor (horizontal position and velocity) agree within the gate
+    /// (Mahalanobis with the summed covariances), keep the one with a global id, else the
+    /// confirmed one, else the older, and drop the other. A tentative track (never reported)
+    /// next to a confirmed one is dropped on position alone: its velocity is still a guess (a
+    /// ghost's track swept onto a target, or a second track born on one target), and nobody
+    /// knows it yet. Heights are left out: targets walk on the floor, so two tracks above one
+    /// floor point are one target, and a duplicate that settled at another height (few
+    /// cameras, steep views: the hall had pairs 1–2 m apart in height, one below the floor)
+    /// was never merged when the test took the full position.
     fn merge_duplicates(&mut self) {
         let gate = self.cfg.method.gate_chi2;
         let mut i = 0;
@@ -241,18 +240,15 @@ impl HeadNode {
             while j < self.tracks.len() {
                 let (a, b) = (&self.tracks[i], &self.tracks[j]);
                 // Position and velocity: two targets crossing are near but move apart.
-                let d = a.filter.mean() - b.filter.mean();
-                let s = a.filter.cov() + b.filter.cov();
                 let same = if a.confirmed != b.confirmed {
-                    let (d, s) = (
-                        d.fixed_rows::<3>(0).into_owned(),
-                        s.fixed_view::<3, 3>(0, 0).into_owned(),
-                    );
-                    s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate)
+                    floor_distance2(a, b, &[0, 1])
                 } else {
-                    s.cholesky().is_some_and(|c| d.dot(&c.solve(&d)) <= gate)
-                };
-                if same {
+                    floor_distance2(a, b, &[0, 1, 3, 4])
+                }
+                .is_some_and(|d2| d2 <= gate);
+                // Two tracks holding two tags are two people, however close.
+                let two_tags = self.tags.tag_of(a.local).is_some() && self.tags.tag_of(b.local).is_some();
+                if same && !two_tags {
                     // Prefer the track the server knows, then a confirmed one, then the older
                     // (lower index).
                     let rank = |t: &crate::track::Track| (t.global.is_some(), t.confirmed);
@@ -260,6 +256,7 @@ impl HeadNode {
                     let kept = if gone == i { j } else { i };
                     info!(kept = %self.tracks[kept].local, dropped = %self.tracks[gone].local, "duplicate tracks merged");
                     self.counters.merges += 1;
+                    self.tags.merged(self.tracks[gone].local, self.tracks[kept].local);
                     self.tracks.remove(gone);
                     if gone == i {
                         continue 'outer;
@@ -351,4 +348,15 @@ impl HeadNode {
         self.command(slot, to, out);
         Some(decision)
     }
+}
+
+/// Squared Mahalanobis distance between two tracks' states restricted to the components
+/// `idx`, with their summed covariances; `None` when that sum is not positive definite.
+fn floor_distance2(a: &crate::track::Track, b: &crate::track::Track, idx: &[usize]) -> Option<f64> {
+    let n = idx.len();
+    let (ma, mb, ca, cb) = (a.filter.mean(), b.filter.mean(), a.filter.cov(), b.filter.cov());
+    let d = nalgebra::DVector::from_fn(n, |r, _| ma[idx[r]] - mb[idx[r]]);
+    let s = nalgebra::DMatrix::from_fn(n, n, |r, c| ca[(idx[r], idx[c])] + cb[(idx[r], idx[c])]);
+    let c = s.cholesky()?;
+    Some(d.dot(&c.solve(&d)))
 }

@@ -1,15 +1,18 @@
 //! Radio-only clusters: a head whose members are all radio-only nodes (no camera can start a
 //! track there) keeps one *radio search* track while it has none, started wide at the centre of
-//! its up members with Mode CameraOff, so its priors ask them for the tags they hear. The track
-//! takes RSSI at once (it is confirmed: no camera can confirm it), is reported to the server
-//! only once a tag was heard for it, and is dropped like any track when nothing was heard for
-//! `track-timeout-ms`; the next step starts another. Clusters with a camera start tracks from
+//! its up members with Mode CameraOff, so its priors ask them for the tags they hear. The first
+//! tag heard that no track holds is bound to it, and each further one gets a radio track of its
+//! own (`crate::tags`: a tag's readings go into its own track only). A radio track takes its
+//! tag's RSSI at once (it is confirmed: no camera can confirm it), is reported to the server
+//! only once its tag was heard, and is dropped like any track when nothing was heard for
+//! `track-timeout-ms`; the next step starts another search track if none is left. Clusters with a camera start tracks from
 //! cameras only, as before, and their radio-only members add RSSI to them.
 
 use super::HeadNode;
+use crate::tags::Heard;
 use nalgebra::{Matrix6, Vector3};
-use proto::ClusterTime;
 use proto::models::State;
+use proto::{ClusterTime, TargetId};
 use tracing::{info, warn};
 
 /// Standard deviation of a radio search track's horizontal position at its start, metres (a
@@ -37,9 +40,33 @@ impl HeadNode {
     /// Start a radio search track if this is a radio-only cluster with no track and a member
     /// up.
     pub(super) fn radio_search(&mut self, now: ClusterTime) {
-        if !self.tracks.is_empty() || !self.radio_only_cluster() {
+        if self.tracks.is_empty() && self.radio_only_cluster() {
+            self.start_radio_track(now);
+        }
+    }
+
+    /// In a radio-only cluster, give every tag heard this step that no track holds a track of
+    /// its own: the search track while it holds none, else a new radio track. Several tags
+    /// are several people, and a tag's readings go into its own track only (`crate::tags`).
+    pub(super) fn radio_tracks_for(&mut self, heard: &[Heard], now: ClusterTime) {
+        if !self.radio_only_cluster() {
             return;
         }
+        for tag in self.tags.unbound_in(heard) {
+            let search = self
+                .tracks
+                .iter()
+                .find(|t| t.camera_steps == 0 && self.tags.tag_of(t.local).is_none())
+                .map(|t| t.local);
+            if let Some(local) = search.or_else(|| self.start_radio_track(now)) {
+                info!(tag = %tag, target = %local, "radio track holds a tag");
+                self.tags.bind(tag, local);
+            }
+        }
+    }
+
+    /// Start a radio track, wide at the centre of the up members; returns its local id.
+    fn start_radio_track(&mut self, now: ClusterTime) -> Option<TargetId> {
         let up: Vec<Vector3<f64>> = self
             .nodes
             .iter()
@@ -47,7 +74,7 @@ impl HeadNode {
             .map(|n| n.info.position)
             .collect();
         if up.is_empty() {
-            return;
+            return None;
         }
         let centre = up.iter().sum::<Vector3<f64>>() / up.len() as f64;
         let z = self.cfg.method.target_plane_z();
@@ -66,10 +93,12 @@ impl HeadNode {
                 info!(target = %local, x = centre.x, y = centre.y, nodes = up.len(), "radio search track");
                 self.counters.births += 1;
                 self.tracks.push(t);
+                Some(local)
             }
             Err(e) => {
                 self.counters.numeric_failures += 1;
                 warn!(error = %e, "radio search track with an unusable covariance");
+                None
             }
         }
     }

@@ -490,6 +490,9 @@ fn head_after_one_rssi_packet(time: ClusterTime, camera: bool) -> (usize, HeadNo
         c.mode = Mode::Active;
     }
     h.on_message(t1, env(node.id.0, Message::Contribution(c)));
+    // The tag is taken as the track's: binding by evidence is `crate::tags`' to test.
+    let local = h.tracks()[0].local;
+    h.tags.bind(rssi.tag, local);
     h.tick(ClusterTime::from_millis(281));
     (slot, h)
 }
@@ -580,7 +583,7 @@ fn people_frame(at: [f64; 2], target: Option<TargetId>, captured: ClusterTime) -
 }
 
 /// Each person of a people frame is a floor detection with the frame's capture time and the
-/// measured height; the frame's tag readings go with the people gated to a track only; a
+/// measured height; the frame's tag readings go to the head's tag book; a
 /// centralized head fuses the person at its capture time.
 #[test]
 fn a_people_frame_gives_one_floor_detection_per_person() {
@@ -601,7 +604,11 @@ fn a_people_frame_gives_one_floor_detection_per_person() {
     assert_eq!(h.detections.len(), 2);
     let (gated, free) = (&h.detections[0], &h.detections[1]);
     assert_eq!(gated.hint, Some(local));
-    assert_eq!((gated.rssi.len(), free.rssi.len()), (1, 0));
+    assert_eq!(
+        h.tags.queued().len(),
+        1,
+        "the frame's tag reading, for the tag book"
+    );
     assert_eq!(gated.ground, Some(1.6));
     assert_eq!(gated.captured, captured);
     assert!((gated.point - Vector2::new(3.1, 4.0)).norm() < 1e-9);
@@ -695,4 +702,121 @@ fn a_contribution_with_a_ground_person_is_folded_in_at_the_head() {
         who.iter().any(|c| c.kinds.contains(ObservationKind::Ground)),
         "{who:?}"
     );
+}
+
+/// A tag's reading is fused only into the track the tag is bound to: the same packet as in
+/// `rssi_is_fused_at_the_packet_time`, with the tag bound to no track, moves nothing.
+#[test]
+fn an_unbound_tags_reading_is_not_fused() {
+    let mut s = Scenario::default_scenario();
+    s.method.activation = Activation::ThreeMode;
+    let (cfg, mut h) = head_with_a_moving_track(&s);
+    let t1 = ClusterTime::from_millis(200);
+    let prior = h
+        .tick(t1)
+        .iter()
+        .find_map(|o| match &o.body {
+            Message::Prior(p) => Some(p.clone()),
+            _ => None,
+        })
+        .expect("a prior");
+    let node = cfg
+        .nodes
+        .iter()
+        .find(|n| n.member && n.rssi)
+        .expect("a radio node");
+    let reading = proto::msg::RssiReading {
+        tag: proto::TagId::simulated(1),
+        dbm: -50.0,
+        time: ClusterTime::from_millis(150),
+    };
+    let c = empty_contribution(&prior, false, t1, Mode::CameraOff, Some(reading));
+    h.on_message(t1, env(node.id.0, Message::Contribution(c)));
+    h.tick(ClusterTime::from_millis(281));
+    assert_eq!(h.last_step().rssi_nodes, 0, "the reading was fused");
+    assert!(h.tracks()[0].rssi.is_empty());
+    assert_eq!(h.tags.queued().len(), 0, "the reading was weighed with the step");
+}
+
+/// Two tracks over one floor point at two heights (a duplicate whose height drifted under
+/// steep views) are one target and are merged; the three-dimensional test kept them apart
+/// (1.25 m in height against σ 0.1 m).
+#[test]
+fn two_tracks_over_one_floor_point_at_two_heights_are_merged() {
+    let s = Scenario::default_scenario();
+    let (_, mut h) = head_with_a_moving_track(&s);
+    h.on_message(
+        ClusterTime::ZERO,
+        env(
+            1,
+            Message::Handover(Handover {
+                global: TargetId(8),
+                to_head: NodeId(2),
+                from_head: None,
+                time: ClusterTime::ZERO,
+                mean: vec6_to_wire(&State::new(3.0, 4.0, 1.5, 1.0, 0.0, 0.0)),
+                cov: mat6_to_wire(&(Matrix6::identity() * 0.01)),
+            }),
+        ),
+    );
+    assert_eq!(h.tracks().len(), 2);
+    h.tick(ClusterTime::from_millis(200));
+    h.tick(ClusterTime::from_millis(281));
+    assert_eq!(
+        h.tracks().len(),
+        1,
+        "the duplicate above the same floor point was kept"
+    );
+    assert_eq!(h.counters().merges, 1);
+}
+
+/// A radio-only cluster gives each tag it hears a radio track of its own: the search track
+/// takes the first, a new track the second, and each takes only its own tag's readings.
+#[test]
+fn a_radio_only_cluster_tracks_each_tag_on_its_own_track() {
+    let mut s = Scenario::default_scenario();
+    s.method.activation = Activation::ThreeMode;
+    let ids: Vec<u32> = s.cameras().filter(|n| n.head == Some(2)).map(|n| n.id).collect();
+    for id in ids {
+        let c = s.camera_model(id).unwrap().pose.centre();
+        let n = s.nodes.iter_mut().find(|n| n.id == id).unwrap();
+        n.position = Some([c.x, c.y, c.z]);
+        n.camera = None;
+    }
+    let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
+    let mut h = HeadNode::new(cfg.clone());
+    let t0 = ClusterTime::ZERO;
+    let priors = h.tick(t0);
+    assert_eq!(h.tracks().len(), 1, "the search track");
+    let prior = priors
+        .iter()
+        .find_map(|o| match &o.body {
+            Message::Prior(p) => Some(p.clone()),
+            _ => None,
+        })
+        .expect("a prior for the search track");
+    let node = cfg
+        .nodes
+        .iter()
+        .find(|n| n.member && n.rssi)
+        .expect("a radio node");
+    let (a, b) = (proto::TagId(0xa), proto::TagId(0xb));
+    let mut c = empty_contribution(&prior, false, t0, Mode::CameraOff, None);
+    for (tag, dbm) in [(a, -55.0), (b, -70.0)] {
+        c.observations
+            .push(Observation::Rssi(proto::msg::RssiReading { tag, dbm, time: t0 }));
+    }
+    h.on_message(t0, env(node.id.0, Message::Contribution(c)));
+    h.tick(ClusterTime::from_millis(81));
+    assert_eq!(h.tracks().len(), 2, "one radio track per tag");
+    let (first, second) = (h.tracks()[0].local, h.tracks()[1].local);
+    assert_eq!(
+        h.tags.track_of(a),
+        Some(first),
+        "the search track took the first tag"
+    );
+    assert_eq!(h.tags.track_of(b), Some(second));
+    let dbm = |t: &Track| t.rssi.iter().map(|r| r.1).collect::<Vec<_>>();
+    assert_eq!(dbm(&h.tracks()[0]), vec![-55.0]);
+    assert_eq!(dbm(&h.tracks()[1]), vec![-70.0]);
 }

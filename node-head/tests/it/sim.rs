@@ -287,7 +287,6 @@ impl Sim {
                         point: *pt,
                         cov: *cv,
                         prev_point: None,
-                        rssi: Vec::new(),
                         hint: None,
                         captured: ClusterTime::ZERO,
                         ground: None,

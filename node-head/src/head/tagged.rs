@@ -1,0 +1,68 @@
+//! The step's tag readings: every fresh reading a member radio node sent goes into the head's
+//! [`TagBook`](crate::tags::TagBook) as it arrives, whichever track's answer or detection
+//! carried it; when the step closes they are weighed against the tracks, tags are bound,
+//! moved or unbound, and each track takes the readings of its own tag only.
+
+use super::HeadNode;
+use crate::tags::{Change, Heard};
+use proto::ClusterTime;
+use proto::observation::{Kinds, ObservationKind, RssiReading};
+use tracing::info;
+
+impl HeadNode {
+    /// Queue node `slot`'s tag readings for the step: those of a radio node, stamped near now.
+    pub(super) fn offer_readings<'a>(
+        &mut self,
+        now: ClusterTime,
+        slot: usize,
+        readings: impl IntoIterator<Item = &'a RssiReading>,
+    ) {
+        if !self.nodes[slot].info.rssi {
+            return;
+        }
+        for r in readings {
+            if self.fresh(now, r.time, slot, "RSSI packet") {
+                self.tags.offer(slot, *r, now);
+            }
+        }
+    }
+
+    /// Weigh the step's readings, bind tags by the evidence, and hand each track its tag's
+    /// readings (a radio-only cluster's tracks first take the tags no track holds).
+    pub(super) fn hand_readings_to_tracks(&mut self, now: ClusterTime) {
+        let heard = self.tags.take_step(now);
+        let dt_s = self.cfg.method.step_ms as f64 / 1000.0;
+        let nodes = &self.cfg.nodes;
+        self.tags.weigh(
+            &heard,
+            &self.tracks,
+            dt_s,
+            |t, slot| t.trainers[slot].model(),
+            |slot| nodes[slot].position,
+        );
+        let changes = self
+            .tags
+            .decide(&self.tracks, |t| t.confirmed && t.camera_steps > 0);
+        for c in changes {
+            match c {
+                Change::Bound { tag, track } => info!(tag = %tag, target = %track, "tag bound to a track"),
+                Change::Moved { tag, from, to } => {
+                    info!(tag = %tag, from = %from, to = %to, "tag moved to the track that explains it")
+                }
+                Change::Unbound { tag, track } => info!(tag = %tag, target = %track, "tag unbound"),
+            }
+        }
+        self.radio_tracks_for(&heard, now);
+        for t in &mut self.tracks {
+            let Some(tag) = self.tags.tag_of(t.local) else {
+                continue;
+            };
+            for h in heard.iter().filter(|h| h.reading.tag == tag) {
+                let Heard { slot, reading } = *h;
+                if t.hear(slot, reading.dbm, t.time.secs_since(reading.time)) {
+                    t.note(self.nodes[slot].info.id, Kinds::of(ObservationKind::Rssi));
+                }
+            }
+        }
+    }
+}

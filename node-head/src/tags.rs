@@ -1,0 +1,477 @@
+//! Which tag rides on which track. A tag's reading says where *that tag* is, not which of the
+//! head's tracks it belongs to: fused into every track, one tagged person's readings pulled a
+//! second person's track toward them and kept a duplicate of the tagged one alive beside it
+//! (issue 16). So the head weighs every fresh reading against every track it could be of, and
+//! fuses a tag's readings only into the one track it is bound to.
+//!
+//! The evidence for "tag g is on track k" is a log-likelihood ratio summed over g's readings
+//! and forgotten with a half-life of [`EVIDENCE_HALF_LIFE_S`]: the reading under the track's
+//! RSSI model at the track's position when it was received (with the position's uncertainty),
+//! against the reading under "the tag is on no track" — a flat density over
+//! [`RSSI_SPAN_DB`]. A tag is bound to a confirmed track once that track's evidence reaches
+//! [`BIND_LLR`] and leads every other track's (tentative ones and those holding other tags
+//! included) by as much; it moves to another track only when that one leads by as much, and
+//! is unbound when its track's evidence falls to −[`BIND_LLR`] (the tag is clearly elsewhere)
+//! or the track is gone. A track holds at most one tag.
+//!
+//! A radio-only cluster (no camera can start a track) binds a tag to its track at once: the
+//! track exists for the tag (`head/radio.rs`).
+
+use crate::track::Track;
+use proto::models::{RssiModel, rssi_aged};
+use proto::observation::RssiReading;
+use proto::{ClusterTime, TagId, TargetId};
+use std::collections::BTreeMap;
+
+/// Half-life of the binding evidence, seconds: long enough that a crossing (two people within
+/// a metre or two for a second or two, where RSSI cannot tell them apart) does not move a tag,
+/// short enough that a tag follows its person within a few seconds when a camera track swapped.
+pub const EVIDENCE_HALF_LIFE_S: f64 = 4.0;
+/// Log-likelihood ratio (natural log) a track needs, over "no track" and over every other
+/// track, to be bound to a tag: e⁶ ≈ 400 to 1.
+pub const BIND_LLR: f64 = 6.0;
+/// The span of RSSI a tag's reading may take when it is on no track, dB (−40 to −100 dBm): the
+/// flat density of "no track".
+pub const RSSI_SPAN_DB: f64 = 60.0;
+/// Bounds on one reading's log-likelihood ratio: one multipath fade or one lucky reading moves
+/// the evidence by at most this much.
+pub const READING_LLR_BOUNDS: (f64, f64) = (-3.0, 2.0);
+/// Most tags a head keeps evidence of; readings of further tags are ignored and counted (a
+/// flood of forged tag ids must not grow the book without bound).
+pub const MAX_TAGS: usize = 256;
+/// How long a reading's (node, tag, reception time) is remembered, ns: a node repeats its
+/// newest reading of a tag in every answer while it is fresh, and a reading is information
+/// once.
+pub const TAKEN_MEMORY_NS: i64 = 10_000_000_000;
+/// How long a tag no node heard and no track holds is kept, ns.
+const FORGET_NS: i64 = 30_000_000_000;
+
+/// A reading a member node sent: the node's slot in the head's table, and the reading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Heard {
+    pub slot: usize,
+    pub reading: RssiReading,
+}
+
+/// What the head knows of one tag.
+#[derive(Clone, Debug)]
+struct Tag {
+    /// Log-likelihood ratio per track (local id) that the tag is on it.
+    evidence: BTreeMap<TargetId, f64>,
+    bound: Option<TargetId>,
+    last_heard: ClusterTime,
+}
+
+/// A binding made or undone, for the log.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Change {
+    Bound {
+        tag: TagId,
+        track: TargetId,
+    },
+    Moved {
+        tag: TagId,
+        from: TargetId,
+        to: TargetId,
+    },
+    Unbound {
+        tag: TagId,
+        track: TargetId,
+    },
+}
+
+/// The head's tags: the step's fresh readings, the evidence, the bindings.
+#[derive(Clone, Debug, Default)]
+pub struct TagBook {
+    fresh: Vec<Heard>,
+    taken: Vec<(usize, TagId, ClusterTime)>,
+    tags: BTreeMap<TagId, Tag>,
+    /// Readings refused because the book was full of other tags.
+    pub refused: u64,
+}
+
+impl TagBook {
+    /// Queue a reading for this step unless it was queued before (a node repeats its newest
+    /// reading in every answer) or the book is full; returns whether it was queued.
+    pub fn offer(&mut self, slot: usize, reading: RssiReading, now: ClusterTime) -> bool {
+        let key = (slot, reading.tag, reading.time);
+        if self.taken.contains(&key) {
+            return false;
+        }
+        if !self.tags.contains_key(&reading.tag) {
+            if self.tags.len() >= MAX_TAGS {
+                self.refused += 1;
+                return false;
+            }
+            self.tags.insert(
+                reading.tag,
+                Tag {
+                    evidence: BTreeMap::new(),
+                    bound: None,
+                    last_heard: now,
+                },
+            );
+        }
+        if let Some(t) = self.tags.get_mut(&reading.tag) {
+            t.last_heard = now;
+        }
+        self.taken.push(key);
+        self.fresh.push(Heard { slot, reading });
+        true
+    }
+
+    /// Take the step's readings; forget old ones and tags long unheard and unbound.
+    pub fn take_step(&mut self, now: ClusterTime) -> Vec<Heard> {
+        self.taken.retain(|&(_, _, t)| now - t < TAKEN_MEMORY_NS);
+        self.tags
+            .retain(|_, t| t.bound.is_some() || now - t.last_heard < FORGET_NS);
+        std::mem::take(&mut self.fresh)
+    }
+
+    /// The readings queued for this step.
+    pub fn queued(&self) -> &[Heard] {
+        &self.fresh
+    }
+
+    /// The tag bound to track `local`, if any.
+    pub fn tag_of(&self, local: TargetId) -> Option<TagId> {
+        self.tags
+            .iter()
+            .find_map(|(&id, t)| (t.bound == Some(local)).then_some(id))
+    }
+
+    /// The track tag `tag` is bound to, if any.
+    pub fn track_of(&self, tag: TagId) -> Option<TargetId> {
+        self.tags.get(&tag).and_then(|t| t.bound)
+    }
+
+    /// The evidence that `tag` is on track `local` (0 when none was weighed).
+    pub fn evidence(&self, tag: TagId, local: TargetId) -> f64 {
+        self.tags
+            .get(&tag)
+            .and_then(|t| t.evidence.get(&local))
+            .copied()
+            .unwrap_or(0.0)
+    }
+
+    /// Bind `tag` to track `local` at once (a radio track started for the tag), undoing any
+    /// binding either had.
+    pub fn bind(&mut self, tag: TagId, local: TargetId) {
+        for t in self.tags.values_mut() {
+            if t.bound == Some(local) {
+                t.bound = None;
+            }
+        }
+        if let Some(t) = self.tags.get_mut(&tag) {
+            t.bound = Some(local);
+        }
+    }
+
+    /// Track `gone` was merged into `kept`: `kept` takes `gone`'s tag unless it holds one.
+    pub fn merged(&mut self, gone: TargetId, kept: TargetId) {
+        if self.tag_of(kept).is_some() {
+            return;
+        }
+        if let Some(tag) = self.tag_of(gone) {
+            self.bind(tag, kept);
+        }
+    }
+
+    /// Tags heard in `heard` that no track holds, in order.
+    pub fn unbound_in(&self, heard: &[Heard]) -> Vec<TagId> {
+        let mut out: Vec<TagId> = heard
+            .iter()
+            .map(|h| h.reading.tag)
+            .filter(|&g| self.tags.get(&g).is_some_and(|t| t.bound.is_none()))
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
+    /// Forget `dt_s` seconds of evidence, then add `heard`'s against every track that could be
+    /// a tag's: those cameras measured, and those holding a tag. `model(track, slot)` is the
+    /// RSSI model the track would fuse the node's reading with; `position(slot)` the node's.
+    pub fn weigh(
+        &mut self,
+        heard: &[Heard],
+        tracks: &[Track],
+        dt_s: f64,
+        model: impl Fn(&Track, usize) -> RssiModel,
+        position: impl Fn(usize) -> nalgebra::Vector3<f64>,
+    ) {
+        let keep = 0.5f64.powf(dt_s.max(0.0) / EVIDENCE_HALF_LIFE_S);
+        let live: Vec<TargetId> = tracks.iter().map(|t| t.local).collect();
+        for tag in self.tags.values_mut() {
+            tag.evidence.retain(|k, _| live.contains(k));
+            for e in tag.evidence.values_mut() {
+                *e *= keep;
+            }
+        }
+        for h in heard {
+            let bound = self.track_of(h.reading.tag);
+            let Some(tag) = self.tags.get_mut(&h.reading.tag) else {
+                continue;
+            };
+            for t in tracks
+                .iter()
+                .filter(|t| t.camera_steps > 0 || bound == Some(t.local))
+            {
+                let llr = reading_llr(&model(t, h.slot), &position(h.slot), t, &h.reading);
+                *tag.evidence.entry(t.local).or_insert(0.0) += llr;
+            }
+        }
+    }
+
+    /// Bind, move and unbind tags by the evidence (see the module's rules); `bindable(local)`:
+    /// whether a track may take a tag (confirmed, measured by cameras). A track cameras never
+    /// measured (a radio track) keeps its tag whatever the evidence says: it exists for it.
+    pub fn decide(&mut self, tracks: &[Track], bindable: impl Fn(&Track) -> bool) -> Vec<Change> {
+        let mut changes = Vec::new();
+        let ids: Vec<TagId> = self.tags.keys().copied().collect();
+        for id in ids {
+            let holders: Vec<TargetId> = self
+                .tags
+                .iter()
+                .filter(|&(&g, _)| g != id)
+                .filter_map(|(_, t)| t.bound)
+                .collect();
+            let tag = self.tags.get_mut(&id).expect("a key of the map");
+            let track = |k: TargetId| tracks.iter().find(|t| t.local == k);
+            if let Some(k) = tag.bound {
+                match track(k) {
+                    None => {
+                        tag.bound = None;
+                        changes.push(Change::Unbound { tag: id, track: k });
+                    }
+                    Some(t) if t.camera_steps == 0 => continue,
+                    Some(_) => {}
+                }
+            }
+            let e = |k: TargetId| tag.evidence.get(&k).copied().unwrap_or(0.0);
+            // The best track that may take the tag, and the best evidence of any other track.
+            let best = tracks
+                .iter()
+                .filter(|t| bindable(t) && !holders.contains(&t.local))
+                .map(|t| (t.local, e(t.local)))
+                .max_by(|a, b| a.1.total_cmp(&b.1));
+            let runner_up = |k: TargetId| {
+                tag.evidence
+                    .iter()
+                    .filter(|&(&j, _)| j != k)
+                    .map(|(_, &v)| v)
+                    .fold(f64::NEG_INFINITY, f64::max)
+            };
+            match tag.bound {
+                Some(k) => {
+                    if let Some((j, ej)) = best
+                        && j != k
+                        && ej >= BIND_LLR
+                        && ej - e(k) >= BIND_LLR
+                    {
+                        tag.bound = Some(j);
+                        changes.push(Change::Moved {
+                            tag: id,
+                            from: k,
+                            to: j,
+                        });
+                    } else if e(k) <= -BIND_LLR {
+                        tag.bound = None;
+                        changes.push(Change::Unbound { tag: id, track: k });
+                    }
+                }
+                None => {
+                    if let Some((j, ej)) = best
+                        && ej >= BIND_LLR
+                        && ej - runner_up(j) >= BIND_LLR
+                    {
+                        tag.bound = Some(j);
+                        changes.push(Change::Bound { tag: id, track: j });
+                    }
+                }
+            }
+        }
+        changes
+    }
+}
+
+/// One reading's log-likelihood ratio "on track `t`" against "on no track", within
+/// [`READING_LLR_BOUNDS`]: the reading under `model` for a node at `node` with the track where
+/// it was when the reading came, its variance widened by the track's position uncertainty.
+pub fn reading_llr(model: &RssiModel, node: &nalgebra::Vector3<f64>, t: &Track, r: &RssiReading) -> f64 {
+    let (h, jac) = rssi_aged(model, node, t.filter.mean(), t.time.secs_since(r.time));
+    let s = model.variance() + (jac * t.filter.cov() * jac.transpose())[(0, 0)];
+    if !(s.is_finite() && s > 0.0 && r.dbm.is_finite()) {
+        return 0.0;
+    }
+    let nu = r.dbm - h;
+    let log_on = -0.5 * (nu * nu / s + (std::f64::consts::TAU * s).ln());
+    let log_off = -RSSI_SPAN_DB.ln();
+    (log_on - log_off).clamp(READING_LLR_BOUNDS.0, READING_LLR_BOUNDS.1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix6, Vector3};
+    use proto::models::State;
+
+    const MODEL: RssiModel = RssiModel::LogDistance {
+        a: -22.0,
+        b: -45.0,
+        variance: 16.0,
+    };
+
+    fn track(local: u32, x: f64, y: f64) -> Track {
+        let mut t = Track::new(
+            TargetId(local),
+            None,
+            State::new(x, y, 1.0, 0.0, 0.0, 0.0),
+            Matrix6::identity() * 0.01,
+            ClusterTime::ZERO,
+            4,
+            MODEL,
+            10,
+            0.1,
+        )
+        .unwrap();
+        t.camera_steps = 10;
+        t.confirmed = true;
+        t
+    }
+
+    /// Four nodes at the room's corners.
+    fn node(slot: usize) -> Vector3<f64> {
+        [
+            Vector3::new(0.0, 0.0, 2.5),
+            Vector3::new(10.0, 0.0, 2.5),
+            Vector3::new(0.0, 10.0, 2.5),
+            Vector3::new(10.0, 10.0, 2.5),
+        ][slot]
+    }
+
+    /// One reading of `tag` at every node, as a tag at `at` would give them without noise,
+    /// received at `time`.
+    fn readings(book: &mut TagBook, tag: TagId, at: Vector3<f64>, time: ClusterTime) -> Vec<Heard> {
+        for slot in 0..4 {
+            let dbm = MODEL.predict((at - node(slot)).norm());
+            book.offer(slot, RssiReading { tag, dbm, time }, time);
+        }
+        book.take_step(time)
+    }
+
+    /// Run `steps` steps of 0.2 s in which `tag` is heard at `at`; returns every change.
+    fn run(book: &mut TagBook, tracks: &[Track], tag: TagId, at: Vector3<f64>, steps: u32) -> Vec<Change> {
+        let mut changes = Vec::new();
+        for s in 0..steps {
+            let time = ClusterTime::from_millis(200 * i64::from(s));
+            let heard = readings(book, tag, at, time);
+            book.weigh(&heard, tracks, 0.2, |_, _| MODEL, node);
+            changes.extend(book.decide(tracks, |t| t.confirmed));
+        }
+        changes
+    }
+
+    #[test]
+    fn a_tag_binds_to_the_track_it_moves_with_and_not_to_the_other() {
+        let tracks = [track(1, 2.0, 3.0), track(2, 7.0, 6.0)];
+        let mut book = TagBook::default();
+        let tag = TagId(0xaa);
+        let changes = run(&mut book, &tracks, tag, Vector3::new(7.0, 6.0, 1.0), 10);
+        assert_eq!(
+            changes,
+            vec![Change::Bound {
+                tag,
+                track: TargetId(2)
+            }]
+        );
+        assert_eq!(book.tag_of(TargetId(2)), Some(tag));
+        assert_eq!(book.tag_of(TargetId(1)), None);
+        assert!(book.evidence(tag, TargetId(2)) - book.evidence(tag, TargetId(1)) >= BIND_LLR);
+    }
+
+    #[test]
+    fn a_tag_between_two_tracks_binds_to_neither() {
+        // Two people 0.3 m apart: RSSI cannot tell them apart.
+        let tracks = [track(1, 5.0, 5.0), track(2, 5.3, 5.0)];
+        let mut book = TagBook::default();
+        let changes = run(&mut book, &tracks, TagId(1), Vector3::new(5.15, 5.0, 1.0), 50);
+        assert!(changes.is_empty(), "{changes:?}");
+    }
+
+    #[test]
+    fn a_tag_on_no_track_stays_unbound_and_a_bound_tag_that_leaves_is_unbound() {
+        let tracks = [track(1, 1.0, 1.0)];
+        let mut book = TagBook::default();
+        let tag = TagId(3);
+        assert!(run(&mut book, &tracks, tag, Vector3::new(9.0, 9.0, 1.0), 30).is_empty());
+        let mut book = TagBook::default();
+        run(&mut book, &tracks, tag, Vector3::new(1.0, 1.0, 1.0), 10);
+        assert_eq!(book.track_of(tag), Some(TargetId(1)));
+        let changes = run(&mut book, &tracks, tag, Vector3::new(9.0, 9.0, 1.0), 30);
+        assert_eq!(
+            changes,
+            vec![Change::Unbound {
+                tag,
+                track: TargetId(1)
+            }]
+        );
+    }
+
+    #[test]
+    fn a_tag_moves_to_the_track_that_explains_it_and_a_track_holds_one_tag() {
+        let mut tracks = vec![track(1, 2.0, 2.0), track(2, 8.0, 8.0)];
+        let mut book = TagBook::default();
+        let (a, b) = (TagId(1), TagId(2));
+        run(&mut book, &tracks, a, Vector3::new(2.0, 2.0, 1.0), 10);
+        assert_eq!(book.track_of(a), Some(TargetId(1)));
+        // The camera tracks swap places (an identity switch): the tag follows its person.
+        tracks[0] = track(1, 8.0, 2.0);
+        tracks[1] = track(2, 2.0, 2.0);
+        let changes = run(&mut book, &tracks, a, Vector3::new(2.0, 2.0, 1.0), 40);
+        assert!(changes.contains(&Change::Moved {
+            tag: a,
+            from: TargetId(1),
+            to: TargetId(2)
+        }));
+        // A second tag where track 2 is cannot take it while `a` holds it.
+        run(&mut book, &tracks, b, Vector3::new(2.0, 2.0, 1.0), 20);
+        assert_eq!(book.track_of(a), Some(TargetId(2)));
+        assert_ne!(book.track_of(b), Some(TargetId(2)));
+    }
+
+    #[test]
+    fn a_reading_counts_once_and_a_flood_of_tags_is_bounded() {
+        let mut book = TagBook::default();
+        let r = RssiReading {
+            tag: TagId(1),
+            dbm: -60.0,
+            time: ClusterTime::ZERO,
+        };
+        assert!(book.offer(0, r, ClusterTime::ZERO));
+        assert!(!book.offer(0, r, ClusterTime::ZERO), "the same reading again");
+        assert!(book.offer(1, r, ClusterTime::ZERO), "another node's");
+        for g in 0..2 * MAX_TAGS as u64 {
+            book.offer(
+                0,
+                RssiReading {
+                    tag: TagId(100 + g),
+                    ..r
+                },
+                ClusterTime::ZERO,
+            );
+        }
+        assert_eq!(book.tags.len(), MAX_TAGS);
+        assert_eq!(book.refused, MAX_TAGS as u64 + 1);
+    }
+
+    #[test]
+    fn a_track_merged_away_hands_its_tag_to_the_kept_one() {
+        let mut book = TagBook::default();
+        let tag = TagId(9);
+        readings(&mut book, tag, Vector3::new(2.0, 3.0, 1.0), ClusterTime::ZERO);
+        book.bind(tag, TargetId(2));
+        book.merged(TargetId(2), TargetId(1));
+        assert_eq!(book.track_of(tag), Some(TargetId(1)));
+    }
+}
