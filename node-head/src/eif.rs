@@ -73,6 +73,13 @@ impl Accumulator {
         self.count += 1;
     }
 
+    /// Add a pseudo-measurement (a prior on the state): information like any other, but not
+    /// counted, so a step that had only this is still prediction only.
+    pub fn add_prior(&mut self, omega: &Info, xi: &State) {
+        self.omega += omega;
+        self.xi += xi;
+    }
+
     /// Add one contribution straight from its wire form (row-major), without conversion.
     pub fn add_wire(&mut self, omega: &Mat6, xi: &Vec6) {
         for (i, row) in omega.iter().enumerate() {

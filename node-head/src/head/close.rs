@@ -118,6 +118,8 @@ impl HeadNode {
     /// methods), RSSI, the fusion's update, then RSSI training.
     fn fuse_track(&mut self, t: usize, now: ClusterTime, stats: &mut StepStats, rssi_nodes: &mut [bool]) {
         let fuse_rssi = self.uses_rssi() && self.fusion.fuses_rssi();
+        // A radio-only cluster holds its tracks' height itself (`hold_height`).
+        let radio_only = self.radio_only_cluster();
         let track = &mut self.tracks[t];
         let mean_bar = *track.filter.mean();
         let dets = std::mem::take(&mut track.detections);
@@ -137,6 +139,9 @@ impl HeadNode {
         }
         // The camera-only filter takes this step's camera information first: RSSI below is
         // weighed by what the cameras know now.
+        if !radio_only {
+            observe::height_prior(&mut track.aux_acc, self.cfg.target_plane_z);
+        }
         if track.aux.update(&track.aux_acc).is_err() {
             self.counters.numeric_failures += 1;
         }
@@ -153,6 +158,9 @@ impl HeadNode {
                 rssi_nodes[slot] = true;
                 track.last_seen = now;
             }
+        }
+        if !radio_only {
+            observe::height_prior(&mut track.acc, self.cfg.target_plane_z);
         }
         let updated = self.fusion.update(track, now);
         if !updated.informed {

@@ -457,6 +457,8 @@ fn head_after_one_rssi_packet(time: ClusterTime, camera: bool) -> (usize, HeadNo
         variance: 0.01,
     };
     s.method.rssi_default = model;
+    // The track's own height: the height prior (`observe::height_prior`) leaves it in place.
+    s.method.target_plane_z = Some(0.25);
     let (cfg, mut h) = head_with_a_moving_track(&s);
     let t1 = ClusterTime::from_millis(200);
     let out = h.tick(t1);
