@@ -54,6 +54,9 @@ pub struct Counters {
     /// Measurements and RSSI packets stamped too far from the head's time to fuse (a clock
     /// that is off), refused.
     pub stale_measurements: u64,
+    /// Tag readings refused because the head already keeps evidence of
+    /// [`crate::tags::MAX_TAGS`] other tags (a flood of tag ids).
+    pub tag_readings_refused: u64,
     pub births: u64,
     pub deaths: u64,
     /// Of the deaths, tracks dropped for straying outside the world's box.

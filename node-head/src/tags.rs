@@ -21,7 +21,7 @@ use crate::track::Track;
 use proto::models::{RssiModel, rssi_aged};
 use proto::observation::RssiReading;
 use proto::{ClusterTime, TagId, TargetId};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 /// Half-life of the binding evidence, seconds: long enough that a crossing (two people within
 /// a metre or two for a second or two, where RSSI cannot tell them apart) does not move a tag,
@@ -84,7 +84,9 @@ pub enum Change {
 #[derive(Clone, Debug, Default)]
 pub struct TagBook {
     fresh: Vec<Heard>,
-    taken: Vec<(usize, TagId, ClusterTime)>,
+    /// (reception time, node slot, tag) of the readings taken in the last [`TAKEN_MEMORY_NS`],
+    /// ordered by time so the old ones go in one split.
+    taken: BTreeSet<(ClusterTime, usize, TagId)>,
     tags: BTreeMap<TagId, Tag>,
     /// Readings refused because the book was full of other tags.
     pub refused: u64,
@@ -94,7 +96,7 @@ impl TagBook {
     /// Queue a reading for this step unless it was queued before (a node repeats its newest
     /// reading in every answer) or the book is full; returns whether it was queued.
     pub fn offer(&mut self, slot: usize, reading: RssiReading, now: ClusterTime) -> bool {
-        let key = (slot, reading.tag, reading.time);
+        let key = (reading.time, slot, reading.tag);
         if self.taken.contains(&key) {
             return false;
         }
@@ -115,14 +117,15 @@ impl TagBook {
         if let Some(t) = self.tags.get_mut(&reading.tag) {
             t.last_heard = now;
         }
-        self.taken.push(key);
+        self.taken.insert(key);
         self.fresh.push(Heard { slot, reading });
         true
     }
 
     /// Take the step's readings; forget old ones and tags long unheard and unbound.
     pub fn take_step(&mut self, now: ClusterTime) -> Vec<Heard> {
-        self.taken.retain(|&(_, _, t)| now - t < TAKEN_MEMORY_NS);
+        let oldest = ClusterTime(now.0.saturating_sub(TAKEN_MEMORY_NS - 1));
+        self.taken = self.taken.split_off(&(oldest, 0, TagId(0)));
         self.tags
             .retain(|_, t| t.bound.is_some() || now - t.last_heard < FORGET_NS);
         std::mem::take(&mut self.fresh)

@@ -5,8 +5,9 @@
 //! own (`crate::tags`: a tag's readings go into its own track only). A radio track takes its
 //! tag's RSSI at once (it is confirmed: no camera can confirm it), is reported to the server
 //! only once its tag was heard, and is dropped like any track when nothing was heard for
-//! `track-timeout-ms`; the next step starts another search track if none is left. Clusters with a camera start tracks from
-//! cameras only, as before, and their radio-only members add RSSI to them.
+//! `track-timeout-ms`; the next step starts another search track if none is left. Clusters
+//! with a camera start tracks from cameras only, as before, and their radio-only members add
+//! RSSI to the tracks their tags are bound to.
 
 use super::HeadNode;
 use crate::tags::Heard;

@@ -7,7 +7,7 @@ use super::HeadNode;
 use crate::tags::{Change, Heard};
 use proto::ClusterTime;
 use proto::observation::{Kinds, ObservationKind, RssiReading};
-use tracing::info;
+use tracing::{info, warn};
 
 impl HeadNode {
     /// Queue node `slot`'s tag readings for the step: those of a radio node, stamped near now.
@@ -20,9 +20,22 @@ impl HeadNode {
         if !self.nodes[slot].info.rssi {
             return;
         }
+        let refused = self.tags.refused;
         for r in readings {
             if self.fresh(now, r.time, slot, "RSSI packet") {
                 self.tags.offer(slot, *r, now);
+            }
+        }
+        let more_refused = self.tags.refused - refused;
+        if more_refused > 0 {
+            self.counters.tag_readings_refused += more_refused;
+            if let Some(more) = self.log.admit(now.0, "tag book full") {
+                warn!(
+                    node = %self.nodes[slot].info.id,
+                    tags = crate::tags::MAX_TAGS,
+                    more,
+                    "readings of a tag beyond the tags the head keeps; ignored"
+                );
             }
         }
     }
