@@ -3,6 +3,14 @@ use super::*;
 use proto::observation::{Observation, PinholePoint};
 use proto::scenario::{Fusion, Scenario};
 
+/// The first prior among a head's outgoing messages.
+fn first_prior(out: &[Outgoing]) -> Option<Prior> {
+    out.iter().find_map(|o| match &o.body {
+        Message::Prior(p) => Some(p.clone()),
+        _ => None,
+    })
+}
+
 fn env(source: u32, body: Message) -> Envelope {
     Envelope {
         source: NodeId(source),
@@ -268,10 +276,7 @@ fn camera_only_steps(
         let t = ClusterTime::from_millis(200 * k);
         let out = h.tick(t);
         // A prior goes to the cameras that are on (none once all are off).
-        let prior = out.iter().find_map(|o| match &o.body {
-            Message::Prior(p) => Some(p.clone()),
-            _ => None,
-        });
+        let prior = first_prior(&out);
         if let Some(p) = &prior {
             mean = vec6_from_wire(&p.mean);
         }
@@ -461,14 +466,7 @@ fn head_after_one_rssi_packet(time: ClusterTime, camera: bool) -> (usize, HeadNo
     s.method.target_plane_z = Some(0.25);
     let (cfg, mut h) = head_with_a_moving_track(&s);
     let t1 = ClusterTime::from_millis(200);
-    let out = h.tick(t1);
-    let prior = out
-        .iter()
-        .find_map(|o| match &o.body {
-            Message::Prior(p) => Some(p.clone()),
-            _ => None,
-        })
-        .expect("a prior");
+    let prior = first_prior(&h.tick(t1)).expect("a prior");
     let slot = cfg
         .nodes
         .iter()
@@ -605,7 +603,7 @@ fn a_people_frame_gives_one_floor_detection_per_person() {
     h.on_message(t1, env(node.id.0, Message::PeopleFrame(f)));
     assert_eq!(h.detections.len(), 2);
     let (gated, free) = (&h.detections[0], &h.detections[1]);
-    assert_eq!(gated.hint, Some(local));
+    assert_eq!((gated.hint, free.hint), (Some(local), None));
     assert_eq!(
         h.tags.queued().len(),
         1,
@@ -714,14 +712,7 @@ fn an_unbound_tags_reading_is_not_fused() {
     s.method.activation = Activation::ThreeMode;
     let (cfg, mut h) = head_with_a_moving_track(&s);
     let t1 = ClusterTime::from_millis(200);
-    let prior = h
-        .tick(t1)
-        .iter()
-        .find_map(|o| match &o.body {
-            Message::Prior(p) => Some(p.clone()),
-            _ => None,
-        })
-        .expect("a prior");
+    let prior = first_prior(&h.tick(t1)).expect("a prior");
     let node = cfg
         .nodes
         .iter()
@@ -790,13 +781,7 @@ fn a_radio_only_cluster_tracks_each_tag_on_its_own_track() {
     let t0 = ClusterTime::ZERO;
     let priors = h.tick(t0);
     assert_eq!(h.tracks().len(), 1, "the search track");
-    let prior = priors
-        .iter()
-        .find_map(|o| match &o.body {
-            Message::Prior(p) => Some(p.clone()),
-            _ => None,
-        })
-        .expect("a prior for the search track");
+    let prior = first_prior(&priors).expect("a prior for the search track");
     let node = cfg
         .nodes
         .iter()
