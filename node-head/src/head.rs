@@ -89,6 +89,10 @@ impl HeadNode {
             })
             .collect();
         let slots = nodes.iter().enumerate().map(|(i, n)| (n.info.id, i)).collect();
+        // A reading repeated within the freshness bound must never be taken twice.
+        let taken_memory_ns = i64::try_from(cfg.method.capture_max_age_ms())
+            .unwrap_or(i64::MAX)
+            .saturating_mul(2_000_000);
         let cameras = nodes.iter().map(|n| n.info.camera).collect();
         let planner = if cfg.method.drop_lost_cameras {
             Planner::watching_deliveries()
@@ -109,7 +113,7 @@ impl HeadNode {
             step_time: ClusterTime::ZERO,
             next_step_at: None,
             detections: Vec::new(),
-            tags: crate::tags::TagBook::default(),
+            tags: crate::tags::TagBook::new(taken_memory_ns),
             planner,
             expected: Vec::new(),
             counters: Counters::default(),

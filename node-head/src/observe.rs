@@ -86,8 +86,11 @@ pub fn rssi(track: &mut Track, nodes: &[NodeInfo], mean_bar: &State, cov_bar: &M
     fused
 }
 
-/// Spread of a camera track's height about the method's target plane, metres: people's
-/// mid-heights (1.5–1.9 m tall people: 0.75–0.95 m) and where a region's centre falls on them.
+/// Spread of a camera track's height about the method's target plane (`target-plane-z`, which
+/// a deployment states for its targets; the simulation takes half its first target's height),
+/// metres: people's mid-heights differ by ±0.1 m (1.5–1.9 m tall) and a region's centre falls
+/// higher or lower on them, and a deployment that left the plane at its 0.5 m default while
+/// tracking people (mid-height about 0.85 m) is not pulled hard.
 /// Cameras looking steeply down hardly tell a target's height, and a track whose height drifted
 /// (the generated hall: a tenth of its tracks more than 2 m below the floor) sits elsewhere on
 /// the floor along an oblique camera's ray, and a second track was born where the person is.

@@ -39,9 +39,12 @@ pub const READING_LLR_BOUNDS: (f64, f64) = (-3.0, 2.0);
 /// Most tags a head keeps evidence of; readings of further tags are ignored and counted (a
 /// flood of forged tag ids must not grow the book without bound).
 pub const MAX_TAGS: usize = 256;
-/// How long a reading's (node, tag, reception time) is remembered, ns: a node repeats its
-/// newest reading of a tag in every answer while it is fresh, and a reading is information
-/// once.
+/// Most readings a head queues in one step; more are refused and counted (readings no longer
+/// ride on detections, whose per-step limit bounded them before).
+pub const MAX_READINGS_PER_STEP: usize = 4096;
+/// How long a reading's (node, tag, reception time) is remembered at least, ns: a node repeats
+/// its newest reading of a tag in every answer while it is fresh, and a reading is information
+/// once. [`TagBook::new`] takes the longer of this and twice the freshness bound.
 pub const TAKEN_MEMORY_NS: i64 = 10_000_000_000;
 /// How long a tag no node heard and no track holds is kept, ns.
 const FORGET_NS: i64 = 30_000_000_000;
@@ -59,6 +62,9 @@ struct Tag {
     /// Log-likelihood ratio per track (local id) that the tag is on it.
     evidence: BTreeMap<TargetId, f64>,
     bound: Option<TargetId>,
+    /// The track was started for this tag (a radio track): it keeps the tag whatever the
+    /// evidence says, until it is gone.
+    own: bool,
     last_heard: ClusterTime,
 }
 
@@ -81,23 +87,51 @@ pub enum Change {
 }
 
 /// The head's tags: the step's fresh readings, the evidence, the bindings.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct TagBook {
     fresh: Vec<Heard>,
     /// (reception time, node slot, tag) of the readings taken in the last [`TAKEN_MEMORY_NS`],
     /// ordered by time so the old ones go in one split.
     taken: BTreeSet<(ClusterTime, usize, TagId)>,
+    /// How long `taken` remembers a reading, ns.
+    memory_ns: i64,
     tags: BTreeMap<TagId, Tag>,
-    /// Readings refused because the book was full of other tags.
+    /// When evidence was last weighed (its forgetting runs on the time that passed).
+    weighed_at: Option<ClusterTime>,
+    /// Readings refused: the book was full of other tags, or the step of readings.
     pub refused: u64,
 }
 
+impl Default for TagBook {
+    fn default() -> Self {
+        TagBook::new(TAKEN_MEMORY_NS)
+    }
+}
+
 impl TagBook {
+    /// A book that remembers taken readings for `memory_ns` (at least [`TAKEN_MEMORY_NS`]; the
+    /// head passes twice its freshness bound, so a repeated reading is never taken again).
+    pub fn new(memory_ns: i64) -> Self {
+        TagBook {
+            fresh: Vec::new(),
+            taken: BTreeSet::new(),
+            memory_ns: memory_ns.max(TAKEN_MEMORY_NS),
+            tags: BTreeMap::new(),
+            weighed_at: None,
+            refused: 0,
+        }
+    }
+
     /// Queue a reading for this step unless it was queued before (a node repeats its newest
-    /// reading in every answer) or the book is full; returns whether it was queued.
+    /// reading in every answer), the book is full of other tags or the step holds
+    /// [`MAX_READINGS_PER_STEP`]; returns whether it was queued.
     pub fn offer(&mut self, slot: usize, reading: RssiReading, now: ClusterTime) -> bool {
         let key = (reading.time, slot, reading.tag);
         if self.taken.contains(&key) {
+            return false;
+        }
+        if self.fresh.len() >= MAX_READINGS_PER_STEP {
+            self.refused += 1;
             return false;
         }
         if !self.tags.contains_key(&reading.tag) {
@@ -110,6 +144,7 @@ impl TagBook {
                 Tag {
                     evidence: BTreeMap::new(),
                     bound: None,
+                    own: false,
                     last_heard: now,
                 },
             );
@@ -124,7 +159,7 @@ impl TagBook {
 
     /// Take the step's readings; forget old ones and tags long unheard and unbound.
     pub fn take_step(&mut self, now: ClusterTime) -> Vec<Heard> {
-        let oldest = ClusterTime(now.0.saturating_sub(TAKEN_MEMORY_NS - 1));
+        let oldest = ClusterTime(now.0.saturating_sub(self.memory_ns - 1));
         self.taken = self.taken.split_off(&(oldest, 0, TagId(0)));
         self.tags
             .retain(|_, t| t.bound.is_some() || now - t.last_heard < FORGET_NS);
@@ -157,26 +192,33 @@ impl TagBook {
             .unwrap_or(0.0)
     }
 
-    /// Bind `tag` to track `local` at once (a radio track started for the tag), undoing any
-    /// binding either had.
+    /// Give `tag` to track `local` for good (a radio track started for the tag: it keeps the
+    /// tag whatever the evidence says, until it is gone), undoing any binding either had.
     pub fn bind(&mut self, tag: TagId, local: TargetId) {
+        self.set(tag, local, true);
+    }
+
+    fn set(&mut self, tag: TagId, local: TargetId, own: bool) {
         for t in self.tags.values_mut() {
             if t.bound == Some(local) {
                 t.bound = None;
+                t.own = false;
             }
         }
         if let Some(t) = self.tags.get_mut(&tag) {
             t.bound = Some(local);
+            t.own = own;
         }
     }
 
-    /// Track `gone` was merged into `kept`: `kept` takes `gone`'s tag unless it holds one.
+    /// Track `gone` was merged into `kept`: `kept` takes `gone`'s tag unless it holds one, as
+    /// evidence would give it (the evidence may move or unbind it again).
     pub fn merged(&mut self, gone: TargetId, kept: TargetId) {
         if self.tag_of(kept).is_some() {
             return;
         }
         if let Some(tag) = self.tag_of(gone) {
-            self.bind(tag, kept);
+            self.set(tag, kept, false);
         }
     }
 
@@ -192,18 +234,21 @@ impl TagBook {
         out
     }
 
-    /// Forget `dt_s` seconds of evidence, then add `heard`'s against every track that could be
-    /// a tag's: those cameras measured, and those holding a tag. `model(track, slot)` is the
-    /// RSSI model the track would fuse the node's reading with; `position(slot)` the node's.
+    /// Forget the evidence of the time since the last weighing, then add `heard`'s at `now`
+    /// against every track that could be a tag's: those cameras measured, and those holding a
+    /// tag. `model(track, slot)` is the RSSI model the track would fuse the node's reading
+    /// with (widened as its fusion widens it); `position(slot)` the node's.
     pub fn weigh(
         &mut self,
         heard: &[Heard],
         tracks: &[Track],
-        dt_s: f64,
+        now: ClusterTime,
         model: impl Fn(&Track, usize) -> RssiModel,
         position: impl Fn(usize) -> nalgebra::Vector3<f64>,
     ) {
-        let keep = 0.5f64.powf(dt_s.max(0.0) / EVIDENCE_HALF_LIFE_S);
+        let dt_s = self.weighed_at.map_or(0.0, |t| now.secs_since(t).max(0.0));
+        self.weighed_at = Some(now);
+        let keep = 0.5f64.powf(dt_s / EVIDENCE_HALF_LIFE_S);
         let live: Vec<TargetId> = tracks.iter().map(|t| t.local).collect();
         for tag in self.tags.values_mut() {
             tag.evidence.retain(|k, _| live.contains(k));
@@ -226,9 +271,9 @@ impl TagBook {
         }
     }
 
-    /// Bind, move and unbind tags by the evidence (see the module's rules); `bindable(local)`:
-    /// whether a track may take a tag (confirmed, measured by cameras). A track cameras never
-    /// measured (a radio track) keeps its tag whatever the evidence says: it exists for it.
+    /// Bind, move and unbind tags by the evidence (see the module's rules); `bindable(track)`:
+    /// whether a track may take a tag (confirmed, measured by cameras). A track given its tag
+    /// for good ([`TagBook::bind`]: a radio track) keeps it whatever the evidence says.
     pub fn decide(&mut self, tracks: &[Track], bindable: impl Fn(&Track) -> bool) -> Vec<Change> {
         let mut changes = Vec::new();
         let ids: Vec<TagId> = self.tags.keys().copied().collect();
@@ -245,9 +290,10 @@ impl TagBook {
                 match track(k) {
                     None => {
                         tag.bound = None;
+                        tag.own = false;
                         changes.push(Change::Unbound { tag: id, track: k });
                     }
-                    Some(t) if t.camera_steps == 0 => continue,
+                    Some(_) if tag.own => continue,
                     Some(_) => {}
                 }
             }
@@ -267,10 +313,12 @@ impl TagBook {
             };
             match tag.bound {
                 Some(k) => {
+                    // Moving asks what binding asks: the new track leads every other, the
+                    // current one included.
                     if let Some((j, ej)) = best
                         && j != k
                         && ej >= BIND_LLR
-                        && ej - e(k) >= BIND_LLR
+                        && ej - runner_up(j) >= BIND_LLR
                     {
                         tag.bound = Some(j);
                         changes.push(Change::Moved {
@@ -280,6 +328,7 @@ impl TagBook {
                         });
                     } else if e(k) <= -BIND_LLR {
                         tag.bound = None;
+                        tag.own = false;
                         changes.push(Change::Unbound { tag: id, track: k });
                     }
                 }
@@ -369,7 +418,7 @@ mod tests {
         for s in 0..steps {
             let time = ClusterTime::from_millis(200 * i64::from(s));
             let heard = readings(book, tag, at, time);
-            book.weigh(&heard, tracks, 0.2, |_, _| MODEL, node);
+            book.weigh(&heard, tracks, time, |_, _| MODEL, node);
             changes.extend(book.decide(tracks, |t| t.confirmed));
         }
         changes
@@ -466,6 +515,36 @@ mod tests {
         }
         assert_eq!(book.tags.len(), MAX_TAGS);
         assert_eq!(book.refused, MAX_TAGS as u64 + 1);
+    }
+
+    #[test]
+    fn a_tag_taken_over_in_a_merge_answers_to_the_evidence_and_a_step_of_readings_is_bounded() {
+        let tracks = [track(1, 1.0, 1.0)];
+        let mut book = TagBook::default();
+        let tag = TagId(4);
+        readings(&mut book, tag, Vector3::new(1.0, 1.0, 1.0), ClusterTime::ZERO);
+        book.bind(tag, TargetId(2));
+        book.merged(TargetId(2), TargetId(1));
+        let changes = run(&mut book, &tracks, tag, Vector3::new(9.0, 9.0, 1.0), 30);
+        assert!(
+            changes.contains(&Change::Unbound {
+                tag,
+                track: TargetId(1)
+            }),
+            "a merge's binding is not for good: {changes:?}"
+        );
+        let mut book = TagBook::default();
+        let n = MAX_READINGS_PER_STEP as i64 + 10;
+        for k in 0..n {
+            let r = RssiReading {
+                tag,
+                dbm: -60.0,
+                time: ClusterTime(k),
+            };
+            book.offer(0, r, ClusterTime(n));
+        }
+        assert_eq!(book.queued().len(), MAX_READINGS_PER_STEP);
+        assert_eq!(book.refused, 10);
     }
 
     #[test]

@@ -14,7 +14,7 @@ use crate::tags::Heard;
 use nalgebra::{Matrix6, Vector3};
 use proto::models::State;
 use proto::{ClusterTime, TargetId};
-use tracing::{info, warn};
+use tracing::{debug, info, warn};
 
 /// Standard deviation of a radio search track's horizontal position at its start, metres (a
 /// room's size: where the tag is is not known).
@@ -26,6 +26,8 @@ pub const RADIO_HEIGHT_SIGMA_M: f64 = 0.1;
 const RADIO_SEARCH_SIGMA_V: f64 = 1.0;
 /// … of its vertical velocity, m/s.
 const RADIO_SEARCH_SIGMA_VZ: f64 = 0.1;
+/// Most tracks a radio-only cluster holds; a further tag gets none (counted).
+pub const MAX_RADIO_TRACKS: usize = 32;
 
 impl HeadNode {
     /// Whether this head tracks from radio alone: it fuses RSSI and has members, every one of
@@ -54,11 +56,19 @@ impl HeadNode {
             return;
         }
         for tag in self.tags.unbound_in(heard) {
+            // The search track: started here, unnamed, holding no tag (a track handed over
+            // from another head is that head's target, not a search).
             let search = self
                 .tracks
                 .iter()
-                .find(|t| t.camera_steps == 0 && self.tags.tag_of(t.local).is_none())
+                .find(|t| t.camera_steps == 0 && t.global.is_none() && self.tags.tag_of(t.local).is_none())
                 .map(|t| t.local);
+            if search.is_none() && self.tracks.len() >= MAX_RADIO_TRACKS {
+                // Forged tag ids must not multiply the priors sent every step.
+                self.counters.tag_readings_refused += 1;
+                debug!(tag = %tag, tracks = self.tracks.len(), "no radio track for a tag: the cluster holds the most");
+                continue;
+            }
             if let Some(local) = search.or_else(|| self.start_radio_track(now)) {
                 info!(tag = %tag, target = %local, "radio track holds a tag");
                 self.tags.bind(tag, local);

@@ -44,13 +44,12 @@ impl HeadNode {
     /// readings (a radio-only cluster's tracks first take the tags no track holds).
     pub(super) fn hand_readings_to_tracks(&mut self, now: ClusterTime) {
         let heard = self.tags.take_step(now);
-        let dt_s = self.cfg.method.step_ms as f64 / 1000.0;
         let nodes = &self.cfg.nodes;
         self.tags.weigh(
             &heard,
             &self.tracks,
-            dt_s,
-            |t, slot| t.trainers[slot].model(),
+            now,
+            |t, slot| t.rssi_noise.weighed(&t.trainers[slot].model()),
             |slot| nodes[slot].position,
         );
         let changes = self
