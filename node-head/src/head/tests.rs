@@ -417,7 +417,7 @@ fn a_measurement_captured_far_from_now_is_refused() {
 /// moving at 1 m/s, and a packet 0.1 s old that agrees with the track then, leave it in place.
 #[test]
 fn rssi_is_fused_at_the_packet_time() {
-    let h = head_after_one_rssi_packet(ClusterTime::from_millis(100), false).1;
+    let h = head_after_one_rssi_packet(ClusterTime::from_millis(100), false, true).1;
     assert_eq!(h.last_step().rssi_nodes, 1, "the packet was fused");
     let after = h.tracks()[0].filter.mean();
     assert!((after[0] - 3.2).abs() < 1e-3, "x {} (3.2 expected)", after[0]);
@@ -427,7 +427,7 @@ fn rssi_is_fused_at_the_packet_time() {
 /// came: 0.1 s before the step, x = 3.1, not the step's x = 3.2.
 #[test]
 fn algorithm_1_pairs_a_packet_with_the_position_at_its_time() {
-    let (slot, h) = head_after_one_rssi_packet(ClusterTime::from_millis(100), true);
+    let (slot, h) = head_after_one_rssi_packet(ClusterTime::from_millis(100), true, true);
     let node = h.nodes[slot].info.position;
     let (d, _) = h.tracks()[0].trainers[slot].last_pair().expect("a pair");
     let then = (nalgebra::Vector3::new(3.1, 4.0, 0.25) - node).norm();
@@ -443,7 +443,7 @@ fn algorithm_1_pairs_a_packet_with_the_position_at_its_time() {
 /// counted, not carried along the track.
 #[test]
 fn an_rssi_packet_stamped_far_from_now_is_refused() {
-    let h = head_after_one_rssi_packet(ClusterTime::from_secs_f64(-9.8), false).1;
+    let h = head_after_one_rssi_packet(ClusterTime::from_secs_f64(-9.8), false, true).1;
     assert_eq!(h.last_step().rssi_nodes, 0);
     assert_eq!(h.counters().stale_measurements, 1);
 }
@@ -452,8 +452,8 @@ fn an_rssi_packet_stamped_far_from_now_is_refused() {
 /// at 200 ms in which a radio node sent, as its only contribution, a packet received at `time`
 /// that agrees with where the track was at 100 ms; with `camera`, the contribution also carries
 /// camera information that confirms the prior (so the camera-only filter trains Algorithm 1
-/// without moving). Also returns the node's slot.
-fn head_after_one_rssi_packet(time: ClusterTime, camera: bool) -> (usize, HeadNode) {
+/// without moving); with `bound`, the tag is bound to the track. Also returns the node's slot.
+fn head_after_one_rssi_packet(time: ClusterTime, camera: bool, bound: bool) -> (usize, HeadNode) {
     let mut s = Scenario::default_scenario();
     s.method.activation = Activation::ThreeMode;
     let model = proto::models::RssiModel::LogDistance {
@@ -490,9 +490,12 @@ fn head_after_one_rssi_packet(time: ClusterTime, camera: bool) -> (usize, HeadNo
         c.mode = Mode::Active;
     }
     h.on_message(t1, env(node.id.0, Message::Contribution(c)));
-    // The tag is taken as the track's: binding by evidence is `crate::tags`' to test.
-    let local = h.tracks()[0].local;
-    h.tags.bind(rssi.tag, local);
+    // With `bound`, the tag is taken as the track's: binding by evidence is `crate::tags`' to
+    // test.
+    if bound {
+        let local = h.tracks()[0].local;
+        h.tags.bind(rssi.tag, local);
+    }
     h.tick(ClusterTime::from_millis(281));
     (slot, h)
 }
@@ -708,24 +711,7 @@ fn a_contribution_with_a_ground_person_is_folded_in_at_the_head() {
 /// `rssi_is_fused_at_the_packet_time`, with the tag bound to no track, moves nothing.
 #[test]
 fn an_unbound_tags_reading_is_not_fused() {
-    let mut s = Scenario::default_scenario();
-    s.method.activation = Activation::ThreeMode;
-    let (cfg, mut h) = head_with_a_moving_track(&s);
-    let t1 = ClusterTime::from_millis(200);
-    let prior = first_prior(&h.tick(t1)).expect("a prior");
-    let node = cfg
-        .nodes
-        .iter()
-        .find(|n| n.member && n.rssi)
-        .expect("a radio node");
-    let reading = proto::msg::RssiReading {
-        tag: proto::TagId::simulated(1),
-        dbm: -50.0,
-        time: ClusterTime::from_millis(150),
-    };
-    let c = empty_contribution(&prior, false, t1, Mode::CameraOff, Some(reading));
-    h.on_message(t1, env(node.id.0, Message::Contribution(c)));
-    h.tick(ClusterTime::from_millis(281));
+    let h = head_after_one_rssi_packet(ClusterTime::from_millis(100), false, false).1;
     assert_eq!(h.last_step().rssi_nodes, 0, "the reading was fused");
     assert!(h.tracks()[0].rssi.is_empty());
     assert_eq!(h.tags.queued().len(), 0, "the reading was weighed with the step");
