@@ -254,9 +254,10 @@ impl HeadNode {
                     floor_distance2(a, b, &[0, 1, 3, 4])
                 }
                 .is_some_and(|d2| d2 <= gate);
-                // Two tracks holding two tags are two people, however close.
-                let two_tags = self.tags.tag_of(a.local).is_some() && self.tags.tag_of(b.local).is_some();
-                if same && !two_tags {
+                // Two tracks holding two tags are two people, however close (asked only of a
+                // pair that agrees: the book is searched per tag).
+                let two_tags = || self.tags.tag_of(a.local).is_some() && self.tags.tag_of(b.local).is_some();
+                if same && !two_tags() {
                     // Prefer the track the server knows, then a confirmed one, then the older
                     // (lower index).
                     let rank = |t: &crate::track::Track| (t.global.is_some(), t.confirmed);
