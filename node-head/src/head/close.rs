@@ -249,9 +249,9 @@ impl HeadNode {
                 let (a, b) = (&self.tracks[i], &self.tracks[j]);
                 // Position and velocity: two targets crossing are near but move apart.
                 let same = if a.confirmed != b.confirmed {
-                    floor_distance2(a, b, &[0, 1])
+                    floor_distance2(a, b, [0, 1])
                 } else {
-                    floor_distance2(a, b, &[0, 1, 3, 4])
+                    floor_distance2(a, b, [0, 1, 3, 4])
                 }
                 .is_some_and(|d2| d2 <= gate);
                 // Two tracks holding two tags are two people, however close (asked only of a
@@ -361,11 +361,15 @@ impl HeadNode {
 
 /// Squared Mahalanobis distance between two tracks' states restricted to the components
 /// `idx`, with their summed covariances; `None` when that sum is not positive definite.
-fn floor_distance2(a: &crate::track::Track, b: &crate::track::Track, idx: &[usize]) -> Option<f64> {
-    let n = idx.len();
+fn floor_distance2<const N: usize>(
+    a: &crate::track::Track,
+    b: &crate::track::Track,
+    idx: [usize; N],
+) -> Option<f64> {
     let (ma, mb, ca, cb) = (a.filter.mean(), b.filter.mean(), a.filter.cov(), b.filter.cov());
-    let d = nalgebra::DVector::from_fn(n, |r, _| ma[idx[r]] - mb[idx[r]]);
-    let s = nalgebra::DMatrix::from_fn(n, n, |r, c| ca[(idx[r], idx[c])] + cb[(idx[r], idx[c])]);
+    // Fixed-size: this runs for every pair of tracks every step.
+    let d = nalgebra::SVector::<f64, N>::from_fn(|r, _| ma[idx[r]] - mb[idx[r]]);
+    let s = nalgebra::SMatrix::<f64, N, N>::from_fn(|r, c| ca[(idx[r], idx[c])] + cb[(idx[r], idx[c])]);
     let c = s.cholesky()?;
     Some(d.dot(&c.solve(&d)))
 }
