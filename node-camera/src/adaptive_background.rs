@@ -9,6 +9,7 @@
 //! with merging ([`crate::region`]). All buffers are allocated on the first frame; later frames
 //! allocate nothing.
 
+use crate::ghost;
 use crate::region::{Grid, erode4, grow_boxes};
 use proto::sensor::Detection;
 use proto::sensor::{Frame, FrameError};
@@ -43,6 +44,9 @@ pub struct AdaptiveBackgroundParams {
     /// A gap between frames longer than this (ms) restarts the model from the next frame,
     /// as at power-on (0: never). See [`AdaptiveBackgroundParams::scaled_to_fps`].
     pub restart_gap_ms: u64,
+    /// Drop regions whose border says the model holds an object the frame does not, and let
+    /// the model take the frame's colours there at once ([`crate::ghost`]).
+    pub remove_ghosts: bool,
 }
 
 impl Default for AdaptiveBackgroundParams {
@@ -63,6 +67,7 @@ impl Default for AdaptiveBackgroundParams {
             min_pixels: 12,
             max_regions: 32,
             restart_gap_ms: 0,
+            remove_ghosts: true,
         }
     }
 }
@@ -126,6 +131,9 @@ pub struct AdaptiveBackground {
     frames: u64,
     last_captured: Option<proto::ClusterTime>,
     restarts: u64,
+    ghosts: u64,
+    /// Grid boxes of this frame's ghosts (scratch).
+    ghost_boxes: Vec<(usize, usize, usize, usize)>,
 }
 
 impl AdaptiveBackground {
@@ -150,6 +158,8 @@ impl AdaptiveBackground {
             frames: 0,
             last_captured: None,
             restarts: 0,
+            ghosts: 0,
+            ghost_boxes: Vec::new(),
         }
     }
 
@@ -291,7 +301,37 @@ impl AdaptiveBackground {
             p.max_regions,
             out,
         );
+        if p.remove_ghosts {
+            self.remove_ghosts(frame, &g, out);
+        }
         Ok(())
+    }
+
+    /// Drop the regions that are ghosts ([`crate::ghost`]) and let the model take the frame's
+    /// colours at their moving pixels: left to the consistency counter, a ghost lasts τ frames
+    /// and shrinks from its edges, and its track drifts.
+    fn remove_ghosts(&mut self, frame: &Frame, g: &Grid, out: &mut Vec<Detection>) {
+        self.ghost_boxes.clear();
+        out.retain(|d| {
+            let bx = ghost::grid_box(g, &d.bbox);
+            let ghost = ghost::border_contrast(g, &self.mask, frame, &self.background, bx).is_ghost();
+            if ghost {
+                self.ghost_boxes.push(bx);
+            }
+            !ghost
+        });
+        for &(x0, y0, x1, y1) in &self.ghost_boxes {
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let k = y * g.width + x;
+                    if self.mask[k] != 0 {
+                        self.background[k * 3..k * 3 + 3].copy_from_slice(&g.rgb(frame, x, y));
+                        self.confidence[k] = 0;
+                    }
+                }
+            }
+        }
+        self.ghosts += self.ghost_boxes.len() as u64;
     }
 
     /// The per-pixel model update and moving test, row by row in three passes that the
@@ -386,6 +426,11 @@ impl AdaptiveBackground {
     /// Times the model restarted after a gap in the frames.
     pub fn restarts(&self) -> u64 {
         self.restarts
+    }
+
+    /// Regions dropped as ghosts ([`crate::ghost`]).
+    pub fn ghosts(&self) -> u64 {
+        self.ghosts
     }
 }
 
@@ -570,15 +615,46 @@ mod tests {
             .count()
     }
 
+    /// The paper's model alone, without the ghost test.
+    fn keeping_ghosts() -> AdaptiveBackgroundParams {
+        AdaptiveBackgroundParams {
+            remove_ghosts: false,
+            ..AdaptiveBackgroundParams::default()
+        }
+    }
+
     #[test]
     fn the_first_frames_ghost_lasts_the_papers_time_at_5_fps() {
         // At 5 fps, 3 s is 15 frames: the scaled model (1 s history + 1.5 s) absorbs the ghost
         // within them; the paper's frame counts taken literally would keep it for 10 s.
         let fps = 5.0;
-        let scaled = ghost_frames(AdaptiveBackgroundParams::default().scaled_to_fps(fps), 25);
+        let scaled = ghost_frames(keeping_ghosts().scaled_to_fps(fps), 25);
         assert!(scaled > 0 && scaled <= 15, "scaled: {scaled} frames");
-        let literal = ghost_frames(AdaptiveBackgroundParams::default(), 25);
+        let literal = ghost_frames(keeping_ghosts(), 25);
         assert_eq!(literal, 24, "literal counts keep the ghost for the whole 5 s");
+    }
+
+    #[test]
+    fn the_ghost_test_drops_the_first_frames_ghost_at_once_and_the_model_takes_the_frame() {
+        let params = AdaptiveBackgroundParams::default().scaled_to_fps(5.0);
+        assert_eq!(ghost_frames(params.clone(), 25), 0);
+        let mut seg = AdaptiveBackground::new(params);
+        let mut out = Vec::new();
+        seg.process(&scene(0, Some(20)), &mut out).unwrap();
+        let empty = scene(1, None);
+        seg.process(&empty, &mut out).unwrap();
+        assert!(out.is_empty(), "{out:?}");
+        assert_eq!(seg.ghosts(), 1);
+        // The model holds the floor where the object stood (its moving pixels took the frame).
+        let g = seg.grid().unwrap();
+        let k = 40 * g.width + 25;
+        assert_eq!(&seg.background()[k * 3..k * 3 + 3], &g.rgb(&empty, 25, 40));
+        // Nothing is left to detect, and an object that comes back is seen.
+        seg.process(&scene(2, None), &mut out).unwrap();
+        assert!(out.is_empty(), "{out:?}");
+        seg.process(&scene(3, Some(60)), &mut out).unwrap();
+        assert_eq!(out.len(), 1, "{out:?}");
+        assert_eq!(seg.ghosts(), 1);
     }
 
     #[test]
@@ -603,7 +679,7 @@ mod tests {
 
     #[test]
     fn a_model_woken_after_a_long_gap_restarts_instead_of_showing_old_ghosts() {
-        let params = AdaptiveBackgroundParams::default().scaled_to_fps(5.0);
+        let params = keeping_ghosts().scaled_to_fps(5.0);
         assert_eq!(params.restart_gap_ms, 2600);
         let woken = |params: AdaptiveBackgroundParams| {
             let mut seg = AdaptiveBackground::new(params);

@@ -3,7 +3,8 @@
 //! nothing else (papers 000 §2.2 and §6.1, 002 §II, 004 §2.6 and §3.2).
 //!
 //! A sans-IO core plus its process: [`source`] reads frames from files (and devices), [`colour_difference`]
-//! and [`adaptive_background`] segment them ([`segment`] selects), [`measure`] undistorts, gates and
+//! and [`adaptive_background`] segment them ([`segment`] selects; [`ghost`] drops the regions
+//! the background model left behind), [`measure`] undistorts, gates and
 //! linearizes, [`core`] is the node's state machine, [`record_all`] makes its logging runs
 //! (every frame measured and sent to the server's recording), [`process`] runs a camera as an
 //! OS process on the sources it is given. [`radio`] holds what real radio sources share,
@@ -17,6 +18,7 @@ pub mod colour_difference;
 pub mod config;
 pub mod core;
 pub mod detect;
+pub mod ghost;
 pub mod ground_people;
 #[cfg(feature = "gstreamer")]
 pub mod gst;

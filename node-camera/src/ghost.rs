@@ -1,0 +1,184 @@
+//! Ghosts of a background model: regions where the *model* holds an object that is no longer
+//! there (the model was started, or restarted after the camera slept, while a target stood in
+//! view). Until the model absorbs them (τ frames), they are segmented like any moving object,
+//! and a head tracks them: in the default scenario the cameras woken along the robot's path left
+//! ghosts at its start and its corners whose tracks drifted as the model absorbed them from the
+//! edges (0.15–0.25 m/s), were confirmed and given global ids of their own.
+//!
+//! The test is the region's edge. Across the border of a real object the *frame* changes (object
+//! inside, background outside) while the model is the same background on both sides; across a
+//! ghost's border the frame is background on both sides while the *model* changes (the old
+//! object inside). So per border pair — a moving grid pixel and its 4-neighbour that is not
+//! moving — the L1 RGB contrast is summed once in the frame and once in the model, and a region
+//! whose model contrast is [`GHOST_RATIO`] times its frame contrast is a ghost. (Edge-based
+//! ghost tests are the usual remedy of background subtraction; this one needs no gradient
+//! image, only the pixels on the border.) A region holding both a target and the ghost it just
+//! left mixes the two and stays a detection.
+
+use crate::region::Grid;
+use proto::msg::PixelBox;
+use proto::sensor::Frame;
+
+/// How many times its frame contrast a region's model contrast must be for a ghost. A real
+/// object's model contrast is the background's own texture, a ghost's frame contrast is the
+/// frame's noise: either way the other sum is several times smaller.
+pub const GHOST_RATIO: u64 = 2;
+/// Mean model contrast per border pair (L1 RGB levels) below which a region is never a ghost:
+/// where the old object looked like the background, the model's border says nothing.
+pub const MIN_GHOST_EDGE: u64 = 24;
+/// Border pairs a region needs before it is judged at all.
+const MIN_PAIRS: u64 = 8;
+
+/// L1 RGB contrast summed over a region's border pairs, in the frame and in the model.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BorderContrast {
+    pub frame: u64,
+    pub model: u64,
+    pub pairs: u64,
+}
+
+impl BorderContrast {
+    /// Whether the border says the model holds an object the frame does not.
+    pub fn is_ghost(&self) -> bool {
+        self.pairs >= MIN_PAIRS
+            && self.model >= MIN_GHOST_EDGE * self.pairs
+            && self.model >= GHOST_RATIO * self.frame
+    }
+}
+
+/// The grid cells of a detection's box (frame pixels → grid, clamped to the grid).
+pub fn grid_box(grid: &Grid, b: &PixelBox) -> (usize, usize, usize, usize) {
+    let s = grid.step as f32;
+    let clamp = |v: f32, n: usize| ((v / s).max(0.0) as usize).min(n.saturating_sub(1));
+    (
+        clamp(b.xmin, grid.width),
+        clamp(b.ymin, grid.height),
+        clamp(b.xmax, grid.width),
+        clamp(b.ymax, grid.height),
+    )
+}
+
+/// The border contrast of the moving pixels (`mask` ≠ 0) inside the grid box `(x0, y0, x1,
+/// y1)`: every moving pixel paired with each 4-neighbour that is not moving. `background` is
+/// the model, RGB per grid pixel.
+pub fn border_contrast(
+    grid: &Grid,
+    mask: &[u8],
+    frame: &Frame,
+    background: &[u8],
+    (x0, y0, x1, y1): (usize, usize, usize, usize),
+) -> BorderContrast {
+    let (w, h) = (grid.width, grid.height);
+    let l1 = |a: [u8; 3], b: [u8; 3]| (0..3).map(|c| u64::from(a[c].abs_diff(b[c]))).sum::<u64>();
+    let model = |k: usize| [background[k * 3], background[k * 3 + 1], background[k * 3 + 2]];
+    let mut c = BorderContrast::default();
+    for y in y0..=y1.min(h.saturating_sub(1)) {
+        for x in x0..=x1.min(w.saturating_sub(1)) {
+            let k = y * w + x;
+            if mask[k] == 0 {
+                continue;
+            }
+            let here = (grid.rgb(frame, x, y), model(k));
+            let neighbours = [
+                (x > 0).then(|| (x - 1, y)),
+                (x + 1 < w).then(|| (x + 1, y)),
+                (y > 0).then(|| (x, y - 1)),
+                (y + 1 < h).then(|| (x, y + 1)),
+            ];
+            for (nx, ny) in neighbours.into_iter().flatten() {
+                let j = ny * w + nx;
+                if mask[j] != 0 {
+                    continue;
+                }
+                c.frame += l1(here.0, grid.rgb(frame, nx, ny));
+                c.model += l1(here.1, model(j));
+                c.pairs += 1;
+            }
+        }
+    }
+    c
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proto::ClusterTime;
+
+    /// A 40×30 frame of `floor` with a 10×10 square of `inside` at (15, 10).
+    fn picture(floor: [u8; 3], inside: [u8; 3]) -> Frame {
+        let mut f = Frame::new(40, 30, ClusterTime::ZERO);
+        for y in 0..30 {
+            for x in 0..40 {
+                let rgb = if (15..25).contains(&x) && (10..20).contains(&y) {
+                    inside
+                } else {
+                    floor
+                };
+                f.data[(y * 40 + x) * 3..(y * 40 + x) * 3 + 3].copy_from_slice(&rgb);
+            }
+        }
+        f
+    }
+
+    fn square_mask() -> Vec<u8> {
+        (0..30 * 40)
+            .map(|k| u8::from((15..25).contains(&(k % 40)) && (10..20).contains(&(k / 40))))
+            .collect()
+    }
+
+    #[test]
+    fn an_object_in_the_frame_is_no_ghost_and_its_trace_in_the_model_is() {
+        let grid = Grid::new(40, 30, 1);
+        let (floor, red) = ([90, 100, 80], [200, 30, 40]);
+        let empty = picture(floor, floor).data;
+        let with_object = picture(floor, red);
+        let mask = square_mask();
+        let bx = (15, 10, 24, 19);
+        // The object stands where the model has floor: the frame's border changes.
+        let real = border_contrast(&grid, &mask, &with_object, &empty, bx);
+        assert_eq!(real.pairs, 40, "10 pixels on each of four sides");
+        assert_eq!(real.model, 0);
+        assert!(real.frame > 0 && !real.is_ghost(), "{real:?}");
+        // The model still holds the object, the frame shows floor: a ghost.
+        let ghost = border_contrast(&grid, &mask, &picture(floor, floor), &with_object.data, bx);
+        assert_eq!(ghost.frame, 0);
+        assert!(ghost.is_ghost(), "{ghost:?}");
+    }
+
+    #[test]
+    fn a_model_border_like_the_background_or_a_mixed_region_is_no_ghost() {
+        let grid = Grid::new(40, 30, 1);
+        let floor = [90, 100, 80];
+        let mask = square_mask();
+        let bx = (15, 10, 24, 19);
+        // The old object looked almost like the floor: too faint to say.
+        let faint = picture(floor, [95, 104, 86]);
+        let c = border_contrast(&grid, &mask, &picture(floor, floor), &faint.data, bx);
+        assert!(!c.is_ghost(), "{c:?}");
+        // A target standing in its own ghost: both borders change, neither twice the other.
+        let c = border_contrast(
+            &grid,
+            &mask,
+            &picture(floor, [20, 20, 200]),
+            &picture(floor, [200, 30, 40]).data,
+            bx,
+        );
+        assert!(c.frame > 0 && c.model > 0 && !c.is_ghost(), "{c:?}");
+        // Nothing moving in the box: nothing to judge.
+        let c = border_contrast(&grid, &vec![0; 1200], &faint, &faint.data, bx);
+        assert_eq!(c, BorderContrast::default());
+        assert!(!c.is_ghost());
+    }
+
+    #[test]
+    fn the_box_is_mapped_to_the_grid_and_clamped() {
+        let grid = Grid::new(40, 30, 2);
+        let b = PixelBox {
+            xmin: 4.0,
+            ymin: 6.0,
+            xmax: 11.0,
+            ymax: 99.0,
+        };
+        assert_eq!(grid_box(&grid, &b), (2, 3, 5, 14));
+    }
+}
