@@ -93,13 +93,19 @@ pub fn nearest_pairs<T>(
 }
 
 /// The item answering `priors[of]`: the one the optimal pairing of every prior with the items
-/// gives it ([`nearest_pairs`]), or, when that pairing leaves it none, its nearest item within
-/// the gate all the same. A camera answers one prior at a time, as each arrives; pairing
-/// jointly keeps two people side by side from both being given to the nearer track (a
-/// crowd's tracks then lost their people and swapped), and the fallback keeps the head's
-/// duplicate or lagging track of one robot fed as before, so that it converges and is merged
-/// (given nothing, it lived on RSSI beside the robot's other track: default scenario, 60 s,
-/// seeds 2–5 erred 0.25–0.73 m instead of 0.14–0.21).
+/// gives it ([`nearest_pairs`]), or none. A camera answers one prior at a time, as each
+/// arrives; pairing jointly keeps two people side by side from both being given to the nearer
+/// track (a crowd's tracks then lost their people and swapped).
+///
+/// A prior the pairing leaves empty gets nothing: its person is hidden or merged into a
+/// neighbour's region, and the track coasts. Until the background model dropped its ghosts
+/// (`crate::ghost`), the camera gave such a prior its nearest detection in the gate all the same,
+/// because the robot's head held ghost tracks and lagging duplicates that had to be pulled onto
+/// the robot and merged; that fallback also gave a crowd's track its neighbour's person and
+/// merged two people into one track. Without ghosts the robot has one track and the fallback
+/// does nothing for it (default scenario, seeds 1–5, identical errors with and without it),
+/// and without the fallback four people, the crowd and the hall keep their tracks apart
+/// (`docs/multi-target.md`).
 pub fn joint_choice<'a, T>(
     priors: &[(&Prior, f64)],
     of: usize,
@@ -108,16 +114,7 @@ pub fn joint_choice<'a, T>(
     distance2: impl Fn(&Prior, &T, f64) -> Option<f64>,
 ) -> Option<&'a T> {
     let pairs = nearest_pairs(priors, items, gate_chi2, &distance2);
-    if let Some(i) = pairs.iter().position(|&p| p == Some(of)) {
-        return Some(&items[i]);
-    }
-    let &(prior, age_s) = priors.get(of)?;
-    items
-        .iter()
-        .filter_map(|item| distance2(prior, item, age_s).map(|d2| (d2, item)))
-        .filter(|(d2, _)| *d2 <= gate_chi2)
-        .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, item)| item)
+    pairs.iter().position(|&p| p == Some(of)).map(|i| &items[i])
 }
 
 /// The contribution Ω_i, ξ_i of one measured point at the prior's mean, or the contribution

@@ -56,20 +56,23 @@ fn joint_answers_give_two_close_tracks_two_people() {
 }
 
 #[test]
-fn a_prior_the_pairing_leaves_without_a_person_takes_its_nearest_all_the_same() {
-    // Two tracks of one person (the head's duplicate, or a lagging one): one person in view.
+fn a_prior_the_pairing_leaves_without_a_person_gets_nothing() {
+    // Two tracks, one person in view (the other hidden, or merged into this one's region): the
+    // nearer track takes the person, the other coasts rather than take its neighbour's.
     let (a, b) = (prior(2.0, 2.0), prior(2.3, 2.0));
     let people = [person(2.1, 2.0)];
     let priors = [(&a, 0.0), (&b, 0.0)];
     let joint = |of| crate::measure::joint_choice(&priors, of, &people, 13.8, gate_distance2);
+    assert!(
+        gate_distance2(&b, &people[0], 0.0).is_some_and(|d| d <= 13.8),
+        "b gates the person"
+    );
     assert_eq!(joint(0), Some(&people[0]));
-    assert_eq!(joint(1), Some(&people[0]));
-    // Outside the gate it stays without.
-    let far = prior(5.0, 5.0);
-    let priors = [(&a, 0.0), (&far, 0.0)];
+    assert_eq!(joint(1), None);
+    // Alone, b takes the person.
     assert_eq!(
-        crate::measure::joint_choice(&priors, 1, &people, 13.8, gate_distance2),
-        None
+        crate::measure::joint_choice(&[(&b, 0.0)], 0, &people, 13.8, gate_distance2),
+        Some(&people[0])
     );
 }
 
