@@ -518,6 +518,8 @@ mod tests {
                 tau: 4,
                 history: 3,
                 step,
+                // The reference is the paper's update alone.
+                remove_ghosts: false,
                 ..AdaptiveBackgroundParams::default()
             };
             let mut seg = AdaptiveBackground::new(params);

@@ -8,7 +8,7 @@
 //! The test is the region's edge. Across the border of a real object the *frame* changes (object
 //! inside, background outside) while the model is the same background on both sides; across a
 //! ghost's border the frame is background on both sides while the *model* changes (the old
-//! object inside). So per border pair — a moving grid pixel and its 4-neighbour that is not
+//! object inside). So per border pair — a moving grid pixel and its neighbour in the row that is not
 //! moving — the L1 RGB contrast is summed once in the frame and once in the model, and a region
 //! whose model contrast is [`GHOST_RATIO`] times its frame contrast is a ghost. (Edge-based
 //! ghost tests are the usual remedy of background subtraction; this one needs no gradient
@@ -27,7 +27,10 @@ pub const GHOST_RATIO: u64 = 2;
 /// where the old object looked like the background, the model's border says nothing.
 pub const MIN_GHOST_EDGE: u64 = 24;
 /// Border pairs a region needs before it is judged at all.
-const MIN_PAIRS: u64 = 8;
+const MIN_PAIRS: u64 = 6;
+/// Every how many grid rows of a box are scanned: the sums are a sample of the border, and a
+/// person close to a camera is a box of a third of the frame.
+const ROW_STEP: usize = 2;
 
 /// L1 RGB contrast summed over a region's border pairs, in the frame and in the model.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -58,9 +61,14 @@ pub fn grid_box(grid: &Grid, b: &PixelBox) -> (usize, usize, usize, usize) {
     )
 }
 
-/// The border contrast of the moving pixels (`mask` ≠ 0) inside the grid box `(x0, y0, x1,
-/// y1)`: every moving pixel paired with each 4-neighbour that is not moving. `background` is
-/// the model, RGB per grid pixel.
+/// The border contrast of the moving pixels (`mask` ≠ 0) in the grid box `(x0, y0, x1, y1)`:
+/// along every [`ROW_STEP`]-th row (one pixel beyond the box on either side), every pair of horizontal
+/// neighbours of which one is moving and the other not. `background` is the model, RGB per
+/// grid pixel.
+///
+/// Rows only: a person's border is mostly its two sides, and a row is scanned as one slice
+/// (the pairs found first, colours read only at them). Visiting every moving pixel and its
+/// four neighbours cost 40–90% of the segmentation itself (`ocelli bench camera`, 640×480).
 pub fn border_contrast(
     grid: &Grid,
     mask: &[u8],
@@ -69,31 +77,22 @@ pub fn border_contrast(
     (x0, y0, x1, y1): (usize, usize, usize, usize),
 ) -> BorderContrast {
     let (w, h) = (grid.width, grid.height);
+    let mut c = BorderContrast::default();
+    if w < 2 || h == 0 {
+        return c;
+    }
     let l1 = |a: [u8; 3], b: [u8; 3]| (0..3).map(|c| u64::from(a[c].abs_diff(b[c]))).sum::<u64>();
     let model = |k: usize| [background[k * 3], background[k * 3 + 1], background[k * 3 + 2]];
-    let mut c = BorderContrast::default();
-    for y in y0..=y1.min(h.saturating_sub(1)) {
-        for x in x0..=x1.min(w.saturating_sub(1)) {
-            let k = y * w + x;
-            if mask[k] == 0 {
-                continue;
-            }
-            let here = (grid.rgb(frame, x, y), model(k));
-            let neighbours = [
-                (x > 0).then(|| (x - 1, y)),
-                (x + 1 < w).then(|| (x + 1, y)),
-                (y > 0).then(|| (x, y - 1)),
-                (y + 1 < h).then(|| (x, y + 1)),
-            ];
-            for (nx, ny) in neighbours.into_iter().flatten() {
-                let j = ny * w + nx;
-                if mask[j] != 0 {
-                    continue;
-                }
-                c.frame += l1(here.0, grid.rgb(frame, nx, ny));
-                c.model += l1(here.1, model(j));
-                c.pairs += 1;
-            }
+    let (a, b) = (x0.saturating_sub(1), (x1 + 1).min(w - 1));
+    for y in (y0..=y1.min(h - 1)).step_by(ROW_STEP) {
+        let row = &mask[y * w..(y + 1) * w];
+        let pairs = row[a..b].iter().zip(&row[a + 1..=b]).enumerate();
+        for (i, _) in pairs.filter(|(_, (l, r))| (**l == 0) != (**r == 0)) {
+            let x = a + i;
+            let (inside, outside) = if row[x] != 0 { (x, x + 1) } else { (x + 1, x) };
+            c.frame += l1(grid.rgb(frame, inside, y), grid.rgb(frame, outside, y));
+            c.model += l1(model(y * w + inside), model(y * w + outside));
+            c.pairs += 1;
         }
     }
     c
@@ -136,7 +135,7 @@ mod tests {
         let bx = (15, 10, 24, 19);
         // The object stands where the model has floor: the frame's border changes.
         let real = border_contrast(&grid, &mask, &with_object, &empty, bx);
-        assert_eq!(real.pairs, 40, "10 pixels on each of four sides");
+        assert_eq!(real.pairs, 10, "5 of the 10 rows, each crossing two sides");
         assert_eq!(real.model, 0);
         assert!(real.frame > 0 && !real.is_ghost(), "{real:?}");
         // The model still holds the object, the frame shows floor: a ghost.
