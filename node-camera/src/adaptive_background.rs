@@ -217,6 +217,7 @@ impl AdaptiveBackground {
         self.take = vec![0; g.width];
         self.abs_bg = vec![0; g.width * 3];
         self.abs_old = vec![0; g.width * 3];
+        self.ghost_boxes = Vec::with_capacity(self.params.max_regions);
         self.grid = Some(g);
         self.fill_from(frame, &g);
         Ok(g)
