@@ -5,8 +5,10 @@
 //! the counter grows while `|i_t − i_{t−n}| < c1·η + c3` and resets otherwise; when it reaches
 //! `τ` the background takes the current colour. `η` rises by `noise_step` when
 //! `|i_t − i_{t−n}| > η` and (our choice; the paper leaves it open) falls by one otherwise.
-//! Differences are L1 over RGB in integers. Then 4-neighbour erosion and box region growing
-//! with merging ([`crate::region`]). All buffers are allocated on the first frame; later frames
+//! Differences are L1 over RGB in integers. Then 4-neighbour erosion, box region growing
+//! with merging ([`crate::region`]) and the ghost test ([`crate::ghost`]: a region whose
+//! border is the model's rather than the frame's is dropped and its moving pixels join the
+//! model). All buffers are allocated on the first frame; later frames
 //! allocate nothing.
 
 use crate::ghost;
@@ -326,13 +328,24 @@ impl AdaptiveBackground {
             }
             !ghost
         });
+        // A kept region inside a ghost's box (a box grows over regions found before it) is a
+        // target: its pixels stay moving and out of the model.
+        let in_kept = |x: usize, y: usize| {
+            out.iter().any(|d| {
+                let (x0, y0, x1, y1) = ghost::grid_box(g, &d.bbox);
+                (x0..=x1).contains(&x) && (y0..=y1).contains(&y)
+            })
+        };
         for &(x0, y0, x1, y1) in &self.ghost_boxes {
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let k = y * g.width + x;
-                    if self.mask[k] != 0 {
+                    if self.mask[k] != 0 && !in_kept(x, y) {
                         self.background[k * 3..k * 3 + 3].copy_from_slice(&g.rgb(frame, x, y));
                         self.confidence[k] = 0;
+                        // The moving mask agrees with the detections (the particle tracker's
+                        // foreground reads it).
+                        self.mask[k] = 0;
                     }
                 }
             }
@@ -657,6 +670,7 @@ mod tests {
         let g = seg.grid().unwrap();
         let k = 40 * g.width + 25;
         assert_eq!(&seg.background()[k * 3..k * 3 + 3], &g.rgb(&empty, 25, 40));
+        assert_eq!(seg.mask()[k], 0, "the moving mask agrees with the detections");
         // Nothing is left to detect, and an object that comes back is seen.
         seg.process(&scene(2, None), &mut out).unwrap();
         assert!(out.is_empty(), "{out:?}");

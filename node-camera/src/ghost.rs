@@ -10,10 +10,15 @@
 //! ghost's border the frame is background on both sides while the *model* changes (the old
 //! object inside). So per border pair — a moving grid pixel and its neighbour in the row that is not
 //! moving — the L1 RGB contrast is summed once in the frame and once in the model, and a region
-//! whose model contrast is [`GHOST_RATIO`] times its frame contrast is a ghost. (Edge-based
+//! whose model contrast is at least [`GHOST_RATIO`] times its frame contrast (and at least
+//! [`MIN_GHOST_EDGE`] per pair) is a ghost. (Edge-based
 //! ghost tests are the usual remedy of background subtraction; this one needs no gradient
 //! image, only the pixels on the border.) A region holding both a target and the ghost it just
-//! left mixes the two and stays a detection.
+//! left mixes the two and stays a detection. Limits: rows only (top and bottom borders are
+//! not sampled), every second row, and a region needs [`MIN_PAIRS`] pairs (about five grid rows)
+//! to be judged; a box at the image's side has pairs on one side only. One frame's verdict
+//! decides: a target dressed like the floor in front of a strong edge of the background could
+//! be taken for a ghost and join the model.
 
 use crate::region::Grid;
 use proto::msg::PixelBox;
@@ -27,10 +32,10 @@ pub const GHOST_RATIO: u64 = 2;
 /// where the old object looked like the background, the model's border says nothing.
 pub const MIN_GHOST_EDGE: u64 = 24;
 /// Border pairs a region needs before it is judged at all.
-const MIN_PAIRS: u64 = 6;
+pub const MIN_PAIRS: u64 = 6;
 /// Every how many grid rows of a box are scanned: the sums are a sample of the border, and a
 /// person close to a camera is a box of a third of the frame.
-const ROW_STEP: usize = 2;
+pub const ROW_STEP: usize = 2;
 
 /// L1 RGB contrast summed over a region's border pairs, in the frame and in the model.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
