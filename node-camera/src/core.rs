@@ -77,6 +77,8 @@ pub struct Counters {
     /// Motion-segmented detections no prior gated that were not sent because they had not
     /// moved since the previous frame (or there was no recent previous frame to tell).
     pub still_unassociated: u64,
+    /// Regions the background model dropped as ghosts ([`crate::ghost`]).
+    pub ghosts: u64,
     /// Tag readings refused as impossible.
     pub tag_readings: u64,
     /// Ground-plane people not sent because a number of theirs was not finite.
@@ -369,6 +371,7 @@ impl CameraNode {
             self.reject("frame", e.to_string());
             return out;
         }
+        self.counters.ghosts = self.segmenter.ghosts();
         if self.people.is_some() {
             let regions = std::mem::take(&mut self.scratch);
             let out = self.ground_frame(now, frame, &regions);

@@ -74,6 +74,15 @@ impl Segmenter {
         }
     }
 
+    /// Regions the background model dropped as ghosts so far ([`crate::ghost`]; none for
+    /// colour difference, which has no model to leave them).
+    pub fn ghosts(&self) -> u64 {
+        match self {
+            Segmenter::ColourDifference(_) => 0,
+            Segmenter::AdaptiveBackground(s) => s.ghosts(),
+        }
+    }
+
     /// Segment a frame into `out` (cleared first).
     ///
     /// # Errors

@@ -200,6 +200,7 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
             "dropped": summary.counters.dropped,
             "rejected": summary.counters.rejected,
             "still_unassociated": summary.counters.still_unassociated,
+            "ghosts": summary.counters.ghosts,
             "frames_lost": summary.frames_lost,
             "send_failures": summary.run.send_failures,
             "measured_frames": summary.logged.frames,

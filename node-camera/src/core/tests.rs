@@ -236,6 +236,45 @@ fn still_regions_are_not_offered_for_new_tracks() {
     assert!(node.counters().still_unassociated >= 3, "{:?}", node.counters());
 }
 
+/// The same frames with the ghost test on (the default): the place the block stood when the
+/// model restarted is dropped as a ghost and counted.
+#[test]
+fn a_woken_cameras_ghost_is_dropped_and_counted() {
+    let (s, mut node, _) = setup(Fusion::DistributedEif);
+    let mut offered = Vec::new();
+    let mut t = 0.0;
+    for x in (0..10).map(|_| None).chain((0..8).map(|k| Some(40 + 12 * k))) {
+        let now = ClusterTime::from_secs_f64(t);
+        for o in node.on_frame(now, &block_frame(&s, t, x)) {
+            if let Message::Measurement(m) = o.body {
+                offered.push((x, m.pinhole().unwrap().pixel_box));
+            }
+        }
+        t += if t > 1.7 && t < 2.0 { 5.0 } else { 0.2 };
+    }
+    assert!(node.counters().ghosts >= 1, "{:?}", node.counters());
+    assert!(
+        offered.iter().all(|(x, _)| x.is_some()),
+        "nothing before the block: {offered:?}"
+    );
+    // While the block still touches where it stood, the ghost's border is partly the block's
+    // (a target in its own ghost stays a detection); once it has left (x ≥ 82) only the block
+    // is offered.
+    let left: Vec<_> = offered
+        .iter()
+        .filter(|(x, _)| x.is_some_and(|x| x >= 82))
+        .collect();
+    assert!(left.len() >= 3, "the moving block is offered: {offered:?}");
+    for (x, b) in left {
+        let x = x.unwrap() as f32;
+        let centre = (b.xmin + b.xmax) / 2.0;
+        assert!(
+            (centre - (x + 15.0)).abs() < 4.0,
+            "offered a region at {centre}, block at {x}: {b:?}"
+        );
+    }
+}
+
 #[test]
 fn empty_answer_when_nothing_matches_and_bad_input_changes_nothing() {
     let (s, mut node, r) = setup(Fusion::DistributedEif);
