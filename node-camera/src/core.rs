@@ -159,7 +159,11 @@ impl CameraNode {
     }
 
     pub fn counters(&self) -> Counters {
-        self.counters
+        Counters {
+            // The segmenter keeps the count; read, not copied every frame.
+            ghosts: self.segmenter.ghosts(),
+            ..self.counters
+        }
     }
 
     /// Detections of the newest processed frame, undistorted.
@@ -371,7 +375,6 @@ impl CameraNode {
             self.reject("frame", e.to_string());
             return out;
         }
-        self.counters.ghosts = self.segmenter.ghosts();
         if self.people.is_some() {
             let regions = std::mem::take(&mut self.scratch);
             let out = self.ground_frame(now, frame, &regions);
