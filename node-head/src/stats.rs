@@ -58,6 +58,8 @@ pub struct Counters {
     /// [`crate::tags::MAX_TAGS`] other tags (a flood of tag ids).
     pub tag_readings_refused: u64,
     pub births: u64,
+    /// Births refused because they lay outside the head's region (another head's floor).
+    pub births_elsewhere: u64,
     pub deaths: u64,
     /// Of the deaths, tracks dropped for straying outside the world's box.
     pub left_world: u64,

@@ -4,6 +4,7 @@
 use super::HeadNode;
 use crate::activation::{Candidate, Expected, Variant};
 use crate::association::{Detection, births, gated_costs};
+use crate::config::BIRTH_REGION_MARGIN_M;
 use crate::observe;
 use crate::rssi_training::distance_variance;
 use crate::stats::StepStats;
@@ -204,7 +205,12 @@ impl HeadNode {
             self.cfg.target_plane_z,
             self.cfg.bounds,
         );
+        let region = self.birth_region();
         for b in found {
+            if region.is_some_and(|r| !inside(&r, b.mean[0], b.mean[1], BIRTH_REGION_MARGIN_M)) {
+                self.counters.births_elsewhere += 1;
+                continue;
+            }
             let local = self.alloc_local();
             match self.new_track(local, None, b.mean, b.cov, now) {
                 Ok(t) => {
@@ -218,6 +224,18 @@ impl HeadNode {
                 }
             }
         }
+    }
+
+    /// Where this head may start tracks: its region while its cluster is the one it started
+    /// with; anywhere (`None`) once it took over another head's cameras (failover), whose
+    /// floor nobody else covers now.
+    fn birth_region(&self) -> Option<[f64; 4]> {
+        let adopted = self
+            .nodes
+            .iter()
+            .zip(&self.cfg.nodes)
+            .any(|(now, start)| now.member && !start.member);
+        self.cfg.region.filter(|_| !adopted)
     }
 
     /// The cluster's power with the current modes (nodes down draw nothing we can count).
@@ -372,4 +390,10 @@ fn floor_distance2<const N: usize>(
     let s = nalgebra::SMatrix::<f64, N, N>::from_fn(|r, c| ca[(idx[r], idx[c])] + cb[(idx[r], idx[c])]);
     let c = s.cholesky()?;
     Some(d.dot(&c.solve(&d)))
+}
+
+/// Whether floor point `(x, y)` lies in `region` (`[xmin, ymin, xmax, ymax]`) grown by `margin`.
+fn inside(region: &[f64; 4], x: f64, y: f64, margin: f64) -> bool {
+    (region[0] - margin..=region[2] + margin).contains(&x)
+        && (region[1] - margin..=region[3] + margin).contains(&y)
 }

@@ -793,3 +793,34 @@ fn a_radio_only_cluster_tracks_each_tag_on_its_own_track() {
     assert_eq!(dbm(&h.tracks()[0]), vec![-55.0]);
     assert_eq!(dbm(&h.tracks()[1]), vec![-70.0]);
 }
+
+/// People that `birth_min_cameras` member cameras agree on start a track in the head's region
+/// (or within `BIRTH_REGION_MARGIN_M` of it); beyond that they are another head's, refused and
+/// counted, unless the head took over other cameras (failover).
+#[test]
+fn a_head_starts_tracks_only_near_its_region() {
+    let s = Scenario::default_scenario();
+    // Head 2 covers x 0–6 of the 12 × 8 m floor.
+    let births_at = |at: [f64; 2], adopt: bool| {
+        let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
+        assert_eq!(cfg.region, Some([0.0, 0.0, 6.0, 8.0]));
+        let mut h = HeadNode::new(cfg.clone());
+        if adopt {
+            // As if the server had moved a camera of head 3 here (head 3 went down).
+            let foreign = cfg.nodes.iter().position(|n| !n.member).unwrap();
+            h.nodes[foreign].member = true;
+        }
+        let now = ClusterTime::from_millis(100);
+        h.tick(now);
+        let members: Vec<u32> = cfg.nodes.iter().filter(|n| n.member).map(|n| n.id.0).collect();
+        for &id in members.iter().take(cfg.birth_min_cameras.max(2)) {
+            h.on_message(now, env(id, Message::PeopleFrame(people_frame(at, None, now))));
+        }
+        h.tick(ClusterTime::from_millis(400));
+        (h.tracks().len(), h.counters().births_elsewhere)
+    };
+    assert_eq!(births_at([5.5, 4.0], false), (1, 0), "inside the region");
+    assert_eq!(births_at([6.8, 4.0], false), (1, 0), "within the margin");
+    assert_eq!(births_at([9.0, 4.0], false), (0, 1), "head 3's floor");
+    assert_eq!(births_at([9.0, 4.0], true).0, 1, "after a failover, anywhere");
+}

@@ -255,6 +255,7 @@ fn head_step_us(n: usize, scale: f64, rssi: bool) -> Result<f64> {
         bounds: ([0.0, 0.0, 0.0], [12.0, 8.0, 3.0]),
         walls: Vec::new(),
         birth_min_cameras: 2,
+        region: None,
         target_plane_z: 0.3,
         ml_depth: node_head::fusion::ml::DepthHandling::default(),
         acoustic: Vec::new(),
