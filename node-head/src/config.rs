@@ -108,7 +108,7 @@ pub struct HeadConfig {
 /// wherever its cameras agreed. In a hall tiled by five heads that made a track of one walking
 /// person in every neighbouring cluster too, triangulated by that cluster's distant cameras
 /// (floor σ often 0.8–3 m, 1–3.4 m off) — duplicates the server took for new people. Measured
-/// (`proto/scenarios/hall.toml`, measurement level, seeds 1–16): MOTA 0.526 → 0.562, global
+/// (`proto/scenarios/hall.toml`, measurement level, seeds 1–16): MOTA 0.527 → 0.562, global
 /// ids 34.1 → 30.5, false tracks 12.3 → 10.0, IDF1 0.479 → 0.487; the two-head crowd room
 /// (seeds 7–16), where every camera sees the whole floor, unchanged (0.740 → 0.744).
 pub const BIRTH_REGION_MARGIN_M: f64 = 1.0;
