@@ -90,9 +90,11 @@ pub struct HeadConfig {
     /// Fewest cameras that must agree to start a track (1 allows a wide single-camera prior).
     pub birth_min_cameras: usize,
     /// The floor this head covers, `[xmin, ymin, xmax, ymax]` (the scenario's `region`): it
-    /// starts tracks only there (within [`BIRTH_REGION_MARGIN_M`]) while its cluster is the one
-    /// it started with. `None`: anywhere in the world.
+    /// starts no track on another head's region farther than [`BIRTH_REGION_MARGIN_M`] from
+    /// its own while its cluster is the one it started with. `None`: anywhere in the world.
     pub region: Option<[f64; 4]>,
+    /// The other heads' regions: floor no region covers is anybody's.
+    pub other_regions: Vec<[f64; 4]>,
     /// Height assumed for single-camera priors and for ML's known plane, metres.
     pub target_plane_z: f64,
     /// How ML gets depth.
@@ -177,6 +179,11 @@ impl HeadConfig {
             walls: scenario.world.walls.clone(),
             birth_min_cameras: birth_min_cameras(member_count, member_cameras),
             region: scenario.node(id).and_then(|n| n.region),
+            other_regions: scenario
+                .heads()
+                .filter(|h| h.id != id)
+                .filter_map(|h| h.region)
+                .collect(),
             target_plane_z,
             ml_depth: DepthHandling::KnownPlane {
                 z: target_plane_z,

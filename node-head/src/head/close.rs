@@ -3,7 +3,7 @@
 
 use super::HeadNode;
 use crate::activation::{Candidate, Expected, Variant};
-use crate::association::{Detection, births, gated_costs};
+use crate::association::{BIRTH_BOUNDS_MARGIN, Detection, births, gated_costs};
 use crate::config::BIRTH_REGION_MARGIN_M;
 use crate::observe;
 use crate::rssi_training::distance_variance;
@@ -205,9 +205,20 @@ impl HeadNode {
             self.cfg.target_plane_z,
             self.cfg.bounds,
         );
+        // Another head's region is grown by the slack births have around the world's box, so
+        // that a birth just past the wall of a tiled floor is still that head's.
         let region = self.birth_region();
         for b in found {
-            if region.is_some_and(|r| !inside(&r, b.mean[0], b.mean[1], BIRTH_REGION_MARGIN_M)) {
+            let (x, y) = (b.mean[0], b.mean[1]);
+            let elsewhere = region.is_some_and(|r| {
+                !inside(&r, x, y, BIRTH_REGION_MARGIN_M)
+                    && self
+                        .cfg
+                        .other_regions
+                        .iter()
+                        .any(|o| inside(o, x, y, BIRTH_BOUNDS_MARGIN))
+            });
+            if elsewhere {
                 self.counters.births_elsewhere += 1;
                 continue;
             }
@@ -226,9 +237,9 @@ impl HeadNode {
         }
     }
 
-    /// Where this head may start tracks: its region while its cluster is the one it started
-    /// with; anywhere (`None`) once it took over another head's cameras (failover), whose
-    /// floor nobody else covers now.
+    /// The region that keeps this head from starting tracks on other heads' floor (see
+    /// `HeadConfig::region`): its own while its cluster is the one it started with; none once
+    /// it took over another head's cameras (failover), whose floor nobody else covers now.
     fn birth_region(&self) -> Option<[f64; 4]> {
         let adopted = self
             .nodes

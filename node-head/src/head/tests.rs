@@ -795,15 +795,18 @@ fn a_radio_only_cluster_tracks_each_tag_on_its_own_track() {
 }
 
 /// People that `birth_min_cameras` member cameras agree on start a track in the head's region
-/// (or within `BIRTH_REGION_MARGIN_M` of it); beyond that they are another head's, refused and
-/// counted, unless the head took over other cameras (failover).
+/// (or within `BIRTH_REGION_MARGIN_M` of it); beyond that, on another head's region, they are
+/// that head's, refused and counted, unless the head took over other cameras (failover). Floor
+/// no region covers is anybody's.
 #[test]
 fn a_head_starts_tracks_only_near_its_region() {
     let s = Scenario::default_scenario();
-    // Head 2 covers x 0–6 of the 12 × 8 m floor.
+    // Head 2 covers x 0–6 of the 12 × 8 m floor, head 3 x 6–12 but (here) only y 0–5.
     let births_at = |at: [f64; 2], adopt: bool| {
-        let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
+        let mut cfg = HeadConfig::from_scenario(&s, 2).unwrap();
         assert_eq!(cfg.region, Some([0.0, 0.0, 6.0, 8.0]));
+        assert_eq!(cfg.other_regions, vec![[6.0, 0.0, 12.0, 8.0]]);
+        cfg.other_regions = vec![[6.0, 0.0, 12.0, 5.0]];
         let mut h = HeadNode::new(cfg.clone());
         if adopt {
             // As if the server had moved a camera of head 3 here (head 3 went down).
@@ -822,5 +825,6 @@ fn a_head_starts_tracks_only_near_its_region() {
     assert_eq!(births_at([5.5, 4.0], false), (1, 0), "inside the region");
     assert_eq!(births_at([6.8, 4.0], false), (1, 0), "within the margin");
     assert_eq!(births_at([9.0, 4.0], false), (0, 1), "head 3's floor");
+    assert_eq!(births_at([9.0, 6.5], false), (1, 0), "nobody's floor");
     assert_eq!(births_at([9.0, 4.0], true).0, 1, "after a failover, anywhere");
 }

@@ -256,6 +256,7 @@ fn head_step_us(n: usize, scale: f64, rssi: bool) -> Result<f64> {
         walls: Vec::new(),
         birth_min_cameras: 2,
         region: None,
+        other_regions: Vec::new(),
         target_plane_z: 0.3,
         ml_depth: node_head::fusion::ml::DepthHandling::default(),
         acoustic: Vec::new(),
