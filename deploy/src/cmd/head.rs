@@ -55,6 +55,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         "duplicate": c.duplicate,
         "rejected": c.rejected,
         "births": c.births,
+        "births_elsewhere": c.births_elsewhere,
         "deaths": c.deaths,
         "left_world": c.left_world,
         "merges": c.merges,
