@@ -90,11 +90,11 @@ pub struct HeadConfig {
     /// Fewest cameras that must agree to start a track (1 allows a wide single-camera prior).
     pub birth_min_cameras: usize,
     /// The floor this head covers, `[xmin, ymin, xmax, ymax]` (the scenario's `region`): it
-    /// starts no track on another head's region farther than [`BIRTH_REGION_MARGIN_M`] from
-    /// its own while its cluster is the one it started with. `None`: anywhere in the world.
+    /// starts no track on a live head's region farther than [`BIRTH_REGION_MARGIN_M`] from its
+    /// own. `None`: anywhere in the world.
     pub region: Option<[f64; 4]>,
-    /// The other heads' regions: floor no region covers is anybody's.
-    pub other_regions: Vec<[f64; 4]>,
+    /// The other heads and their regions: floor no live head's region covers is anybody's.
+    pub other_regions: Vec<(NodeId, [f64; 4])>,
     /// Height assumed for single-camera priors and for ML's known plane, metres.
     pub target_plane_z: f64,
     /// How ML gets depth.
@@ -103,17 +103,21 @@ pub struct HeadConfig {
     pub acoustic: Vec<AcousticInfo>,
 }
 
-/// How far outside its region a head still starts tracks, metres: a person crossing the border
-/// is started by either head, and the server joins the two.
+/// How far outside its region a head still starts tracks, metres (distance to the region): a
+/// person crossing the border is started by either head, and the server joins the two.
 ///
 /// Cameras see far beyond the region they are aimed at, and a head once started a track
 /// wherever its cameras agreed. In a hall tiled by five heads that made a track of one walking
 /// person in every neighbouring cluster too, triangulated by that cluster's distant cameras
 /// (floor σ often 0.8–3 m, 1–3.4 m off) — duplicates the server took for new people. Measured
 /// (`proto/scenarios/hall.toml`, measurement level, seeds 1–16): MOTA 0.527 → 0.562, global
-/// ids 34.1 → 30.5, false tracks 12.3 → 10.0, IDF1 0.479 → 0.487; the two-head crowd room
+/// ids 34.1 → 30.6, false tracks 12.3 → 10.0, IDF1 0.479 → 0.487; the two-head crowd room
 /// (seeds 7–16), where every camera sees the whole floor, unchanged (0.740 → 0.744).
 pub const BIRTH_REGION_MARGIN_M: f64 = 1.0;
+
+// Floor a live head's region covers, grown by the births' slack around the world's box, must
+// be within a neighbour's margin too, or a birth just past a shared wall would be nobody's.
+const _: () = assert!(crate::association::BIRTH_BOUNDS_MARGIN <= BIRTH_REGION_MARGIN_M);
 
 /// Member cameras from which a cluster asks three cameras to agree on a birth, not two.
 pub const CROWDED_CLUSTER_CAMERAS: usize = 6;
@@ -182,7 +186,7 @@ impl HeadConfig {
             other_regions: scenario
                 .heads()
                 .filter(|h| h.id != id)
-                .filter_map(|h| h.region)
+                .filter_map(|h| h.region.map(|r| (NodeId(h.id), r)))
                 .collect(),
             target_plane_z,
             ml_depth: DepthHandling::KnownPlane {

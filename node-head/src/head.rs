@@ -50,6 +50,8 @@ pub struct HeadNode {
     sensed: sensed::Sensed,
     nodes: Vec<NodeState>,
     slots: HashMap<NodeId, usize>,
+    /// Other heads the server said are down (their floor is anybody's until they are back).
+    heads_down: std::collections::BTreeSet<NodeId>,
     cameras: Vec<proto::camera::CameraModel>,
     tracks: Vec<Track>,
     next_local: u32,
@@ -105,6 +107,7 @@ impl HeadNode {
             cfg,
             nodes,
             slots,
+            heads_down: std::collections::BTreeSet::new(),
             cameras,
             tracks: Vec::new(),
             next_local: 1,
@@ -256,6 +259,8 @@ impl HeadNode {
             Message::Handover(h) if from_server => self.on_handover(now, h),
             Message::Liveness(l) if from_server => out = self.node_liveness(now, l.node, l.up),
             Message::Assignment(a) if from_server => {
+                // The server assigns cameras to live heads only.
+                self.heads_down.remove(&a.head);
                 self.sensed.assign(a.node, a.head == self.cfg.id);
                 if let Some(&slot) = self.slots.get(&a.node) {
                     let mine = a.head == self.cfg.id;
@@ -288,6 +293,14 @@ impl HeadNode {
     /// its link drops). A node down is not waited for and draws no power.
     pub fn node_liveness(&mut self, now: ClusterTime, node: NodeId, up: bool) -> Vec<Outgoing> {
         let mut out = Vec::new();
+        if self.cfg.other_regions.iter().any(|(h, _)| *h == node) {
+            if up {
+                self.heads_down.remove(&node);
+            } else {
+                info!(head = %node, "another head is down: its floor is anybody's");
+                self.heads_down.insert(node);
+            }
+        }
         if let Some(&slot) = self.slots.get(&node) {
             if self.nodes[slot].up != up {
                 info!(node = %node, up, "node liveness changed");

@@ -58,7 +58,8 @@ pub struct Counters {
     /// [`crate::tags::MAX_TAGS`] other tags (a flood of tag ids).
     pub tag_readings_refused: u64,
     pub births: u64,
-    /// Births refused because they lay outside the head's region (another head's floor).
+    /// Births refused because they lay on a live head's floor, more than
+    /// `config::BIRTH_REGION_MARGIN_M` from this head's region.
     pub births_elsewhere: u64,
     pub deaths: u64,
     /// Of the deaths, tracks dropped for straying outside the world's box.

@@ -50,17 +50,7 @@ fn role_of(r: NodeRole) -> Role {
     }
 }
 
-/// Distance from a point to an axis-aligned rectangle (0 inside).
-pub fn distance_to_region(r: &[f64; 4], x: f64, y: f64) -> f64 {
-    let dx = (r[0] - x).max(0.0).max(x - r[2]);
-    let dy = (r[1] - y).max(0.0).max(y - r[3]);
-    dx.hypot(dy)
-}
-
-/// Whether a point lies in a rectangle shrunk by `margin` on every side.
-pub fn inside_region(r: &[f64; 4], x: f64, y: f64, margin: f64) -> bool {
-    x >= r[0] + margin && x <= r[2] - margin && y >= r[1] + margin && y <= r[3] - margin
-}
+pub use proto::region::{distance_to_region, inside_region};
 
 /// Where a camera's optical axis meets the floor (z = 0); its position if it looks up or level.
 fn floor_point(pose: &PoseSpec) -> Option<(f64, f64)> {
@@ -388,14 +378,5 @@ mod tests {
         let m = Membership::new(&s);
         assert_eq!(m.head_of(NodeId(12)), Some(NodeId(3)));
         assert_eq!(m.head_of(NodeId(10)), Some(NodeId(2)));
-    }
-
-    #[test]
-    fn region_geometry() {
-        let r = [0.0, 0.0, 6.0, 8.0];
-        assert_eq!(distance_to_region(&r, 3.0, 3.0), 0.0);
-        assert!((distance_to_region(&r, 9.0, 12.0) - 5.0).abs() < 1e-12);
-        assert!(inside_region(&r, 5.5, 1.0, 0.25));
-        assert!(!inside_region(&r, 5.9, 1.0, 0.25));
     }
 }

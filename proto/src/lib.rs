@@ -22,6 +22,7 @@ pub mod msg;
 pub mod node;
 pub mod observation;
 pub mod opencv;
+pub mod region;
 pub mod scenario;
 pub mod sensor;
 pub mod sync;

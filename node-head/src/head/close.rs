@@ -13,6 +13,7 @@ use proto::models::{Info, State, back_in_time, mat6_to_wire, position, vec6_to_w
 use proto::msg::{Command, TrackReport};
 use proto::node::Outgoing;
 use proto::observation::{Kinds, ObservationKind};
+use proto::region::{distance_to_region, inside_region};
 use proto::scenario::Activation;
 use proto::{ClusterTime, Message, Mode};
 use tracing::{debug, info, warn};
@@ -205,19 +206,15 @@ impl HeadNode {
             self.cfg.target_plane_z,
             self.cfg.bounds,
         );
-        // Another head's region is grown by the slack births have around the world's box, so
-        // that a birth just past the wall of a tiled floor is still that head's.
-        let region = self.birth_region();
+        let own = self.cfg.region;
         for b in found {
             let (x, y) = (b.mean[0], b.mean[1]);
-            let elsewhere = region.is_some_and(|r| {
-                !inside(&r, x, y, BIRTH_REGION_MARGIN_M)
-                    && self
-                        .cfg
-                        .other_regions
-                        .iter()
-                        .any(|o| inside(o, x, y, BIRTH_BOUNDS_MARGIN))
-            });
+            // Another live head's floor, its region grown by the slack births have around the
+            // world's box (a birth just past a tiled wall is still that head's).
+            let elsewhere = own.is_some_and(|r| distance_to_region(&r, x, y) > BIRTH_REGION_MARGIN_M)
+                && self.cfg.other_regions.iter().any(|(h, o)| {
+                    !self.heads_down.contains(h) && inside_region(o, x, y, -BIRTH_BOUNDS_MARGIN)
+                });
             if elsewhere {
                 self.counters.births_elsewhere += 1;
                 continue;
@@ -235,18 +232,6 @@ impl HeadNode {
                 }
             }
         }
-    }
-
-    /// The region that keeps this head from starting tracks on other heads' floor (see
-    /// `HeadConfig::region`): its own while its cluster is the one it started with; none once
-    /// it took over another head's cameras (failover), whose floor nobody else covers now.
-    fn birth_region(&self) -> Option<[f64; 4]> {
-        let adopted = self
-            .nodes
-            .iter()
-            .zip(&self.cfg.nodes)
-            .any(|(now, start)| now.member && !start.member);
-        self.cfg.region.filter(|_| !adopted)
     }
 
     /// The cluster's power with the current modes (nodes down draw nothing we can count).
@@ -401,10 +386,4 @@ fn floor_distance2<const N: usize>(
     let s = nalgebra::SMatrix::<f64, N, N>::from_fn(|r, c| ca[(idx[r], idx[c])] + cb[(idx[r], idx[c])]);
     let c = s.cholesky()?;
     Some(d.dot(&c.solve(&d)))
-}
-
-/// Whether floor point `(x, y)` lies in `region` (`[xmin, ymin, xmax, ymax]`) grown by `margin`.
-fn inside(region: &[f64; 4], x: f64, y: f64, margin: f64) -> bool {
-    (region[0] - margin..=region[2] + margin).contains(&x)
-        && (region[1] - margin..=region[3] + margin).contains(&y)
 }

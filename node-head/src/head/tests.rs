@@ -795,25 +795,29 @@ fn a_radio_only_cluster_tracks_each_tag_on_its_own_track() {
 }
 
 /// People that `birth_min_cameras` member cameras agree on start a track in the head's region
-/// (or within `BIRTH_REGION_MARGIN_M` of it); beyond that, on another head's region, they are
-/// that head's, refused and counted, unless the head took over other cameras (failover). Floor
-/// no region covers is anybody's.
+/// (or within `BIRTH_REGION_MARGIN_M` of it); beyond that, on a live head's region, they are
+/// that head's: refused and counted. Floor no region covers is anybody's, and so is a head's
+/// while the server says it is down, until it gets cameras again.
 #[test]
 fn a_head_starts_tracks_only_near_its_region() {
     let s = Scenario::default_scenario();
+    let server = s.server().unwrap().id;
     // Head 2 covers x 0–6 of the 12 × 8 m floor, head 3 x 6–12 but (here) only y 0–5.
-    let births_at = |at: [f64; 2], adopt: bool| {
+    let cfg = {
         let mut cfg = HeadConfig::from_scenario(&s, 2).unwrap();
         assert_eq!(cfg.region, Some([0.0, 0.0, 6.0, 8.0]));
-        assert_eq!(cfg.other_regions, vec![[6.0, 0.0, 12.0, 8.0]]);
-        cfg.other_regions = vec![[6.0, 0.0, 12.0, 5.0]];
+        assert_eq!(cfg.other_regions, vec![(NodeId(3), [6.0, 0.0, 12.0, 8.0])]);
+        cfg.other_regions = vec![(NodeId(3), [6.0, 0.0, 12.0, 5.0])];
+        cfg
+    };
+    // The births one step makes of a person at `at` that the cluster's cameras agree on, after
+    // the server's `news`.
+    let births_at = |at: [f64; 2], news: &[Message]| {
         let mut h = HeadNode::new(cfg.clone());
-        if adopt {
-            // As if the server had moved a camera of head 3 here (head 3 went down).
-            let foreign = cfg.nodes.iter().position(|n| !n.member).unwrap();
-            h.nodes[foreign].member = true;
-        }
         let now = ClusterTime::from_millis(100);
+        for m in news {
+            h.on_message(now, env(server, m.clone()));
+        }
         h.tick(now);
         let members: Vec<u32> = cfg.nodes.iter().filter(|n| n.member).map(|n| n.id.0).collect();
         for &id in members.iter().take(cfg.birth_min_cameras.max(2)) {
@@ -822,9 +826,33 @@ fn a_head_starts_tracks_only_near_its_region() {
         h.tick(ClusterTime::from_millis(400));
         (h.tracks().len(), h.counters().births_elsewhere)
     };
-    assert_eq!(births_at([5.5, 4.0], false), (1, 0), "inside the region");
-    assert_eq!(births_at([6.8, 4.0], false), (1, 0), "within the margin");
-    assert_eq!(births_at([9.0, 4.0], false), (0, 1), "head 3's floor");
-    assert_eq!(births_at([9.0, 6.5], false), (1, 0), "nobody's floor");
-    assert_eq!(births_at([9.0, 4.0], true).0, 1, "after a failover, anywhere");
+    let head3_down = Message::Liveness(proto::msg::Liveness {
+        node: NodeId(3),
+        up: false,
+    });
+    // Head 3 back: the server gives it a camera.
+    let camera_to_head3 = Message::Assignment(proto::msg::Assignment {
+        node: NodeId(cfg.nodes.iter().find(|n| !n.member).unwrap().id.0),
+        head: NodeId(3),
+    });
+    assert_eq!(births_at([5.5, 4.0], &[]), (1, 0), "inside the region");
+    assert_eq!(births_at([6.9, 4.0], &[]), (1, 0), "within the margin");
+    assert_eq!(births_at([7.1, 4.0], &[]), (0, 1), "past the margin");
+    assert_eq!(births_at([9.0, 4.0], &[]), (0, 1), "head 3's floor");
+    assert_eq!(
+        births_at([9.0, 5.4], &[]),
+        (0, 1),
+        "within the slack around head 3's floor"
+    );
+    assert_eq!(births_at([9.0, 6.5], &[]), (1, 0), "nobody's floor");
+    assert_eq!(
+        births_at([9.0, 4.0], std::slice::from_ref(&head3_down)),
+        (1, 0),
+        "head 3 is down"
+    );
+    assert_eq!(
+        births_at([9.0, 4.0], &[head3_down, camera_to_head3]),
+        (0, 1),
+        "head 3 is back"
+    );
 }

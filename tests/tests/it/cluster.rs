@@ -263,8 +263,9 @@ fn killing_a_camera_mid_run_leaves_tracking_running() {
 }
 
 /// The head owning the robot's track is killed: the server fails over to the other head, the
-/// robot keeps its global id, the surviving head has cameras within the liveness timeout and
-/// two steps (over TCP the cameras dial the head they are reassigned to) and the error is back under half a metre.
+/// robot keeps its global id, the surviving head has cameras within the liveness timeout
+/// and three steps (over TCP the cameras dial the head they are reassigned to) and the error
+/// is back under half a metre.
 fn owning_head_fails_over(transport: &str) {
     // The head stays dead (`--no-restart`): the failover, not the supervisor's restart, is
     // what this tests.
@@ -338,12 +339,13 @@ fn owning_head_fails_over(transport: &str) {
             .collect()
     };
     // Cameras on the surviving head once the server can know: the surviving head did not
-    // track the robot on the dead head's floor (a head starts tracks only near its own
-    // region), so it takes the track by handover when the liveness timeout declares the owner
-    // down, and its cameras answer the next step's prior. Allowed: that timeout and two steps.
+    // track the robot on the live owner's floor (a head starts no track there), so it takes
+    // the track by handover once the server declares the owner down (at the liveness timeout
+    // over iceoryx2, when the link drops over TCP), and its cameras answer a step later.
+    // Allowed: that timeout and three steps (1.27 s measured over iceoryx2).
     let scenario =
         proto::scenario::Scenario::load(&run.run_dir().join("scenario.toml")).expect("the launch's scenario");
-    let bound_s = (scenario.network.liveness_timeout_ms + 2 * scenario.method.step_ms) as f64 / 1e3;
+    let bound_s = (scenario.network.liveness_timeout_ms + 3 * scenario.method.step_ms) as f64 / 1e3;
     let first_seen = robot
         .iter()
         .find(|r| f(r, "cameras") >= 1.0)
