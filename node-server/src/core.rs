@@ -461,6 +461,13 @@ impl ServerNode {
                     ));
                 }
                 if self.members.member(node).map(|m| m.role) == Some(Role::Head) {
+                    // Back after a "down" every live head was told: they leave its floor to it
+                    // again (a head starts no track on a live head's floor).
+                    if matches!(d, Decision::Up { .. }) {
+                        for h in self.members.live_heads().into_iter().filter(|&h| h != node) {
+                            out.push(Outgoing::new(h, Message::Liveness(Liveness { node, up: true })));
+                        }
+                    }
                     for a in self.members.rebalance() {
                         self.decide(now, a, out);
                     }
