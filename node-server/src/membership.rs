@@ -50,7 +50,7 @@ fn role_of(r: NodeRole) -> Role {
     }
 }
 
-pub use proto::region::{distance_to_region, inside_region};
+use proto::region::{distance_to_region, inside_region};
 
 /// Where a camera's optical axis meets the floor (z = 0); its position if it looks up or level.
 fn floor_point(pose: &PoseSpec) -> Option<(f64, f64)> {

@@ -65,8 +65,9 @@
 //! gates plus unlikeness (1 − similarity) wins. Without histograms (segmenting cameras),
 //! position alone decides, as before.
 
-use crate::membership::{Membership, distance_to_region};
+use crate::membership::Membership;
 use proto::msg::{Mat6, TrackReport, Vec6};
+use proto::region::distance_to_region;
 use proto::{ClusterTime, NodeId, TargetId};
 use std::collections::BTreeMap;
 

@@ -4,7 +4,8 @@
 
 use super::{Binding, Tracks};
 use crate::decision::{Decision, HandoverReason};
-use crate::membership::{Membership, distance_to_region};
+use crate::membership::Membership;
+use proto::region::distance_to_region;
 use proto::{ClusterTime, NodeId, TargetId};
 
 impl Tracks {

@@ -4,8 +4,9 @@
 
 use super::{Binding, LocalTrack, Tracks};
 use crate::decision::Decision;
-use crate::membership::{Membership, distance_to_region};
+use crate::membership::Membership;
 use proto::msg::TrackReport;
+use proto::region::distance_to_region;
 use proto::{ClusterTime, NodeId, TargetId};
 
 /// One report being taken, with what every state needs to know about it.
