@@ -302,15 +302,6 @@ fn a_dead_heads_targets_and_cameras_move_to_a_live_head() {
     // Bounded: by the first tick after the liveness timeout (1000 ms) plus one tick.
     let t = failover_at.expect("failover happened");
     assert!(t > 1100 && t <= 1150, "failover at {t} ms");
-    let told_h3 = |out: &[Outgoing]| -> Vec<(NodeId, bool)> {
-        out.iter()
-            .filter(|o| o.to == H3)
-            .filter_map(|o| match &o.body {
-                Message::Liveness(l) => Some((l.node, l.up)),
-                _ => None,
-            })
-            .collect()
-    };
     assert_eq!(s.membership().head_of(CAM), Some(H3));
     let d = decisions(&mut s);
     assert!(d.contains(&Decision::Handover {
@@ -322,7 +313,15 @@ fn a_dead_heads_targets_and_cameras_move_to_a_live_head() {
     // Head 2 comes back: its cameras return to it, and head 3 hears it is up (it was told
     // it was down: its floor was anybody's meanwhile).
     let out = s.on_message(ms(3000), hello(H2, Role::Head));
-    assert_eq!(told_h3(&out), vec![(H2, true)]);
+    let told_h3: Vec<(NodeId, bool)> = out
+        .iter()
+        .filter(|o| o.to == H3)
+        .filter_map(|o| match &o.body {
+            Message::Liveness(l) => Some((l.node, l.up)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(told_h3, vec![(H2, true)]);
     assert_eq!(s.membership().head_of(CAM), Some(H2));
     assert!(out.iter().any(|o| o.to == H2
         && matches!(&o.body, Message::Assignment(a) if a.node == CAM && a.head == H2)));

@@ -206,16 +206,8 @@ impl HeadNode {
             self.cfg.target_plane_z,
             self.cfg.bounds,
         );
-        let own = self.cfg.region;
         for b in found {
-            let (x, y) = (b.mean[0], b.mean[1]);
-            // Another live head's floor, its region grown by the slack births have around the
-            // world's box (a birth just past a tiled wall is still that head's).
-            let elsewhere = own.is_some_and(|r| distance_to_region(&r, x, y) > BIRTH_REGION_MARGIN_M)
-                && self.cfg.other_regions.iter().any(|(h, o)| {
-                    !self.heads_down.contains(h) && inside_region(o, x, y, -BIRTH_BOUNDS_MARGIN)
-                });
-            if elsewhere {
+            if self.on_another_heads_floor(b.mean[0], b.mean[1]) {
                 self.counters.births_elsewhere += 1;
                 continue;
             }
@@ -232,6 +224,21 @@ impl HeadNode {
                 }
             }
         }
+    }
+
+    /// Whether floor point `(x, y)` is a live head's, not this one's: more than
+    /// [`BIRTH_REGION_MARGIN_M`] from this head's region and in another's that the server has
+    /// not said is down, grown by the slack births have around the world's box (a birth just
+    /// past a tiled wall is still that head's). Always false for a head without a region.
+    fn on_another_heads_floor(&self, x: f64, y: f64) -> bool {
+        self.cfg
+            .region
+            .is_some_and(|r| distance_to_region(&r, x, y) > BIRTH_REGION_MARGIN_M)
+            && self
+                .cfg
+                .other_regions
+                .iter()
+                .any(|(h, o)| !self.heads_down.contains(h) && inside_region(o, x, y, -BIRTH_BOUNDS_MARGIN))
     }
 
     /// The cluster's power with the current modes (nodes down draw nothing we can count).
