@@ -2,10 +2,10 @@
 //! [`CameraInput`]s: frames, detections made elsewhere, a replay's measured frames, and tag
 //! readings.
 //!
-//! In distributed mode it answers every `Prior` with one `Contribution` built from the newest
-//! frame's detection gated to that target (no Ω, ξ when it has none) and the fresh tag
-//! readings; detections gated to no prior go out as `Measurement { target: None }` so heads
-//! can start tracks. In centralized mode every detection goes out as a `Measurement`; in grid
+//! In distributed mode it answers a step's `Priors` with one `Answers`: a `Contribution` for
+//! every track the newest frame's detections, paired with the priors jointly, give one to (a
+//! track it has nothing for is not listed), and the fresh tag readings once; detections gated
+//! to no prior go out as `Measurement { target: None }` so heads can start tracks. In centralized mode every detection goes out as a `Measurement`; in grid
 //! mode each processed frame is also reported (`FrameReport`), so the head knows it looked. Modes
 //! (Active, CameraOff, Inactive) follow the head's `Command`s; time in each, the runtime's
 //! sync estimate and what it could not deliver are reported in a `NodeStatus` every status
@@ -15,12 +15,13 @@
 //! observations ([`ground`]).
 
 use crate::config::CameraConfig;
+use crate::ground_people::gate_distance2;
 use crate::ground_people::{GroundPeople, PeopleSender};
 use crate::measure::{self, Measured};
 use crate::previous::{Offer, previous_point};
 use crate::record_all::RecordAll;
 use crate::segment::Segmenter;
-use proto::msg::{Message, Mode, NodeStatus, Prior};
+use proto::msg::{Answers, Message, Mode, NodeStatus, Prior, Priors};
 use proto::node::{Input, Node, Outgoing};
 use proto::observation::RssiReading;
 use proto::sensor::{Detection, Frame, TagReading};
@@ -247,21 +248,22 @@ impl CameraNode {
             return out;
         }
         match env.body {
-            Message::Prior(p) => {
+            Message::Priors(p) => {
                 if !self.mode.radio_on() {
-                    self.counters.priors_ignored += 1;
+                    self.counters.priors_ignored += p.tracks.len() as u64;
                     return out;
                 }
-                self.counters.priors += 1;
-                if self.cfg.fusion.distributed() {
-                    let c = self
-                        .ground_answer(now, &p)
-                        .unwrap_or_else(|| self.answer(now, &p));
-                    self.counters.contributions += 1;
-                    self.counters.camera_contributions += u64::from(c.camera());
-                    out.push(Outgoing::new(env.source, Message::Contribution(c)));
+                self.counters.priors += p.tracks.len() as u64;
+                for prior in &p.tracks {
+                    self.priors.insert(prior.target, (now, prior.clone()));
                 }
-                self.priors.insert(p.target, (now, p));
+                if self.cfg.fusion.distributed() {
+                    let a = self.answers(now, &p);
+                    self.counters.contributions += a.contributions.len() as u64;
+                    self.counters.camera_contributions +=
+                        a.contributions.iter().filter(|c| c.camera()).count() as u64;
+                    out.push(Outgoing::new(env.source, Message::Answers(a)));
+                }
             }
             Message::Command(c) => {
                 if c.node != self.cfg.id {
@@ -288,49 +290,75 @@ impl CameraNode {
         out
     }
 
-    /// The contribution for one prior from the newest frame.
-    fn answer(&self, now: ClusterTime, prior: &Prior) -> proto::msg::Contribution {
-        let rssi = self.fresh_tags(now);
+    /// The answers to a step's priors (already among `self.priors`) from the newest frame: the
+    /// priors are paired with its detections (or, with particle filters, its people) jointly,
+    /// and only those given one are listed; the fresh tag readings go once.
+    fn answers(&self, now: ClusterTime, priors: &Priors) -> Answers {
         let captured = self.captured.filter(|&t| self.fresh(t, now));
-        // The prior's mean is for the step the head opened as it sent it; its arrival here
-        // stands for that time on this node's own clock (the link's latency is small against a
-        // frame period), so the frame's age needs no clock shared with the head.
+        // The priors' means are for the step the head opened as it sent them; their arrival
+        // here stands for that time on this node's own clock (the link's latency is small
+        // against a frame period), so the frame's age needs no clock shared with the head.
         let age_s = captured.map_or(0.0, |t| now.secs_since(t));
-        let cam = &self.cfg.camera;
-        let chosen = captured.and_then(|c| {
-            let priors = self.answering(prior, age_s, c);
-            measure::joint_choice(&priors, 0, &self.measured, self.cfg.gate_chi2, |p, m, age| {
-                measure::mahalanobis2(cam, p, m, age)
-            })
-        });
-        measure::contribution(
-            cam,
-            prior,
-            chosen,
-            captured.unwrap_or(now),
-            age_s,
-            self.mode,
-            &rssi,
-        )
+        let contributions = match captured {
+            None => Vec::new(),
+            Some(c) => {
+                let joint = self.answering(&priors.tracks, age_s, c);
+                let gate = self.cfg.gate_chi2;
+                let asked = &priors.tracks;
+                match &self.people {
+                    Some(people) => {
+                        let chosen = measure::joint_choices(&joint, people.latest(), gate, gate_distance2);
+                        asked
+                            .iter()
+                            .zip(chosen)
+                            .filter_map(|(p, g)| crate::ground_people::contribution(p, g))
+                            .collect()
+                    }
+                    None => {
+                        let cam = &self.cfg.camera;
+                        let chosen = measure::joint_choices(&joint, &self.measured, gate, |p, m, age| {
+                            measure::mahalanobis2(cam, p, m, age)
+                        });
+                        asked
+                            .iter()
+                            .zip(chosen)
+                            .filter_map(|(p, m)| measure::contribution(cam, p, m, age_s))
+                            .collect()
+                    }
+                }
+            }
+        };
+        Answers {
+            step: priors.tracks.first().map_or(0, |p| p.step),
+            part: priors.part,
+            captured: captured.unwrap_or(now),
+            mode: self.mode,
+            rssi: self.fresh_tags(now),
+            contributions,
+        }
     }
 
-    /// `prior` (first, its frame `age_s` old) with the priors it is answered jointly with: the
-    /// other tracks' newest, of this step or the one before (a track the head dropped sends no
-    /// more and drops out), each with the frame's age relative to its arrival.
+    /// The priors `asked` (first, in order, their frame `age_s` old) with the priors they are
+    /// answered jointly with: the other tracks' newest, of the same step or the one before (a
+    /// track the head dropped sends no more and drops out), each with the frame's age relative
+    /// to its arrival.
     pub(crate) fn answering<'a>(
         &'a self,
-        prior: &'a Prior,
+        asked: &'a [Prior],
         age_s: f64,
         captured: ClusterTime,
     ) -> Vec<(&'a Prior, f64)> {
-        let mut out = vec![(prior, age_s)];
+        let Some(step) = asked.first().map(|p| p.step) else {
+            return Vec::new();
+        };
+        let mut out: Vec<_> = asked.iter().map(|p| (p, age_s)).collect();
         out.extend(
             self.priors
                 .values()
                 .filter(|(t, p)| {
-                    p.target != prior.target
-                        && p.step + 1 >= prior.step
-                        && p.step <= prior.step
+                    !asked.iter().any(|a| a.target == p.target)
+                        && p.step + 1 >= step
+                        && p.step <= step
                         && self.fresh(captured, *t)
                 })
                 .map(|(t, p)| (p, t.secs_since(captured))),

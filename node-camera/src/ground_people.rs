@@ -3,7 +3,7 @@
 //! every person tracked becomes a ground-plane [`GroundPoint`] — the mean state's position,
 //! covariance from the sample spread through the ray geometry, width, height, the
 //! maximum-likelihood state's floor position and confidence, and the colour histogram.
-//! Distributed fusion answers a prior with the one gated to it, quantised, in the
+//! Distributed fusion answers a prior with the one gated to it, quantised, in its
 //! `Contribution` (the head folds it in, [`contribution`]); the others (all of them, in
 //! centralized fusion) leave in one [`PeopleFrame`] per head step ([`PeopleSender`]): each
 //! person quantised ([`GroundPerson`]), its histogram only when new, changed or due for a
@@ -22,8 +22,7 @@ use proto::camera::CameraModel;
 use proto::models;
 use proto::msg::{Contribution, ImageSample, MAX_SAMPLES, Mode, PeopleFrame, Prior, SampleSet};
 use proto::observation::{
-    GroundPerson, GroundPoint, HISTOGRAM_BINS, HISTOGRAM_HS_BINS, Kinds, Observation, RssiReading,
-    dequantise_histogram,
+    GroundPerson, GroundPoint, HISTOGRAM_BINS, HISTOGRAM_HS_BINS, Kinds, RssiReading, dequantise_histogram,
 };
 use proto::sensor::{Detection, Frame};
 use proto::{ClusterTime, TargetId};
@@ -217,29 +216,16 @@ pub fn associate(priors: &[(&Prior, f64)], people: &[GroundPoint], gate_chi2: f6
 /// The answer to `prior` with one ground point gated to it: the person itself, quantised, for
 /// the head to model (the floor position aged to the prior's time and the centre height its
 /// measured height gives are linear in the state, so the head computes from it the Ω_i, ξ_i
-/// [`models::ground_contribution_aged`] would give here, from a twentieth of the bytes); nothing
-/// when there is none or it cannot be quantised. Tag readings go along raw.
-pub fn contribution(
-    prior: &Prior,
-    person: Option<&GroundPoint>,
-    captured: ClusterTime,
-    mode: Mode,
-    rssi: &[RssiReading],
-) -> Contribution {
-    let person = person.and_then(|g| GroundPerson::quantise(g, None, false));
-    Contribution {
+/// [`models::ground_contribution_aged`] would give here, from a twentieth of the bytes); none
+/// when there is no person or it cannot be quantised.
+pub fn contribution(prior: &Prior, person: Option<&GroundPoint>) -> Option<Contribution> {
+    let person = person.and_then(|g| GroundPerson::quantise(g, None, false))?;
+    Some(Contribution {
         target: prior.target,
-        step: prior.step,
         info: None,
         folded: Kinds::NONE,
-        captured,
-        mode,
-        observations: person
-            .map(Observation::Ground)
-            .into_iter()
-            .chain(rssi.iter().copied().map(Observation::Rssi))
-            .collect(),
-    }
+        ground: Some(person),
+    })
 }
 
 /// A person's histogram goes out again when it has drifted this far (Bhattacharyya distance,

@@ -117,52 +117,47 @@ pub fn joint_choice<'a, T>(
     pairs.iter().position(|&p| p == Some(of)).map(|i| &items[i])
 }
 
-/// The contribution Ω_i, ξ_i of one measured point at the prior's mean, or the contribution
-/// with nothing folded (no Ω_i, ξ_i) when there is none or it cannot be linearized. The point was
-/// captured `age_s` seconds before the prior's time ([`models::camera_contribution_aged`]). Tag
-/// readings go along raw, for the head to model.
+/// Per prior, the item the optimal pairing of every prior with the items gives it
+/// ([`nearest_pairs`]), or none: [`joint_choice`] for all priors at once.
+pub fn joint_choices<'a, T>(
+    priors: &[(&Prior, f64)],
+    items: &'a [T],
+    gate_chi2: f64,
+    distance2: impl Fn(&Prior, &T, f64) -> Option<f64>,
+) -> Vec<Option<&'a T>> {
+    let mut out = vec![None; priors.len()];
+    for (item, p) in nearest_pairs(priors, items, gate_chi2, distance2)
+        .into_iter()
+        .enumerate()
+    {
+        if let Some(p) = p {
+            out[p] = Some(&items[item]);
+        }
+    }
+    out
+}
+
+/// The contribution Ω_i, ξ_i of one measured point at the prior's mean, or none when there is
+/// no point or it cannot be linearized. The point was captured `age_s` seconds before the
+/// prior's time ([`models::camera_contribution_aged`]).
 pub fn contribution(
     camera: &CameraModel,
     prior: &Prior,
     measured: Option<&Measured>,
-    captured: ClusterTime,
     age_s: f64,
-    mode: Mode,
-    rssi: &[RssiReading],
-) -> Contribution {
+) -> Option<Contribution> {
     let mean: State = models::vec6_from_wire(&prior.mean);
-    let info =
-        measured.and_then(|m| models::camera_contribution_aged(camera, &m.point, &m.cov, &mean, age_s));
-    folded_contribution(prior, info, ObservationKind::Pinhole, captured, mode, rssi)
-}
-
-/// The answer to `prior` carrying `info` (Ω_i, ξ_i of one observation of `kind`, folded at the
-/// camera), or the contribution with nothing folded; tag readings go along raw.
-pub(crate) fn folded_contribution(
-    prior: &Prior,
-    info: Option<(nalgebra::Matrix6<f64>, nalgebra::Vector6<f64>)>,
-    kind: ObservationKind,
-    captured: ClusterTime,
-    mode: Mode,
-    rssi: &[RssiReading],
-) -> Contribution {
-    let folded = if info.is_some() {
-        Kinds::of(kind)
-    } else {
-        Kinds::NONE
-    };
-    Contribution {
+    let (omega, xi) =
+        measured.and_then(|m| models::camera_contribution_aged(camera, &m.point, &m.cov, &mean, age_s))?;
+    Some(Contribution {
         target: prior.target,
-        step: prior.step,
-        info: info.map(|(omega, xi)| Information {
+        info: Some(Information {
             matrix: models::mat6_to_wire(&omega),
             vector: models::vec6_to_wire(&xi),
         }),
-        folded,
-        captured,
-        mode,
-        observations: rssi.iter().copied().map(Observation::Rssi).collect(),
-    }
+        folded: Kinds::of(ObservationKind::Pinhole),
+        ground: None,
+    })
 }
 
 /// The pin-hole observation of one measured detection.
@@ -316,7 +311,7 @@ mod tests {
     fn an_old_frame_contributes_at_its_own_time() {
         let (c, p, m) = moving_prior_and_old_frame();
         let mean = models::vec6_from_wire(&p.mean);
-        let got = contribution(&c, &p, Some(&m), ClusterTime(5), 0.2, Mode::Active, &[]);
+        let got = contribution(&c, &p, Some(&m), 0.2).unwrap();
         let (omega, xi) = models::camera_contribution_aged(&c, &m.point, &m.cov, &mean, 0.2).unwrap();
         let info = got.info.unwrap();
         assert_eq!(info.matrix, models::mat6_to_wire(&omega));
@@ -340,22 +335,20 @@ mod tests {
     }
 
     #[test]
-    fn contribution_matches_proto_and_zero_when_empty() {
+    fn contribution_matches_proto_and_none_when_empty() {
         let c = cam();
         let a = Vector3::new(3.5, 2.2, 0.25);
         let m = measured_at(&c, &a, 18.0);
         let p = prior(1, a, 0.3);
-        let got = contribution(&c, &p, Some(&m), ClusterTime(5), 0.0, Mode::Active, &[]);
+        let got = contribution(&c, &p, Some(&m), 0.0).unwrap();
         assert_eq!(got.folded, Kinds::of(ObservationKind::Pinhole));
         let (omega, xi) =
             models::camera_contribution(&c, &m.point, &m.cov, &models::vec6_from_wire(&p.mean)).unwrap();
         let info = got.info.clone().unwrap();
         assert_eq!(info.matrix, models::mat6_to_wire(&omega));
         assert_eq!(info.vector, models::vec6_to_wire(&xi));
-        assert_eq!((got.target, got.step), (TargetId(1), 7));
-        let empty = contribution(&c, &p, None, ClusterTime(5), 0.0, Mode::CameraOff, &[]);
-        assert!(empty.folded.is_empty());
-        assert_eq!(empty.info, None);
+        assert_eq!((got.target, got.ground), (TargetId(1), None));
+        assert_eq!(contribution(&c, &p, None, 0.0), None, "nothing to send");
         let tag = RssiReading {
             tag: proto::TagId(9),
             dbm: -60.0,

@@ -1,8 +1,9 @@
 //! The sans-IO head core, [`HeadNode`]: messages and ticks in, messages out.
 //!
-//! Every `method.step_ms` a tick opens a step: tracks are predicted and a `Prior` goes to every
-//! member node that is up and not Inactive. The step closes when every expected node answered
-//! every track or the deadline passed; then the sums are applied, RSSI is linearized with each
+//! Every `method.step_ms` a tick opens a step: tracks are predicted and their `Priors` go to
+//! every member node that is up and not Inactive, one message per node (in parts of at most
+//! `MAX_PRIORS` tracks). A node's `Answers` answer every track of a part. The step closes when
+//! every expected node answered every track or the deadline passed; then the sums are applied, RSSI is linearized with each
 //! node's (trained or default) model, a `TrackReport` per track goes to the server, new tracks
 //! are born from agreeing unassociated detections, and activation sends at most one `Command`.
 
@@ -15,9 +16,11 @@ use crate::step::{Offer, StepWindow};
 use crate::track::Track;
 use nalgebra::{Matrix2, Matrix6, Vector2};
 use proto::models::{State, mat6_from_wire, mat6_to_wire, vec6_from_wire, vec6_to_wire};
-use proto::msg::{Contribution, Handover, Measurement, NodeStatus, PeopleFrame, Prior};
+use proto::msg::{
+    Answers, Contribution, Handover, MAX_PRIORS, Measurement, NodeStatus, PeopleFrame, Prior, Priors,
+};
 use proto::node::{Input, Node, Outgoing};
-use proto::observation::{GroundPerson, Kinds, ObservationKind};
+use proto::observation::{GroundPerson, ObservationKind};
 use proto::scenario::Activation;
 use proto::{ClusterTime, Envelope, Message, Mode, NodeId, TargetId};
 use std::collections::HashMap;
@@ -56,6 +59,8 @@ pub struct HeadNode {
     tracks: Vec<Track>,
     next_local: u32,
     window: StepWindow,
+    /// The tracks each part of the open step's priors asked, by part.
+    parts: Vec<Vec<TargetId>>,
     step: u64,
     step_time: ClusterTime,
     next_step_at: Option<ClusterTime>,
@@ -112,6 +117,7 @@ impl HeadNode {
             tracks: Vec::new(),
             next_local: 1,
             window: StepWindow::default(),
+            parts: Vec::new(),
             step: 0,
             step_time: ClusterTime::ZERO,
             next_step_at: None,
@@ -236,9 +242,9 @@ impl HeadNode {
         let from_server = self.cfg.server == Some(src);
         let member = self.slots.get(&src).copied().filter(|&s| self.nodes[s].member);
         match env.body {
-            Message::Contribution(c) => match member {
-                Some(slot) => self.on_contribution(now, slot, c, &mut out),
-                None => self.reject(now, src, "contribution"),
+            Message::Answers(a) => match member {
+                Some(slot) => self.on_answers(now, slot, a, &mut out),
+                None => self.reject(now, src, "answers"),
             },
             Message::Measurement(m) => match member {
                 Some(slot) => self.on_measurement(now, slot, m),
@@ -323,89 +329,133 @@ impl HeadNode {
         }
     }
 
-    fn on_contribution(&mut self, now: ClusterTime, slot: usize, c: Contribution, out: &mut Vec<Outgoing>) {
-        if c.info
-            .as_ref()
-            .is_some_and(|i| i.matrix.iter().flatten().chain(&i.vector).any(|x| !x.is_finite()))
-        {
+    /// A node's answers to one part of the step's priors: every track of the part is
+    /// answered, those it lists with their contribution, the others with nothing.
+    fn on_answers(&mut self, now: ClusterTime, slot: usize, a: Answers, out: &mut Vec<Outgoing>) {
+        if a.contributions.iter().any(|c| {
+            c.info
+                .as_ref()
+                .is_some_and(|i| i.matrix.iter().flatten().chain(&i.vector).any(|x| !x.is_finite()))
+        }) {
             self.counters.rejected += 1;
             if let Some(more) = self.log.admit(now.0, "non-finite contribution") {
                 warn!(node = %self.nodes[slot].info.id, more, "contribution with non-finite numbers; ignored");
             }
             return;
         }
-        let Some(t) = self.tracks.iter().position(|tr| tr.local == c.target) else {
-            self.counters.unknown_target += 1;
-            debug!(node = %self.nodes[slot].info.id, target = %c.target, "contribution for an unknown track");
-            return;
+        let asked: &[TargetId] = if a.step == self.step {
+            self.parts.get(usize::from(a.part)).map_or(&[], Vec::as_slice)
+        } else {
+            &[]
         };
-        match self.window.offer(slot, t, c.step, now) {
-            Offer::Apply => {
-                self.counters.applied += 1;
-                // A ground-plane person the camera gated to the prior, folded in here (at the
-                // capture time, by the same linear model the camera would use).
-                let ground = c
-                    .ground()
-                    .filter(|_| self.fresh(now, c.captured, slot, "ground person"))
-                    .map(|p| self.ground_detection(slot, p, c.captured));
-                let camera = c.folded.camera() || ground.is_some();
-                self.offer_readings(now, slot, c.rssi());
-                self.counters.unfused_observations += c
-                    .observations
-                    .iter()
-                    .filter(|o| !crate::observe::fused_by_eif(o.kind()))
-                    .count() as u64;
-                let node = &mut self.nodes[slot];
-                node.mode = c.mode;
-                let track = &mut self.tracks[t];
-                if camera {
-                    self.planner.camera_delivered(node.info.id);
-                    if let Some(info) = c.info.as_ref().filter(|_| c.folded.camera()) {
-                        track.acc.add_wire(&info.matrix, &info.vector);
-                        track.aux_acc.add_wire(&info.matrix, &info.vector);
-                    }
-                    if let Some(d) = &ground {
-                        crate::observe::ground(track, d);
-                    }
-                    if let Some(h) = c
-                        .ground()
-                        .and_then(|p| p.histogram.as_deref())
-                        .filter(|_| ground.is_some())
-                    {
-                        track.see_colours(&proto::observation::dequantise_histogram(h));
-                    }
-                    track.last_seen = now;
-                    track.fused_frame(c.captured);
-                }
-                let mut kinds = if camera { c.folded } else { Kinds::NONE };
-                if ground.is_some() {
-                    kinds.insert(ObservationKind::Ground);
-                }
-                if !kinds.is_empty() {
-                    track.contributors.push(proto::msg::Contributor {
-                        node: node.info.id,
-                        kinds,
-                    });
-                }
+        for c in &a.contributions {
+            if !asked.contains(&c.target) {
+                self.counters.unknown_target += 1;
+                debug!(node = %self.nodes[slot].info.id, target = %c.target, part = a.part, "contribution for a track the part did not ask");
             }
-            Offer::Late => {
-                self.counters.late += 1;
-                debug!(node = %self.nodes[slot].info.id, step = c.step, current = self.step, "late contribution");
+        }
+        // Every track the part asked, by its index now; a track gone since is skipped.
+        let answered: Vec<(usize, Option<&Contribution>)> = asked
+            .iter()
+            .filter_map(|target| {
+                let t = self.tracks.iter().position(|tr| tr.local == *target)?;
+                Some((t, a.contributions.iter().find(|c| c.target == *target)))
+            })
+            .collect();
+        let offers: Vec<Offer> = if answered.is_empty() {
+            // Not a part of the open step: an older step's answer is late, a newer one's (or a
+            // part this step never had) is confused.
+            vec![if a.step == self.step {
+                Offer::Future
+            } else {
+                self.window.offer(slot, 0, a.step, now)
+            }]
+        } else {
+            answered
+                .iter()
+                .map(|&(t, _)| self.window.offer(slot, t, a.step, now))
+                .collect()
+        };
+        let applied = offers.iter().filter(|&&o| o == Offer::Apply).count();
+        self.counters.applied += applied as u64;
+        if applied > 0 {
+            self.offer_readings(now, slot, &a.rssi);
+            self.nodes[slot].mode = a.mode;
+        }
+        for (&(t, c), offer) in answered.iter().zip(&offers) {
+            if *offer == Offer::Apply
+                && let Some(c) = c
+            {
+                self.apply_contribution(now, slot, t, c, a.captured);
             }
-            Offer::Duplicate => {
-                self.counters.duplicate += 1;
-                debug!(node = %self.nodes[slot].info.id, step = c.step, "duplicate contribution");
-            }
-            Offer::Future => {
-                self.counters.future += 1;
-                if let Some(more) = self.log.admit(now.0, "future contribution") {
-                    warn!(node = %self.nodes[slot].info.id, step = c.step, current = self.step, more, "contribution for a future step");
-                }
+        }
+        // One count per answer, however many tracks it covers.
+        let node = self.nodes[slot].info.id;
+        if offers.contains(&Offer::Late) {
+            self.counters.late += 1;
+            debug!(%node, step = a.step, current = self.step, "late answers");
+        } else if offers.contains(&Offer::Duplicate) {
+            self.counters.duplicate += 1;
+            debug!(%node, step = a.step, "duplicate answers");
+        } else if offers.contains(&Offer::Future) {
+            self.counters.future += 1;
+            if let Some(more) = self.log.admit(now.0, "future answers") {
+                warn!(%node, step = a.step, current = self.step, more, "answers for a future step");
             }
         }
         if self.window.complete() {
             self.close_step(now, out);
         }
+    }
+
+    /// Sum one node's contribution to track `t` (its frame captured at `captured`).
+    fn apply_contribution(
+        &mut self,
+        now: ClusterTime,
+        slot: usize,
+        t: usize,
+        c: &Contribution,
+        captured: ClusterTime,
+    ) {
+        // A ground-plane person the camera gated to the prior, folded in here (at the capture
+        // time, by the same linear model the camera would use).
+        let ground = c
+            .ground
+            .as_ref()
+            .filter(|_| self.fresh(now, captured, slot, "ground person"))
+            .map(|p| self.ground_detection(slot, p, captured));
+        let camera = c.folded.camera() || ground.is_some();
+        if !camera {
+            return;
+        }
+        let node = &self.nodes[slot];
+        let track = &mut self.tracks[t];
+        self.planner.camera_delivered(node.info.id);
+        if let Some(info) = c.info.as_ref().filter(|_| c.folded.camera()) {
+            track.acc.add_wire(&info.matrix, &info.vector);
+            track.aux_acc.add_wire(&info.matrix, &info.vector);
+        }
+        if let Some(d) = &ground {
+            crate::observe::ground(track, d);
+        }
+        if let Some(h) = c
+            .ground
+            .as_ref()
+            .and_then(|p| p.histogram.as_deref())
+            .filter(|_| ground.is_some())
+        {
+            track.see_colours(&proto::observation::dequantise_histogram(h));
+        }
+        track.last_seen = now;
+        track.fused_frame(captured);
+        let mut kinds = c.folded;
+        if ground.is_some() {
+            kinds.insert(ObservationKind::Ground);
+        }
+        track.contributors.push(proto::msg::Contributor {
+            node: node.info.id,
+            kinds,
+        });
     }
 
     /// Whether a capture stamped `t` may be fused at `now`. Frames and packets are fused at
@@ -647,20 +697,30 @@ impl HeadNode {
         let deadline = now + (self.cfg.method.deadline_ms as i64).saturating_mul(1_000_000);
         self.window
             .open(self.step, deadline, self.tracks.len(), &self.expected);
-        for t in &self.tracks {
-            let prior = Prior {
-                target: t.local,
-                step: self.step,
-                mean: vec6_to_wire(t.filter.mean()),
-                cov: mat6_to_wire(t.filter.cov()),
-                deadline,
+        // One message per node for the step's priors (in parts when there are many), so each
+        // node answers them all at once and jointly.
+        self.parts.clear();
+        for (part, tracks) in self.tracks.chunks(MAX_PRIORS).enumerate() {
+            self.parts.push(tracks.iter().map(|t| t.local).collect());
+            let priors = Priors {
+                part: part as u16,
+                tracks: tracks
+                    .iter()
+                    .map(|t| Prior {
+                        target: t.local,
+                        step: self.step,
+                        mean: vec6_to_wire(t.filter.mean()),
+                        cov: mat6_to_wire(t.filter.cov()),
+                        deadline,
+                    })
+                    .collect(),
             };
             for n in self
                 .nodes
                 .iter()
                 .filter(|n| n.member && n.up && n.mode != Mode::Inactive)
             {
-                out.push(Outgoing::new(n.info.id, Message::Prior(prior.clone())));
+                out.push(Outgoing::new(n.info.id, Message::Priors(priors.clone())));
             }
         }
     }

@@ -18,9 +18,10 @@ pub struct StepStats {
     pub camera_off: usize,
     /// Nodes whose RSSI reading was fused this step.
     pub rssi_nodes: usize,
-    /// Contributions (or, centralized, measurements) applied this step.
+    /// (Node, track) answers (or, centralized, measurements) applied this step.
     pub applied: u64,
-    /// Contributions for an earlier step or past the deadline, counted while this step was open.
+    /// (Node, track) answers for an earlier step or past the deadline, counted while this step
+    /// was open.
     pub late: u64,
     pub duplicate: u64,
     /// Tracks that had no measurement and were prediction only.
@@ -37,12 +38,14 @@ pub struct StepStats {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Counters {
     pub steps: u64,
+    /// (Node, track) answers applied: a node's `Answers` answer every track of its part.
     pub applied: u64,
+    /// Nodes' `Answers` that came late, came twice, or for a step that has not started (or a
+    /// part the step never had): one count per message.
     pub late: u64,
     pub duplicate: u64,
-    /// Contributions for a step that has not started.
     pub future: u64,
-    /// Contributions for a track the head does not have (dropped or never existed).
+    /// Contributions for a track the part did not ask (dropped or never existed).
     pub unknown_target: u64,
     /// Messages from a node not allowed to send them (not a member, not the server).
     pub rejected: u64,

@@ -49,9 +49,9 @@ pub const FLOAT_SLOTS: [(usize, usize); 20] = [
     (0, 0),   // hello_ack
     (0, 0),   // heartbeat
     (14, 13), // measurement: rvec 3, tvec 3, pin-hole 7, rssi 1; box 4, colour 3, ild 2 + 4
-    (43, 0),  // contribution: 36 + 6 + rssi 1
+    (43, 0),  // answers: rssi 1; info 36 + 6 (the ground person is integers)
     (0, 0),   // node_status
-    (42, 0),  // prior: mean 6 + cov 36
+    (84, 0),  // priors: two tracks of mean 6 + cov 36
     (0, 0),   // command
     (43, 7),  // track_report: mean 6 + cov 36 + power 1; appearance 3; grid origin 2, cell 1, peak 1
     (0, 0),   // assignment
@@ -137,21 +137,44 @@ pub fn messages() -> Vec<Envelope> {
             mode: Mode::Active,
             observations: observations(),
         })),
-        env(Message::Contribution(Contribution {
-            target: TargetId(5),
+        env(Message::Answers(Answers {
             step: 300,
-            info: Some(Information {
-                matrix: spd(1),
-                vector: vec6(1),
-            }),
-            folded: Kinds::of(ObservationKind::Pinhole),
+            part: 1,
             captured: ClusterTime(1_499_990_000),
             mode: Mode::CameraOff,
-            observations: vec![Observation::Rssi(RssiReading {
+            rssi: vec![RssiReading {
                 tag: TagId(0x0a0b_0c0d_0e0f),
                 dbm: -70.25,
                 time: ClusterTime(-17),
-            })],
+            }],
+            contributions: vec![
+                Contribution {
+                    target: TargetId(5),
+                    info: Some(Information {
+                        matrix: spd(1),
+                        vector: vec6(1),
+                    }),
+                    folded: Kinds::of(ObservationKind::Pinhole),
+                    ground: None,
+                },
+                Contribution {
+                    target: TargetId(7),
+                    info: None,
+                    folded: Kinds::NONE,
+                    ground: Some(GroundPerson {
+                        local: 2,
+                        target: Some(TargetId(7)),
+                        position_cm: [120, -35],
+                        sigma_mm: [210, 198],
+                        correlation: 5,
+                        width_cm: 49,
+                        height_cm: 170,
+                        confidence: 201,
+                        ml_offset_cm: [3, -1],
+                        histogram: None,
+                    }),
+                },
+            ],
         })),
         env(Message::NodeStatus(NodeStatus {
             mode: Mode::Inactive,
@@ -164,12 +187,24 @@ pub fn messages() -> Vec<Envelope> {
             sync_error_ns: 250,
             bytes_sent: 123_456,
         })),
-        env(Message::Prior(Prior {
-            target: TargetId(5),
-            step: 301,
-            mean: vec6(2),
-            cov: spd(2),
-            deadline: ClusterTime(1_500_080_000),
+        env(Message::Priors(Priors {
+            part: 0,
+            tracks: vec![
+                Prior {
+                    target: TargetId(5),
+                    step: 301,
+                    mean: vec6(2),
+                    cov: spd(2),
+                    deadline: ClusterTime(1_500_080_000),
+                },
+                Prior {
+                    target: TargetId(7),
+                    step: 301,
+                    mean: vec6(4),
+                    cov: spd(4),
+                    deadline: ClusterTime(1_500_080_000),
+                },
+            ],
         })),
         env(Message::Command(Command {
             node: NodeId(12),

@@ -118,24 +118,44 @@ impl Measurement {
     }
 }
 
-/// A node's information contribution to one distributed EIF step (paper 002 §III).
+/// Most tracks one [`Priors`] carries, and so most contributions one [`Answers`] carries: a
+/// prior encodes to about 350 bytes, so 32 stay well inside [`crate::MAX_FRAME_BYTES`]. A head
+/// with more tracks sends its step's priors in parts.
+pub const MAX_PRIORS: usize = 32;
+
+/// A node's answer to one [`Priors`] (paper 002 §III): its information contributions to the
+/// part's tracks, one message per node per step and part, whatever the number of tracks. A
+/// track of the part it does not list gets nothing from the node (Ω_i = 0, ξ_i = 0); the
+/// message still tells the head that the node answered it, so the step can close early.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Answers {
+    pub step: u64,
+    /// The [`Priors::part`] answered.
+    pub part: u16,
+    /// When the frame the contributions come from was captured (the node's newest fresh
+    /// frame), or the answer's time when there is none.
+    pub captured: ClusterTime,
+    pub mode: Mode,
+    /// The node's fresh tag readings, raw (the head models them itself and binds each tag to
+    /// one track), at most [`crate::observation::MAX_OBSERVATIONS`].
+    pub rssi: Vec<RssiReading>,
+    /// The part's tracks the node has something for, each at most once, at most
+    /// [`MAX_PRIORS`]; each brings information or a ground-plane person.
+    pub contributions: Vec<Contribution>,
+}
+
+/// A node's information contribution to one track of a distributed EIF step.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Contribution {
     pub target: TargetId,
-    pub step: u64,
-    /// Ω_i, ξ_i of what the node folded in; `None` when it folded nothing (Ω_i = 0, ξ_i = 0:
-    /// a camera that does not see the target answers without 336 bytes of zeros).
+    /// Ω_i, ξ_i of what the node folded in, linearized at the track's prior.
     pub info: Option<Information>,
     /// The kinds of observation the node folded into `info`.
     pub folded: Kinds,
-    pub captured: ClusterTime,
-    pub mode: Mode,
-    /// Observations the head models itself, at most
-    /// [`crate::observation::MAX_OBSERVATIONS`]: tag readings (linearized with the node's
-    /// trained RSSI model) and at most one ground-plane person the node gated to the prior,
-    /// captured at `captured` (its model is linear, so the head gets the same Ω_i, ξ_i from it,
-    /// exactly but for the quantisation, from a twentieth of the bytes).
-    pub observations: Vec<Observation>,
+    /// A ground-plane person the node gated to the prior, captured at the answer's
+    /// `captured`, for the head to model (its model is linear, so the head gets the same Ω_i,
+    /// ξ_i from it, exactly but for the quantisation, from a twentieth of the bytes).
+    pub ground: Option<GroundPerson>,
 }
 
 /// Ω_i = Hᵀ Q⁻¹ H, symmetric positive semi-definite, and ξ_i = Hᵀ Q⁻¹ (z − h(μ̄) + H μ̄), with
@@ -148,25 +168,9 @@ pub struct Information {
 }
 
 impl Contribution {
-    /// The raw tag readings the head models itself.
-    pub fn rssi(&self) -> impl Iterator<Item = &RssiReading> {
-        self.observations.iter().filter_map(|o| match o {
-            Observation::Rssi(r) => Some(r),
-            _ => None,
-        })
-    }
-
-    /// The ground-plane person the head models itself, if the node sent one.
-    pub fn ground(&self) -> Option<&GroundPerson> {
-        self.observations.iter().find_map(|o| match o {
-            Observation::Ground(p) => Some(p),
-            _ => None,
-        })
-    }
-
     /// Whether it brings camera information: folded in, or a ground-plane person.
     pub fn camera(&self) -> bool {
-        self.folded.camera() || self.ground().is_some()
+        self.folded.camera() || self.ground.is_some()
     }
 }
 
@@ -223,7 +227,7 @@ pub struct PeopleFrame {
 
 // ---------------------------------------------------------------- head → camera
 
-/// The predicted state of one track, broadcast at the start of a step.
+/// The predicted state of one track at the start of a step.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Prior {
     pub target: TargetId,
@@ -234,6 +238,17 @@ pub struct Prior {
     pub cov: Mat6,
     /// Contributions arriving after this cluster time are late.
     pub deadline: ClusterTime,
+}
+
+/// A step's priors, broadcast to every node at the start of the step: one message per node
+/// with every track (in parts of at most [`MAX_PRIORS`] when there are more), so that a node
+/// answers them all at once and jointly ([`Answers`]). Every prior of it has the same step and
+/// deadline, and names a different track.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Priors {
+    /// Which part of the step's priors this is, from 0.
+    pub part: u16,
+    pub tracks: Vec<Prior>,
 }
 
 /// Switch a node's sensing mode.
@@ -277,7 +292,7 @@ pub struct TrackReport {
     pub contributors: Vec<Contributor>,
     /// The cluster's power draw this step with the scenario's power figures, mW.
     pub power_mw: f64,
-    /// Contributions that arrived after the deadline of their step, cumulative.
+    /// Nodes' answers that arrived after the deadline of their step, cumulative.
     pub late: u64,
     /// The track's colour histogram (paper 004's HS 10×10 then V 10 bins, summing to 1), from
     /// the ground-plane observations fused into it, for identity at the server; empty when no
@@ -447,9 +462,11 @@ pub enum Message {
     HelloAck(HelloAck),
     Heartbeat,
     Measurement(Measurement),
-    Contribution(Contribution),
+    /// node → head: the answers to a step's priors (distributed EIF).
+    Answers(Answers),
     NodeStatus(NodeStatus),
-    Prior(Prior),
+    /// head → node: a step's priors (distributed EIF).
+    Priors(Priors),
     Command(Command),
     TrackReport(TrackReport),
     Assignment(Assignment),
@@ -476,9 +493,9 @@ impl Message {
             Message::HelloAck(_) => "hello_ack",
             Message::Heartbeat => "heartbeat",
             Message::Measurement(_) => "measurement",
-            Message::Contribution(_) => "contribution",
+            Message::Answers(_) => "answers",
             Message::NodeStatus(_) => "node_status",
-            Message::Prior(_) => "prior",
+            Message::Priors(_) => "priors",
             Message::Command(_) => "command",
             Message::TrackReport(_) => "track_report",
             Message::Assignment(_) => "assignment",
@@ -503,7 +520,7 @@ impl Message {
         matches!(
             self,
             Message::Measurement(_)
-                | Message::Contribution(_)
+                | Message::Answers(_)
                 | Message::NodeStatus(_)
                 | Message::TrackReport(_)
                 | Message::Heartbeat

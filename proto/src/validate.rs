@@ -160,38 +160,9 @@ impl Validate for Message {
                 finite("measurement.pose.tvec", &m.pose.tvec)?;
                 check_observations("measurement.observations", &m.observations)
             }
-            Message::Contribution(c) => {
-                if let Some(info) = &c.info {
-                    check_psd6("contribution.info.matrix", &info.matrix)?;
-                    finite("contribution.info.vector", &info.vector)?;
-                }
-                check_observations("contribution.observations", &c.observations)?;
-                let mut ground = c.observations.iter().filter_map(|o| match o {
-                    Observation::Ground(p) => Some(p),
-                    _ => None,
-                });
-                if let Some(p) = ground.next()
-                    && p.target.is_some_and(|t| t != c.target)
-                {
-                    return Err(err(
-                        "contribution.observations",
-                        format!(
-                            "a ground person gated to {} in a contribution to {}",
-                            p.target.unwrap_or(c.target),
-                            c.target
-                        ),
-                    ));
-                }
-                if ground.next().is_some() {
-                    return Err(err("contribution.observations", "more than one ground person"));
-                }
-                Ok(())
-            }
+            Message::Answers(a) => check_answers(a),
             Message::NodeStatus(_) => Ok(()),
-            Message::Prior(p) => {
-                finite("prior.mean", &p.mean)?;
-                check_psd6("prior.cov", &p.cov)
-            }
+            Message::Priors(p) => check_priors(p),
             Message::Command(_) => Ok(()),
             Message::TrackReport(r) => {
                 finite("track_report.mean", &r.mean)?;
@@ -329,6 +300,78 @@ fn check_view_update(u: &crate::view::ViewUpdate) -> Result<(), ValidationError>
 
 /// A camera's people: bounded lists, each person once, readings in range, every person's
 /// quantised covariance positive definite and its histogram a histogram.
+/// A step's priors: 1 to [`MAX_PRIORS`] of them, of one step and deadline, each track once,
+/// with finite means and proper covariances.
+fn check_priors(p: &Priors) -> Result<(), ValidationError> {
+    if p.tracks.is_empty() {
+        return Err(err("priors.tracks", "no prior"));
+    }
+    at_most("priors.tracks", p.tracks.len(), MAX_PRIORS)?;
+    let first = &p.tracks[0];
+    for (i, t) in p.tracks.iter().enumerate() {
+        if t.step != first.step || t.deadline != first.deadline {
+            return Err(err(
+                "priors.tracks",
+                format!(
+                    "step {} (deadline {}) beside step {} (deadline {})",
+                    t.step, t.deadline.0, first.step, first.deadline.0
+                ),
+            ));
+        }
+        if p.tracks[..i].iter().any(|q| q.target == t.target) {
+            return Err(err("priors.tracks", format!("track {} twice", t.target)));
+        }
+        finite("priors.tracks.mean", &t.mean)?;
+        check_psd6("priors.tracks.cov", &t.cov)?;
+    }
+    Ok(())
+}
+
+/// A node's answers: at most [`MAX_PRIORS`] contributions, each track once, each bringing
+/// something (information that is finite and positive semi-definite, or a ground-plane person
+/// gated to that track), and bounded, plausible tag readings.
+fn check_answers(a: &Answers) -> Result<(), ValidationError> {
+    at_most("answers.rssi", a.rssi.len(), MAX_OBSERVATIONS)?;
+    for r in &a.rssi {
+        check_dbm("answers.rssi", r.dbm)?;
+    }
+    at_most("answers.contributions", a.contributions.len(), MAX_PRIORS)?;
+    for (i, c) in a.contributions.iter().enumerate() {
+        if a.contributions[..i].iter().any(|q| q.target == c.target) {
+            return Err(err("answers.contributions", format!("track {} twice", c.target)));
+        }
+        if c.info.is_none() && c.ground.is_none() {
+            return Err(err(
+                "answers.contributions",
+                format!("the contribution to {} brings nothing", c.target),
+            ));
+        }
+        if let Some(info) = &c.info {
+            check_psd6("answers.contributions.info.matrix", &info.matrix)?;
+            finite("answers.contributions.info.vector", &info.vector)?;
+        }
+        if let Some(p) = &c.ground {
+            if p.target.is_some_and(|t| t != c.target) {
+                return Err(err(
+                    "answers.contributions.ground",
+                    format!(
+                        "a ground person gated to {} in a contribution to {}",
+                        p.target.unwrap_or(c.target),
+                        c.target
+                    ),
+                ));
+            }
+            check_person(p).map_err(|e| {
+                err(
+                    "answers.contributions.ground",
+                    format!("{}: {}", e.field, e.problem),
+                )
+            })?;
+        }
+    }
+    Ok(())
+}
+
 fn check_people_frame(f: &PeopleFrame) -> Result<(), ValidationError> {
     at_most("people_frame.people", f.people.len(), MAX_OBSERVATIONS)?;
     at_most("people_frame.rssi", f.rssi.len(), MAX_OBSERVATIONS)?;

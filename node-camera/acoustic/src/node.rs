@@ -194,7 +194,7 @@ impl AcousticNode {
             | Message::HelloAck(_)
             | Message::SyncBeacon(_)
             | Message::Liveness(_)
-            | Message::Prior(_) => {}
+            | Message::Priors(_) => {}
             other => self.reject(
                 "message",
                 format!("an acoustic node does not take {}", other.kind()),

@@ -1,8 +1,8 @@
 //! The camera core in paper 004's mode (`camera-tracker = "particle"`): frames go through the
 //! segmentation (regions and foreground mask) into the per-person particle filters, and people
 //! leave as ground-plane observations ([`crate::ground_people`]) — the same split as the
-//! pin-hole points: gated to a prior they go in that prior's `Contribution` (distributed; the
-//! person itself, which the head folds in: its model is linear) or are sent naming it
+//! pin-hole points: gated to a prior they go in the contribution to that prior in the node's
+//! `Answers` (distributed; the person itself, which the head folds in: its model is linear) or are sent naming it
 //! (centralized); ungated ones are sent without a target so heads can start tracks. What is
 //! sent goes in one `PeopleFrame` per head step.
 
@@ -115,31 +115,6 @@ impl CameraNode {
         }
         self.counters.measurements += 1;
         self.send_to_head(Message::PeopleFrame(frame), out);
-    }
-
-    /// The contribution for one prior from the newest frame's people.
-    pub(super) fn ground_answer(&self, now: ClusterTime, prior: &Prior) -> Option<proto::msg::Contribution> {
-        let people = self.people.as_ref()?;
-        let rssi = self.fresh_tags(now);
-        let captured = self.captured.filter(|&t| self.fresh(t, now));
-        let age_s = captured.map_or(0.0, |t| now.secs_since(t));
-        let chosen = captured.and_then(|c| {
-            let priors = self.answering(prior, age_s, c);
-            crate::measure::joint_choice(
-                &priors,
-                0,
-                people.latest(),
-                self.cfg.gate_chi2,
-                ground_people::gate_distance2,
-            )
-        });
-        Some(ground_people::contribution(
-            prior,
-            chosen,
-            captured.unwrap_or(now),
-            self.mode,
-            &rssi,
-        ))
     }
 
     /// A request for the filters' sample sets: one `SampleSet` per person to the asker (none

@@ -4,7 +4,7 @@ use super::*;
 use nalgebra::Matrix6;
 use proto::NodeId;
 use proto::models;
-use proto::msg::{Prior, SampleRequest};
+use proto::msg::{Prior, Priors, SampleRequest};
 use proto::scenario::{CameraTracker, Fusion, Scenario};
 use world::render::Renderer;
 
@@ -135,27 +135,31 @@ fn a_prior_is_answered_with_the_ground_information() {
         }
     };
     let now = ClusterTime::from_secs_f64(t + 0.01);
-    let answer = |node: &mut CameraNode, p: Prior| match &node
-        .handle(now, Input::Message(env(Message::Prior(p))))[..]
+    let answer = |node: &mut CameraNode, p: Prior| match &node.handle(
+        now,
+        Input::Message(env(Message::Priors(Priors {
+            part: 0,
+            tracks: vec![p],
+        }))),
+    )[..]
     {
         [o] => match &o.body {
-            Message::Contribution(c) => c.clone(),
+            Message::Answers(a) => a.contributions.first().cloned(),
             other => panic!("{other:?}"),
         },
         other => panic!("{other:?}"),
     };
-    let c = answer(&mut node, prior(0.0));
+    let c = answer(&mut node, prior(0.0)).expect("a contribution");
     // The person gated to it, near the robot, for the head to fold in; nothing folded here.
-    let person = c.ground().expect("a ground person").position();
+    let person = c.ground.as_ref().expect("a ground person").position();
     let x = truth(&s, t);
     assert!(
         (person[0] - x[0]).hypot(person[1] - x[1]) < 0.6,
         "{person:?} vs {x}"
     );
     assert!(c.info.is_none() && c.folded.is_empty() && c.camera());
-    // A prior metres away gates nothing: an empty contribution.
-    let far = answer(&mut node, prior(4.0));
-    assert!(far.folded.is_empty() && far.info.is_none() && far.ground().is_none());
+    // A prior metres away gates nothing: the step is answered with nothing for it.
+    assert_eq!(answer(&mut node, prior(4.0)), None);
 }
 
 #[test]
@@ -202,11 +206,14 @@ fn a_distributed_camera_leaves_the_gated_people_to_its_contributions() {
     let answer = |node: &mut CameraNode, t: f64| {
         let out = node.handle(
             ClusterTime::from_secs_f64(t),
-            Input::Message(env(Message::Prior(prior(t)))),
+            Input::Message(env(Message::Priors(Priors {
+                part: 0,
+                tracks: vec![prior(t)],
+            }))),
         );
         match &out[..] {
             [o] => match &o.body {
-                Message::Contribution(c) => c.camera(),
+                Message::Answers(a) => a.contributions.iter().any(|c| c.camera()),
                 other => panic!("{other:?}"),
             },
             other => panic!("{other:?}"),

@@ -2,7 +2,7 @@ use super::*;
 use nalgebra::{Matrix6, Vector3};
 use proto::NodeId;
 use proto::models;
-use proto::msg::{Command, PixelBox, Prior};
+use proto::msg::{Answers, Command, Contribution, PixelBox, Prior, Priors};
 use proto::scenario::{Fusion, Scenario};
 use world::Target;
 use world::render::Renderer;
@@ -37,6 +37,27 @@ fn env(body: Message) -> Envelope {
         time: ClusterTime::ZERO,
         body,
     }
+}
+
+/// A step's priors of one track, as a head sends them.
+fn priors_of(p: Prior) -> Message {
+    Message::Priors(Priors {
+        part: 0,
+        tracks: vec![p],
+    })
+}
+
+/// The answers among a node's outgoing messages (there must be one), and the contribution it
+/// lists, if any.
+fn answers(out: &[Outgoing]) -> (&Answers, Option<&Contribution>) {
+    let a = out
+        .iter()
+        .find_map(|o| match &o.body {
+            Message::Answers(a) => Some(a),
+            _ => None,
+        })
+        .unwrap_or_else(|| panic!("expected answers, got {out:?}"));
+    (a, a.contributions.first())
 }
 
 fn prior(s: &Scenario, t: f64, offset: f64, step: u64) -> Prior {
@@ -84,7 +105,7 @@ fn a_frame_is_gated_against_where_the_prior_puts_the_target_then() {
         cov: models::mat6_to_wire(&(Matrix6::identity() * 0.0025)),
         deadline: ClusterTime::from_secs_f64(5.98),
     };
-    node.on_message(ClusterTime::from_secs_f64(5.9), env(Message::Prior(p)));
+    node.on_message(ClusterTime::from_secs_f64(5.9), env(priors_of(p)));
     let mut f = Frame::new(0, 0, ClusterTime::ZERO);
     let now = ClusterTime::from_secs_f64(6.0);
     r.render(&targets(&s), 6.0, now, &mut f);
@@ -107,12 +128,10 @@ fn a_frame_far_from_the_prior_is_not_used_either_way() {
         let (s, mut node, r) = setup(Fusion::DistributedEif);
         run(&mut node, &s, &r, 0.0, 6.0);
         let now = ClusterTime::from_secs_f64(arrival);
-        let got = node.on_message(now, env(Message::Prior(prior(&s, 6.0, 0.15, 31))));
-        let Message::Contribution(c) = &got[0].body else {
-            panic!("expected a contribution, got {:?}", got[0].body)
-        };
+        let got = node.on_message(now, env(priors_of(prior(&s, 6.0, 0.15, 31))));
+        let (_, c) = answers(&got);
         assert!(
-            !c.folded.camera(),
+            c.is_none(),
             "a frame 10 s from the prior was used (arrival {arrival} s)"
         );
     }
@@ -131,13 +150,12 @@ fn answers_a_prior_with_the_gated_detection() {
     assert!(outs.iter().all(|o| o.to == NodeId(2)));
     let t = 6.0;
     let now = ClusterTime::from_secs_f64(t + 0.01);
-    let got = node.on_message(now, env(Message::Prior(prior(&s, t, 0.15, 31))));
+    let got = node.on_message(now, env(priors_of(prior(&s, t, 0.15, 31))));
     assert_eq!(got.len(), 1);
-    let Message::Contribution(c) = &got[0].body else {
-        panic!("expected a contribution, got {:?}", got[0].body)
-    };
+    let (a, c) = answers(&got);
+    let c = c.expect("a contribution");
     assert_eq!(
-        (c.target, c.step, c.folded.camera(), c.mode),
+        (c.target, a.step, c.folded.camera(), a.mode),
         (TargetId(1), 31, true, Mode::Active)
     );
     assert_eq!(got[0].to, NodeId(2), "answers the head that asked");
@@ -155,16 +173,8 @@ fn answers_a_prior_with_the_gated_detection() {
     let (p, _) = cam.normalized(&models::position(&truth));
     let px_err = (m.point - p).norm() * cam.intrinsics.fx;
     assert!(px_err < 12.0, "centre off by {px_err:.1} px");
-    let expected = measure::contribution(
-        &cam,
-        &prior(&s, t, 0.15, 31),
-        Some(m),
-        c.captured,
-        now.secs_since(c.captured),
-        Mode::Active,
-        &[],
-    );
-    assert_eq!(c.info, expected.info, "built from the nearest detection");
+    let expected = measure::contribution(&cam, &prior(&s, t, 0.15, 31), Some(m), now.secs_since(a.captured));
+    assert_eq!(Some(c), expected.as_ref(), "built from the nearest detection");
 }
 
 /// A frame of the camera's size: a textured floor and, at column `x`, a 30×40 block.
@@ -265,16 +275,14 @@ fn empty_answer_when_nothing_matches_and_bad_input_changes_nothing() {
     run(&mut node, &s, &r, 0.0, 2.0);
     let now = ClusterTime::from_secs_f64(2.05);
     // A prior 4 m away from anything the camera sees.
-    let got = node.on_message(now, env(Message::Prior(prior(&s, 2.0, 4.0, 5))));
-    let Message::Contribution(c) = &got[0].body else {
-        panic!()
-    };
-    assert!(!c.folded.camera());
-    assert_eq!(c.info, None);
+    let got = node.on_message(now, env(priors_of(prior(&s, 2.0, 4.0, 5))));
+    let (a, c) = answers(&got);
+    assert_eq!(c, None, "nothing listed for a track it does not see");
+    assert_eq!(a.step, 5, "but the step is answered");
     let before = node.counters();
     let mut bad = prior(&s, 2.0, 0.0, 6);
     bad.mean[0] = f64::NAN;
-    assert!(node.on_message(now, env(Message::Prior(bad))).is_empty());
+    assert!(node.on_message(now, env(priors_of(bad))).is_empty());
     let other = Command {
         node: NodeId(99),
         mode: Mode::Inactive,
@@ -316,19 +324,17 @@ fn modes_gate_capture_and_radio_and_time_is_accounted() {
     node.on_tag(tag(3.0, -60.0));
     let got = node.on_message(
         ClusterTime::from_secs_f64(3.05),
-        env(Message::Prior(prior(&s, 3.0, 0.0, 9))),
+        env(priors_of(prior(&s, 3.0, 0.0, 9))),
     );
-    let Message::Contribution(c) = &got[0].body else {
-        panic!()
-    };
-    assert!(!c.folded.camera() && c.mode == Mode::CameraOff);
+    let (a, c) = answers(&got);
+    assert!(c.is_none() && a.mode == Mode::CameraOff);
     assert_eq!(
-        c.observations,
-        vec![proto::observation::Observation::Rssi(RssiReading {
+        a.rssi,
+        vec![RssiReading {
             tag: TagId::simulated(1),
             dbm: -60.0,
             time: ClusterTime::from_secs_f64(3.0)
-        })],
+        }],
         "CameraOff still reports RSSI"
     );
     node.on_message(ClusterTime::from_secs_f64(4.0), cmd(Mode::Inactive));
@@ -336,7 +342,7 @@ fn modes_gate_capture_and_radio_and_time_is_accounted() {
     assert!(
         node.on_message(
             ClusterTime::from_secs_f64(4.6),
-            env(Message::Prior(prior(&s, 4.6, 0.0, 10)))
+            env(priors_of(prior(&s, 4.6, 0.0, 10)))
         )
         .is_empty()
     );
@@ -382,7 +388,7 @@ fn centralized_mode_sends_gated_measurements_with_pose() {
     let t = 6.0;
     let got = node.on_message(
         ClusterTime::from_secs_f64(5.9),
-        env(Message::Prior(prior(&s, t, 0.1, 40))),
+        env(priors_of(prior(&s, t, 0.1, 40))),
     );
     assert!(
         got.is_empty(),
@@ -425,9 +431,9 @@ fn measured_input_answers_like_the_frame_it_came_from() {
         t += 0.2;
     }
     let now = ClusterTime::from_secs_f64(6.01);
-    let p = || env(Message::Prior(prior(&s, 6.0, 0.1, 31)));
+    let p = || env(priors_of(prior(&s, 6.0, 0.1, 31)));
     let (ca, cb) = (a.on_message(now, p()), b.on_message(now, p()));
-    assert!(matches!(&ca[0].body, Message::Contribution(c) if c.folded.camera()));
+    assert!(answers(&ca).1.is_some_and(|c| c.folded.camera()));
     assert_eq!(ca, cb, "the same contribution from the same measurements");
     assert_eq!(a.counters().frames, b.counters().frames);
 

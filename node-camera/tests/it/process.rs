@@ -2,7 +2,7 @@
 //! what it cannot deliver), answers a head that appears, and stops cleanly when told.
 
 use node_camera::process::{ProcessConfig, run};
-use proto::msg::{Message, Prior};
+use proto::msg::{Message, Prior, Priors};
 use proto::node::Outgoing;
 use proto::scenario::Scenario;
 use proto::sensor::{FrameSource, ReferencePoint};
@@ -73,7 +73,13 @@ async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
         let mut answered = false;
         for _ in 0..30 {
             head.send(
-                Outgoing::new(NodeId(10), Message::Prior(prior.clone())),
+                Outgoing::new(
+                    NodeId(10),
+                    Message::Priors(Priors {
+                        part: 0,
+                        tracks: vec![prior.clone()],
+                    }),
+                ),
                 clock.now(),
             )
             .await
@@ -85,9 +91,9 @@ async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
                     _ = &mut wait => break,
                     ev = inbox.recv() => match ev {
                         Some(Event::Message(m)) => {
-                            if let Message::Contribution(c) = m.env.body {
+                            if let Message::Answers(a) = m.env.body {
                                 assert_eq!(m.from, NodeId(10));
-                                assert_eq!((c.target, c.step), (TargetId(1), 77));
+                                assert_eq!((a.step, a.part), (77, 0));
                                 answered = true;
                                 break;
                             }

@@ -1,6 +1,6 @@
 //! The distributed EIF (paper 002 §III): every node linearizes its own measurement at the
 //! broadcast μ̄ and sends Ω_i, ξ_i; the head only sums them (as they arrive, in
-//! `HeadNode::on_contribution`) and updates. A ground-plane person comes as itself (its model
+//! `HeadNode::on_answers`) and updates. A ground-plane person comes as itself (its model
 //! is linear: the head's Ω_i, ξ_i from it are the node's, and far fewer bytes) and the head
 //! folds it in as it arrives.
 

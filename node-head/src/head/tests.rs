@@ -1,13 +1,21 @@
 //! Unit tests of the head core: strangers, handover, assignment.
 use super::*;
-use proto::observation::{Observation, PinholePoint};
+use proto::observation::{Kinds, Observation, PinholePoint};
 use proto::scenario::{Fusion, Scenario};
 
 /// The first prior among a head's outgoing messages.
 fn first_prior(out: &[Outgoing]) -> Option<Prior> {
     out.iter().find_map(|o| match &o.body {
-        Message::Prior(p) => Some(p.clone()),
+        Message::Priors(p) => p.tracks.first().cloned(),
         _ => None,
+    })
+}
+
+/// Information that changes nothing (Ω_i = 0, ξ_i = 0), folded from a pin-hole point.
+fn zero_information() -> Option<proto::msg::Information> {
+    Some(proto::msg::Information {
+        matrix: [[0.0; 6]; 6],
+        vector: [0.0; 6],
     })
 }
 
@@ -33,18 +41,22 @@ fn a_step_without_tracks_sends_nothing_and_strangers_are_rejected() {
     );
     assert!(h.step_open());
     // Node 13 belongs to head 3.
-    let c = Contribution {
-        target: TargetId(1),
+    let c = Answers {
         step: 1,
-        info: None,
-        folded: Kinds::NONE,
+        part: 0,
         captured: ClusterTime::ZERO,
         mode: Mode::Active,
-        observations: Vec::new(),
+        rssi: Vec::new(),
+        contributions: vec![Contribution {
+            target: TargetId(1),
+            info: zero_information(),
+            folded: Kinds::of(ObservationKind::Pinhole),
+            ground: None,
+        }],
     };
-    h.on_message(ClusterTime::ZERO, env(13, Message::Contribution(c.clone())));
+    h.on_message(ClusterTime::ZERO, env(13, Message::Answers(c.clone())));
     assert_eq!(h.counters().rejected, 1);
-    h.on_message(ClusterTime::ZERO, env(10, Message::Contribution(c)));
+    h.on_message(ClusterTime::ZERO, env(10, Message::Answers(c)));
     assert_eq!(h.counters().unknown_target, 1);
     // Liveness only from the server.
     h.on_message(
@@ -89,7 +101,10 @@ fn handover_starts_a_track_that_reports_its_global_id_and_leaves_again() {
     // Next step: a prior to every member camera, a report with the global id at the close.
     let t1 = ClusterTime::from_millis(200);
     let out = h.tick(t1);
-    let priors = out.iter().filter(|o| matches!(o.body, Message::Prior(_))).count();
+    let priors = out
+        .iter()
+        .filter(|o| matches!(o.body, Message::Priors(_)))
+        .count();
     let awake = s.clusters()[&NodeId(2)]
         .iter()
         .filter(|&&n| h.mode_of(n) != Some(Mode::Inactive))
@@ -214,7 +229,7 @@ fn a_camera_assigned_back_is_not_left_down_by_a_stale_liveness() {
     let out = h.tick(ClusterTime::from_millis(200));
     assert!(
         out.iter()
-            .any(|o| o.to == cam && matches!(o.body, Message::Prior(_))),
+            .any(|o| o.to == cam && matches!(o.body, Message::Priors(_))),
         "camera 10 is back in the cluster but gets no prior: {out:?}"
     );
 }
@@ -285,8 +300,8 @@ fn camera_only_steps(
                 if h.mode_of(n.id) != Some(Mode::Active) {
                     continue;
                 }
-                let c = empty_contribution(&prior, true, t, Mode::Active, None);
-                h.on_message(t, env(n.id.0, Message::Contribution(c)));
+                let c = answers_to(&prior, true, t, Mode::Active, None);
+                h.on_message(t, env(n.id.0, Message::Answers(c)));
             }
         }
         h.tick(ClusterTime::from_millis(200 * k + 81));
@@ -479,17 +494,17 @@ fn head_after_one_rssi_packet(time: ClusterTime, camera: bool, bound: bool) -> (
         dbm: model.predict((was - node.position).norm()),
         time,
     };
-    let mut c = empty_contribution(&prior, camera, t1, Mode::CameraOff, Some(rssi));
+    let mut c = answers_to(&prior, camera, t1, Mode::CameraOff, Some(rssi));
     if camera {
         // Ω_i on the position, ξ_i = Ω_i μ̄: information that leaves the mean where it is.
         let omega = Matrix6::from_diagonal(&State::new(100.0, 100.0, 100.0, 0.0, 0.0, 0.0));
-        c.info = Some(proto::msg::Information {
+        c.contributions[0].info = Some(proto::msg::Information {
             matrix: proto::models::mat6_to_wire(&omega),
             vector: vec6_to_wire(&(omega * proto::models::vec6_from_wire(&prior.mean))),
         });
         c.mode = Mode::Active;
     }
-    h.on_message(t1, env(node.id.0, Message::Contribution(c)));
+    h.on_message(t1, env(node.id.0, Message::Answers(c)));
     // With `bound`, the tag is taken as the track's: binding by evidence is `crate::tags`' to
     // test.
     if bound {
@@ -540,26 +555,30 @@ fn head_with_a_track(s: &Scenario, mean: State) -> (HeadConfig, HeadNode) {
     (cfg, h)
 }
 
-/// A contribution to `prior`'s step with no camera information (Ω_i, ξ_i zero).
-fn empty_contribution(
+/// The answers of a node to `prior`'s step (part 0): with `camera`, a pin-hole contribution
+/// that changes nothing (Ω_i, ξ_i zero); the tag reading `rssi`, if any.
+fn answers_to(
     prior: &Prior,
     camera: bool,
     captured: ClusterTime,
     mode: Mode,
     rssi: Option<proto::msg::RssiReading>,
-) -> Contribution {
-    Contribution {
-        target: prior.target,
+) -> Answers {
+    Answers {
         step: prior.step,
-        info: None,
-        folded: if camera {
-            Kinds::of(ObservationKind::Pinhole)
-        } else {
-            Kinds::NONE
-        },
+        part: 0,
         captured,
         mode,
-        observations: rssi.into_iter().map(Observation::Rssi).collect(),
+        rssi: rssi.into_iter().collect(),
+        contributions: camera
+            .then(|| Contribution {
+                target: prior.target,
+                info: zero_information(),
+                folded: Kinds::of(ObservationKind::Pinhole),
+                ground: None,
+            })
+            .into_iter()
+            .collect(),
     }
 }
 
@@ -659,16 +678,21 @@ fn a_contribution_with_a_ground_person_is_folded_in_at_the_head() {
         let prior = out
             .iter()
             .find_map(|o| match &o.body {
-                Message::Prior(p) if o.to == node => Some(p.clone()),
+                Message::Priors(p) if o.to == node => p.tracks.first().cloned(),
                 _ => None,
             })
             .expect("a prior");
         let captured = ClusterTime::from_millis(100);
         let frame = people_frame([3.1, 4.0], None, captured);
         let person = frame.people[0].clone();
-        let mut c = empty_contribution(&prior, false, captured, Mode::Active, None);
+        let mut c = answers_to(&prior, true, captured, Mode::Active, None);
         if carried {
-            c.observations.push(Observation::Ground(person));
+            c.contributions[0] = Contribution {
+                target: prior.target,
+                info: None,
+                folded: Kinds::NONE,
+                ground: Some(person),
+            };
         } else {
             // What the camera folded before: the same model at the prior's mean.
             let back = person.point(captured);
@@ -680,13 +704,13 @@ fn a_contribution_with_a_ground_person_is_folded_in_at_the_head() {
             let (oh, xh) = proto::models::ground_height_contribution(back.height_m, &mean).unwrap();
             o += oh;
             x += xh;
-            c.info = Some(proto::msg::Information {
+            c.contributions[0].info = Some(proto::msg::Information {
                 matrix: proto::models::mat6_to_wire(&o),
                 vector: vec6_to_wire(&x),
             });
-            c.folded = Kinds::of(ObservationKind::Ground);
+            c.contributions[0].folded = Kinds::of(ObservationKind::Ground);
         }
-        h.on_message(t1, env(node.0, Message::Contribution(c)));
+        h.on_message(t1, env(node.0, Message::Answers(c)));
         let out = h.tick(ClusterTime::from_millis(281));
         let report = out
             .iter()
@@ -774,12 +798,11 @@ fn a_radio_only_cluster_tracks_each_tag_on_its_own_track() {
         .find(|n| n.member && n.rssi)
         .expect("a radio node");
     let (a, b) = (proto::TagId(0xa), proto::TagId(0xb));
-    let mut c = empty_contribution(&prior, false, t0, Mode::CameraOff, None);
+    let mut c = answers_to(&prior, false, t0, Mode::CameraOff, None);
     for (tag, dbm) in [(a, -55.0), (b, -70.0)] {
-        c.observations
-            .push(Observation::Rssi(proto::msg::RssiReading { tag, dbm, time: t0 }));
+        c.rssi.push(proto::msg::RssiReading { tag, dbm, time: t0 });
     }
-    h.on_message(t0, env(node.id.0, Message::Contribution(c)));
+    h.on_message(t0, env(node.id.0, Message::Answers(c)));
     h.tick(ClusterTime::from_millis(81));
     assert_eq!(h.tracks().len(), 2, "one radio track per tag");
     let (first, second) = (h.tracks()[0].local, h.tracks()[1].local);

@@ -6,7 +6,7 @@ use nalgebra::{Matrix6, Vector3};
 use node_head::HeadConfig;
 use node_head::process::run;
 use proto::models::{State, camera_contribution, mat6_to_wire, vec6_to_wire};
-use proto::msg::{Contribution, Handover, Information, Message, Mode, TrackReport};
+use proto::msg::{Answers, Contribution, Handover, Information, Message, Mode, TrackReport};
 use proto::node::Outgoing;
 use proto::observation::{Kinds, ObservationKind};
 use proto::{NodeId, Role, TargetId};
@@ -90,25 +90,38 @@ async fn head_process_tracks_and_survives_cameras_and_server_vanishing() {
         tokio::spawn(async move {
             while let Some(ev) = inbox.recv().await {
                 let Event::Message(m) = ev else { continue };
-                let Message::Prior(p) = m.env.body else { continue };
-                let mean = proto::models::vec6_from_wire(&p.mean);
-                let point = model.normalized(&truth).0;
-                let cov = model.normalized_covariance(&point, 2.0);
-                let (o, x) = camera_contribution(&model, &point, &cov, &mean).unwrap();
-                let c = Contribution {
-                    target: p.target,
-                    step: p.step,
-                    info: Some(Information {
-                        matrix: mat6_to_wire(&o),
-                        vector: vec6_to_wire(&x),
-                    }),
-                    folded: Kinds::of(ObservationKind::Pinhole),
+                let Message::Priors(priors) = m.env.body else {
+                    continue;
+                };
+                let contributions = priors
+                    .tracks
+                    .iter()
+                    .map(|p| {
+                        let mean = proto::models::vec6_from_wire(&p.mean);
+                        let point = model.normalized(&truth).0;
+                        let cov = model.normalized_covariance(&point, 2.0);
+                        let (o, x) = camera_contribution(&model, &point, &cov, &mean).unwrap();
+                        Contribution {
+                            target: p.target,
+                            info: Some(Information {
+                                matrix: mat6_to_wire(&o),
+                                vector: vec6_to_wire(&x),
+                            }),
+                            folded: Kinds::of(ObservationKind::Pinhole),
+                            ground: None,
+                        }
+                    })
+                    .collect();
+                let c = Answers {
+                    step: priors.tracks[0].step,
+                    part: priors.part,
                     captured: clock.now(),
                     mode: Mode::Active,
-                    observations: Vec::new(),
+                    rssi: Vec::new(),
+                    contributions,
                 };
                 if ep
-                    .send(Outgoing::new(m.from, Message::Contribution(c)), clock.now())
+                    .send(Outgoing::new(m.from, Message::Answers(c)), clock.now())
                     .await
                     .is_err()
                 {
@@ -169,7 +182,7 @@ async fn head_process_tracks_and_survives_cameras_and_server_vanishing() {
         let mut n = 0;
         while let Some(ev) = cam_in.recv().await {
             if let Event::Message(m) = ev
-                && matches!(m.env.body, Message::Prior(_))
+                && matches!(m.env.body, Message::Priors(_))
             {
                 n += 1;
                 if n == 3 {

@@ -11,7 +11,8 @@ use node_head::{HeadConfig, HeadNode};
 use proto::camera::CameraModel;
 use proto::models::{camera_contribution, mat6_to_wire, vec6_to_wire};
 use proto::msg::{
-    ColourSignature, Contribution, Information, Measurement, PixelBox, Prior, RssiReading, TrackReport,
+    Answers, ColourSignature, Contribution, Information, Measurement, PixelBox, Prior, Priors, RssiReading,
+    TrackReport,
 };
 use proto::observation::{Kinds, Observation, ObservationKind, PinholePoint};
 use proto::scenario::Scenario;
@@ -237,12 +238,12 @@ impl Sim {
     /// Run one whole step: tick, answer every prior, detections no prior gates go up as
     /// measurements, close at the deadline, apply commands. Returns this step's reports.
     pub fn step(&mut self) -> Vec<TrackReport> {
-        self.step_with(|_, _| 1)
+        self.step_with(|_| 1)
     }
 
-    /// As [`Sim::step`]; `copies(cam, prior)` says how many times camera `cam` sends its
-    /// contribution for `prior` (0 drops it, 2 duplicates it).
-    pub fn step_with(&mut self, mut copies: impl FnMut(usize, &Prior) -> usize) -> Vec<TrackReport> {
+    /// As [`Sim::step`]; `copies(cam)` says how many times camera `cam` sends its answers to
+    /// the step's priors (0 drops them, 2 duplicates them).
+    pub fn step_with(&mut self, mut copies: impl FnMut(usize) -> usize) -> Vec<TrackReport> {
         let now = self.now();
         let mut out = self.head.tick(now);
         let answer_at = now + 1_000_000;
@@ -250,14 +251,15 @@ impl Sim {
         for c in 0..self.cams.len() {
             let id = self.cams[c].id;
             let centralized = self.centralized;
-            let priors: Vec<Prior> = out
+            let asked: Vec<Priors> = out
                 .iter()
                 .filter(|o| o.to == id && !centralized)
                 .filter_map(|o| match &o.body {
-                    Message::Prior(p) => Some(p.clone()),
+                    Message::Priors(p) => Some(p.clone()),
                     _ => None,
                 })
                 .collect();
+            let priors: Vec<Prior> = asked.iter().flat_map(|p| p.tracks.clone()).collect();
             let mode = self.cams[c].mode;
             if mode == Mode::Inactive {
                 continue;
@@ -273,6 +275,8 @@ impl Sim {
             }
             // Gate each detection to the nearest prior (as a camera node does).
             let mut used = vec![false; dets.len()];
+            let mut contributions = Vec::new();
+            let mut readings: Vec<RssiReading> = Vec::new();
             for p in &priors {
                 let mean = proto::models::vec6_from_wire(&p.mean);
                 let cov = proto::models::mat6_from_wire(&p.cov);
@@ -316,23 +320,36 @@ impl Sim {
                     (None, 1) => self.rssi(c, 0, now),
                     _ => None,
                 };
-                let body = Message::Contribution(Contribution {
-                    target: p.target,
-                    step: p.step,
-                    info: camera.then(|| Information {
-                        matrix: mat6_to_wire(&info.0),
-                        vector: vec6_to_wire(&info.1),
-                    }),
-                    folded: if camera {
-                        Kinds::of(ObservationKind::Pinhole)
-                    } else {
-                        Kinds::NONE
-                    },
+                if camera {
+                    contributions.push(Contribution {
+                        target: p.target,
+                        info: Some(Information {
+                            matrix: mat6_to_wire(&info.0),
+                            vector: vec6_to_wire(&info.1),
+                        }),
+                        folded: Kinds::of(ObservationKind::Pinhole),
+                        ground: None,
+                    });
+                }
+                if let Some(r) = rssi.filter(|r| !readings.iter().any(|q| q.tag == r.tag)) {
+                    readings.push(r);
+                }
+            }
+            // One answer per part asked (one part: the tests' heads hold few tracks).
+            for part in &asked {
+                let body = Message::Answers(Answers {
+                    step: part.tracks[0].step,
+                    part: part.part,
                     captured: now,
                     mode,
-                    observations: rssi.into_iter().map(Observation::Rssi).collect(),
+                    rssi: readings.clone(),
+                    contributions: contributions
+                        .iter()
+                        .filter(|c| part.tracks.iter().any(|p| p.target == c.target))
+                        .cloned()
+                        .collect(),
                 });
-                for _ in 0..copies(c, p) {
+                for _ in 0..copies(c) {
                     let env = self.envelope(id, answer_at, body.clone());
                     inbox.push(env);
                 }

@@ -2,7 +2,7 @@
 //! contributions, nodes going down.
 
 use crate::sim::{ONE_TARGET, SERVER, Sim, error, ring_scenario};
-use proto::msg::{Contribution, Liveness};
+use proto::msg::{Answers, Contribution, Information, Liveness};
 use proto::{ClusterTime, Envelope, Message, Mode, NodeId};
 
 fn trace_pos(r: &proto::msg::TrackReport) -> f64 {
@@ -58,33 +58,40 @@ fn duplicates_and_late_contributions_are_counted_and_never_applied() {
         "a full step closes as soon as all answered"
     );
     // Camera 0 answers twice in `a`, once in `b`: same posterior.
-    let ra = a.step_with(|c, _| if c == 0 { 2 } else { 1 });
+    let ra = a.step_with(|c| if c == 0 { 2 } else { 1 });
     let rb = b.step();
     assert_eq!(a.head.counters().duplicate, 1);
     assert_eq!(b.head.counters().duplicate, 0);
     assert_eq!(ra[0].mean, rb[0].mean);
     assert_eq!(ra[0].cov, rb[0].cov);
     // Camera 1 misses the deadline in both; the step closes at the deadline.
-    let ra = a.step_with(|c, _| usize::from(c != 1));
-    let rb = b.step_with(|c, _| usize::from(c != 1));
+    let ra = a.step_with(|c| usize::from(c != 1));
+    let rb = b.step_with(|c| usize::from(c != 1));
     assert!(!a.head.last_step().complete);
     assert_eq!(ra[0].mean, rb[0].mean);
     // Its contribution turns up after the close: counted late, not applied.
     let filter_before = a.head.tracks()[0].filter.clone();
-    let late = Contribution {
-        target: a.head.tracks()[0].local,
+    let late = Answers {
         step: ra[0].step,
-        info: None,
-        folded: proto::observation::Kinds::of(proto::observation::ObservationKind::Pinhole),
+        part: 0,
         captured: ra[0].time,
         mode: Mode::Active,
-        observations: Vec::new(),
+        rssi: Vec::new(),
+        contributions: vec![Contribution {
+            target: a.head.tracks()[0].local,
+            info: Some(Information {
+                matrix: [[0.0; 6]; 6],
+                vector: [0.0; 6],
+            }),
+            folded: proto::observation::Kinds::of(proto::observation::ObservationKind::Pinhole),
+            ground: None,
+        }],
     };
     let env = Envelope {
         source: a.cams[1].id,
         seq: 999,
         time: ra[0].time,
-        body: Message::Contribution(late),
+        body: Message::Answers(late),
     };
     let t = ClusterTime(ra[0].time.0 + 150_000_000);
     assert!(a.head.on_message(t, env).is_empty());
@@ -114,7 +121,7 @@ fn a_node_reported_down_is_not_waited_for() {
     };
     sim.head.on_message(sim.now(), env);
     // The dead camera stops answering; the step still closes as soon as the others did.
-    let r = sim.step_with(|c, _| usize::from(c != 2));
+    let r = sim.step_with(|c| usize::from(c != 2));
     assert!(sim.head.last_step().complete);
     assert!(!r[0].contributors.iter().any(|c| c.node == down));
     assert!(error(&sim, &r[0], 0) < 0.3);

@@ -4,7 +4,7 @@
 //! Frames are rendered by the synthetic world (camera 10 of the default scenario, three
 //! targets walking, the intrinsics scaled for 640×480); rendering is timed apart. Each frame
 //! goes through `CameraNode::on_frame` (segmentation, undistortion, gating) and one
-//! `on_message(Prior)` per target (linearization into Ω_i, ξ_i). The process pins itself to
+//! `on_message(Priors)` with every target (linearization into Ω_i, ξ_i). The process pins itself to
 //! one CPU and runs single-threaded. Prints JSON, with paper 004's particle-filter and
 //! background-model figures ([`super::particle`]).
 
@@ -13,7 +13,7 @@ use crate::error::OrFailed as _;
 use node_camera::config::CameraConfig;
 use node_camera::core::{CameraInput, CameraNode};
 use node_camera::segment::{SegmentParams, Segmenter, recommended_step};
-use proto::msg::{Message, Prior};
+use proto::msg::{Message, Prior, Priors};
 use proto::node::{Input, Node};
 use proto::scenario::{Fusion, Scenario, Segmentation};
 use proto::sensor::Frame;
@@ -137,28 +137,29 @@ fn run_one(s: &Scenario, kind: Segmentation, step: u32, frames: usize) -> Result
         let start = Instant::now();
         renderer.render(&targets, t, now, &mut frame);
         let render_elapsed = start.elapsed().as_secs_f64() * 1e3;
-        let priors: Vec<Envelope> = targets
-            .iter()
-            .map(|tg| Envelope {
-                source: NodeId(2),
-                seq: k as u64,
-                time: now,
-                body: Message::Prior(Prior {
-                    target: TargetId(tg.id),
-                    step: k as u64,
-                    mean: models::vec6_to_wire(&tg.truth_at(t)),
-                    cov: models::mat6_to_wire(&(nalgebra::Matrix6::identity() * 0.04)),
-                    deadline: now + 80_000_000,
-                }),
-            })
-            .collect();
+        let priors = Envelope {
+            source: NodeId(2),
+            seq: k as u64,
+            time: now,
+            body: Message::Priors(Priors {
+                part: 0,
+                tracks: targets
+                    .iter()
+                    .map(|tg| Prior {
+                        target: TargetId(tg.id),
+                        step: k as u64,
+                        mean: models::vec6_to_wire(&tg.truth_at(t)),
+                        cov: models::mat6_to_wire(&(nalgebra::Matrix6::identity() * 0.04)),
+                        deadline: now + 80_000_000,
+                    })
+                    .collect(),
+            }),
+        };
         // The core takes the frame by value; the copy is made before the clock starts.
         let input = Input::Sensor(CameraInput::Frame(frame.clone()));
         let start = Instant::now();
         let mut out = node.handle(now, input);
-        for p in priors {
-            out.extend(node.handle(now, Input::Message(p)));
-        }
+        out.extend(node.handle(now, Input::Message(priors)));
         let elapsed = start.elapsed().as_secs_f64() * 1e3;
         let start = Instant::now();
         alone.process(&frame, &mut dets)?;
@@ -169,8 +170,11 @@ fn run_one(s: &Scenario, kind: Segmentation, step: u32, frames: usize) -> Result
             times.push(elapsed);
             contributions += out
                 .iter()
-                .filter(|o| matches!(&o.body, Message::Contribution(c) if c.folded.camera()))
-                .count() as u64;
+                .filter_map(|o| match &o.body {
+                    Message::Answers(a) => Some(a.contributions.iter().filter(|c| c.camera()).count()),
+                    _ => None,
+                })
+                .sum::<usize>() as u64;
         }
         std::hint::black_box(out);
     }
@@ -238,7 +242,7 @@ pub fn run(args: &Options) -> Result<serde_json::Value> {
     let (full_ms, full_name) = best_full.or_failed("no full-resolution result")?;
     let mut out = json!({
         "bench": "camera",
-        "what": "segmentation + undistortion + gating + contribution per frame (CameraNode::on_frame + one Prior per target), rendering excluded",
+        "what": "segmentation + undistortion + gating + contribution per frame (CameraNode::on_frame + one Priors of every target), rendering excluded",
         "pinned_cpu": if pinned { Some(args.cpu) } else { None },
         "threads": 1,
         "frames": frames,

@@ -34,9 +34,9 @@ use proto::camera::{CameraModel, Distortion, Intrinsics, Pose};
 use proto::models::{
     MotionModel, RssiModel, State, camera_contribution, mat6_to_wire, pinhole, vec6_to_wire,
 };
-use proto::msg::{Contribution, Handover, Information, RssiReading};
+use proto::msg::{Answers, Contribution, Handover, Information, RssiReading};
 use proto::msg::{Mat6, Vec6};
-use proto::observation::{Kinds, Observation, ObservationKind};
+use proto::observation::{Kinds, ObservationKind};
 use proto::scenario::PowerFigures;
 use proto::scenario::{Activation, Method};
 use proto::{ClusterTime, Envelope, Message, TargetId};
@@ -293,26 +293,28 @@ fn head_step_us(n: usize, scale: f64, rssi: bool) -> Result<f64> {
                 source: NodeId(10 + i as u32),
                 seq: 0,
                 time: ClusterTime::ZERO,
-                body: Message::Contribution(Contribution {
-                    target,
+                body: Message::Answers(Answers {
                     step: 0,
-                    info: Some(Information {
-                        matrix: mat6_to_wire(&o),
-                        vector: vec6_to_wire(&x),
-                    }),
-                    folded: Kinds::of(ObservationKind::Pinhole),
+                    part: 0,
                     captured: ClusterTime::ZERO,
                     mode: Mode::Active,
-                    observations: rssi
-                        .then(|| {
-                            Observation::Rssi(RssiReading {
-                                tag: proto::TagId::simulated(1),
-                                dbm: model.predict((truth.fixed_rows::<3>(0) - cam.pose.centre()).norm()),
-                                time: ClusterTime::ZERO,
-                            })
+                    rssi: rssi
+                        .then(|| RssiReading {
+                            tag: proto::TagId::simulated(1),
+                            dbm: model.predict((truth.fixed_rows::<3>(0) - cam.pose.centre()).norm()),
+                            time: ClusterTime::ZERO,
                         })
                         .into_iter()
                         .collect(),
+                    contributions: vec![Contribution {
+                        target,
+                        info: Some(Information {
+                            matrix: mat6_to_wire(&o),
+                            vector: vec6_to_wire(&x),
+                        }),
+                        folded: Kinds::of(ObservationKind::Pinhole),
+                        ground: None,
+                    }],
                 }),
             })
         })
@@ -327,12 +329,10 @@ fn head_step_us(n: usize, scale: f64, rssi: bool) -> Result<f64> {
         black_box(head.tick(now));
         for e in &envs {
             let mut e = e.clone();
-            if let Message::Contribution(c) = &mut e.body {
-                c.step = step;
-                for o in &mut c.observations {
-                    if let Observation::Rssi(r) = o {
-                        r.time = now;
-                    }
+            if let Message::Answers(a) = &mut e.body {
+                a.step = step;
+                for r in &mut a.rssi {
+                    r.time = now;
                 }
             }
             black_box(head.on_message(now, e));

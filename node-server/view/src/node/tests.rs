@@ -125,12 +125,15 @@ fn the_feed_fills_the_view_and_every_metric_from_real_data() {
                     10,
                     100,
                     at,
-                    Message::Prior(proto::msg::Prior {
-                        target: TargetId(1),
-                        step: 0,
-                        mean: [0.0; 6],
-                        cov: [[0.0; 6]; 6],
-                        deadline: ms(0),
+                    Message::Priors(proto::msg::Priors {
+                        part: 0,
+                        tracks: vec![proto::msg::Prior {
+                            target: TargetId(1),
+                            step: 0,
+                            mean: [0.0; 6],
+                            cov: [[0.0; 6]; 6],
+                            deadline: ms(0),
+                        }],
                     }),
                 ),
             );

@@ -198,13 +198,21 @@ fn sample_f64s(m: &Message) -> Vec<f64> {
             v.extend(x.observations.iter().flat_map(observation_f64s));
             v
         }
-        Message::Contribution(c) => [
-            c.info.as_ref().map(|i| mat(&i.matrix)).unwrap_or_default(),
-            c.info.as_ref().map(|i| i.vector.to_vec()).unwrap_or_default(),
-            c.observations.iter().flat_map(observation_f64s).collect(),
-        ]
-        .concat(),
-        Message::Prior(p) => [mat(&p.cov), p.mean.to_vec()].concat(),
+        Message::Answers(a) => a
+            .rssi
+            .iter()
+            .map(|r| r.dbm)
+            .chain(a.contributions.iter().flat_map(|c| {
+                c.info
+                    .iter()
+                    .flat_map(|i| i.matrix.iter().flatten().chain(&i.vector).copied())
+            }))
+            .collect(),
+        Message::Priors(p) => p
+            .tracks
+            .iter()
+            .flat_map(|t| [mat(&t.cov), t.mean.to_vec()].concat())
+            .collect(),
         Message::TrackReport(r) => [mat(&r.cov), r.mean.to_vec(), vec![r.power_mw]].concat(),
         Message::Handover(h) => [mat(&h.cov), h.mean.to_vec()].concat(),
         Message::MeasuredFrame(f) => {
@@ -273,12 +281,12 @@ fn sample_f32s(m: &Message) -> Vec<f32> {
 fn asymmetric_or_indefinite_matrices() {
     type Get = fn(&mut Message) -> &mut Mat6;
     let fields: [(usize, &str, Get); 4] = [
-        (4, "contribution.info.matrix", |m| match m {
-            Message::Contribution(c) => &mut c.info.as_mut().unwrap().matrix,
+        (4, "answers.contributions.info.matrix", |m| match m {
+            Message::Answers(a) => &mut a.contributions[0].info.as_mut().unwrap().matrix,
             _ => unreachable!(),
         }),
-        (6, "prior.cov", |m| match m {
-            Message::Prior(p) => &mut p.cov,
+        (6, "priors.tracks.cov", |m| match m {
+            Message::Priors(p) => &mut p.tracks[0].cov,
             _ => unreachable!(),
         }),
         (8, "track_report.cov", |m| match m {
@@ -583,57 +591,85 @@ fn other_range_checks_name_the_field() {
     let (_, e) = invalid(&raw(&env));
     assert!(e.contains("acoustic.bands"), "{e}");
     let mut env = samples()[4].clone();
-    if let Message::Contribution(c) = &mut env.body
-        && let Observation::Rssi(r) = &mut c.observations[0]
-    {
-        r.dbm = 45.0;
+    if let Message::Answers(a) = &mut env.body {
+        a.rssi[0].dbm = 45.0;
     }
     let (field, e) = invalid(&raw(&env));
-    assert_eq!(field, "contribution.observations");
+    assert_eq!(field, "answers.rssi");
     assert!(e.contains("outside"), "{e}");
-    // A contribution carries at most one ground person, gated to its own target, and a
-    // person's quantised numbers are checked there too.
+    // A contribution's ground person is gated to its own track, and a person's quantised
+    // numbers are checked there too.
     let ground = proto::examples::observations()
         .into_iter()
-        .find(|o| matches!(o, Observation::Ground(_)))
+        .find_map(|o| match o {
+            Observation::Ground(p) => Some(p),
+            _ => None,
+        })
         .unwrap();
-    let contribution_with = |obs: Vec<Observation>| {
+    let answers_with = |edit: &dyn Fn(&mut Answers)| {
         let mut env = samples()[4].clone();
-        if let Message::Contribution(c) = &mut env.body {
-            c.observations = obs;
+        if let Message::Answers(a) = &mut env.body {
+            edit(a);
         }
         env
     };
-    let ok = contribution_with(vec![ground.clone()]);
+    let ok = answers_with(&|a| a.contributions[1].ground = Some(ground.clone()));
     assert_eq!(decode(&encode(&ok).unwrap()).unwrap(), ok);
-    let two = contribution_with(vec![ground.clone(), ground.clone()]);
-    let (field, e) = invalid(&raw(&two));
-    assert_eq!(field, "contribution.observations");
-    assert!(e.contains("more than one ground person"), "{e}");
-    let Observation::Ground(p) = &ground else {
-        unreachable!()
-    };
-    let other = contribution_with(vec![Observation::Ground(GroundPerson {
-        target: Some(TargetId(99)),
-        ..p.clone()
-    })]);
-    assert!(
-        invalid(&raw(&other)).1.contains("gated to t99"),
-        "{:?}",
-        invalid(&raw(&other))
-    );
-    let own = contribution_with(vec![Observation::Ground(GroundPerson {
-        target: Some(TargetId(5)),
-        ..p.clone()
-    })]);
-    assert!(decode(&encode(&own).unwrap()).is_ok());
-    let singular = contribution_with(vec![Observation::Ground(GroundPerson {
-        correlation: i8::MIN,
-        ..p.clone()
-    })]);
+    let other = answers_with(&|a| {
+        a.contributions[1].ground = Some(GroundPerson {
+            target: Some(TargetId(99)),
+            ..ground.clone()
+        })
+    });
+    let (field, e) = invalid(&raw(&other));
+    assert_eq!(field, "answers.contributions.ground");
+    assert!(e.contains("gated to t99"), "{e}");
+    let singular = answers_with(&|a| {
+        a.contributions[1].ground = Some(GroundPerson {
+            correlation: i8::MIN,
+            ..ground.clone()
+        })
+    });
     let (field, e) = invalid(&raw(&singular));
-    assert_eq!(field, "contribution.observations");
+    assert_eq!(field, "answers.contributions.ground");
     assert!(e.contains("ground.correlation"), "{e}");
+    // Each track once, each contribution bringing something, at most MAX_PRIORS of them.
+    let twice = answers_with(&|a| a.contributions[1].target = a.contributions[0].target);
+    let (field, e) = invalid(&raw(&twice));
+    assert_eq!(field, "answers.contributions");
+    assert!(e.contains("twice"), "{e}");
+    let empty = answers_with(&|a| a.contributions[1].ground = None);
+    assert!(invalid(&raw(&empty)).1.contains("brings nothing"));
+    let many = answers_with(&|a| {
+        a.contributions = (0..=proto::msg::MAX_PRIORS as u32)
+            .map(|t| Contribution {
+                target: TargetId(t),
+                ..a.contributions[0].clone()
+            })
+            .collect()
+    });
+    assert_eq!(invalid(&raw(&many)).0, "answers.contributions");
+    // A step's priors: one step and deadline, each track once, at least one.
+    let priors_with = |edit: &dyn Fn(&mut Priors)| {
+        let mut env = samples()[6].clone();
+        if let Message::Priors(p) = &mut env.body {
+            edit(p);
+        }
+        raw(&env)
+    };
+    for (edit, want) in [
+        (
+            &(|p: &mut Priors| p.tracks[1].step += 1) as &dyn Fn(&mut Priors),
+            "beside step",
+        ),
+        (&|p: &mut Priors| p.tracks[1].deadline.0 += 1, "beside step"),
+        (&|p: &mut Priors| p.tracks[1].target = p.tracks[0].target, "twice"),
+        (&|p: &mut Priors| p.tracks.clear(), "no prior"),
+    ] {
+        let (field, e) = invalid(&priors_with(edit));
+        assert_eq!(field, "priors.tracks");
+        assert!(e.contains(want), "{e}");
+    }
     let mut env = samples()[1].clone();
     let Message::HelloAck(a) = &mut env.body else {
         panic!()
@@ -648,22 +684,21 @@ fn other_range_checks_name_the_field() {
     let (field, e) = invalid(&raw(&env));
     assert_eq!(field, "track_report.power_mw");
     assert!(e.contains("negative power"), "{e}");
-    // Valid zero information (a camera with nothing) is accepted.
+    // Valid zero information is accepted.
     let mut env = samples()[4].clone();
-    let Message::Contribution(c) = &mut env.body else {
+    let Message::Answers(a) = &mut env.body else {
         panic!()
     };
-    c.info.as_mut().unwrap().matrix = [[0.0; 6]; 6];
-    c.target = TargetId(0);
+    a.contributions[0].info.as_mut().unwrap().matrix = [[0.0; 6]; 6];
     assert!(decode(&encode(&env).unwrap()).is_ok());
-    // Nothing folded at all: no information, and the contribution shrinks by 336 bytes.
+    // A track the node has nothing for is not listed: 336 bytes of zeros and its id saved.
     let with = encode(&env).unwrap().len();
-    let Message::Contribution(c) = &mut env.body else {
+    let Message::Answers(a) = &mut env.body else {
         panic!()
     };
-    c.info = None;
+    a.contributions.remove(0);
     let without = encode(&env).unwrap();
-    assert_eq!(with - without.len(), 336);
+    assert_eq!(with - without.len(), 336 + 4);
     assert_eq!(decode(&without).unwrap(), env);
 }
 
@@ -674,18 +709,18 @@ fn huge_matrices_are_judged_correctly() {
     for big in [1e300, f64::MAX] {
         let with = |f: &dyn Fn(usize, usize) -> f64| {
             let mut env = samples()[6].clone();
-            let Message::Prior(p) = &mut env.body else {
+            let Message::Priors(p) = &mut env.body else {
                 panic!()
             };
             for i in 0..6 {
                 for j in 0..6 {
-                    p.cov[i][j] = f(i, j);
+                    p.tracks[0].cov[i][j] = f(i, j);
                 }
             }
             raw(&env)
         };
         let (field, e) = invalid(&with(&|i, j| if i == j { -big } else { big }));
-        assert_eq!(field, "prior.cov");
+        assert_eq!(field, "priors.tracks.cov");
         assert!(e.contains("indefinite"), "{e}");
         // Rank one, v vᵀ with v = ±√big: positive semi-definite.
         assert!(

@@ -307,30 +307,31 @@ fn message() -> impl Strategy<Value = Message> {
         Just(Message::Heartbeat),
         measurement(),
         (
-            any::<u32>(),
             any::<u64>(),
-            psd(),
-            vec6(),
-            0..16u8,
+            any::<u16>(),
             time(),
             mode(),
-            observations()
+            prop::collection::vec(rssi(), 0..4),
+            prop::collection::vec((any::<u32>(), psd(), vec6(), 0..16u8), 0..4)
         )
-            .prop_map(
-                |(t, step, matrix, vector, folded, captured, mode, observations)| {
-                    Message::Contribution(Contribution {
-                        target: TargetId(t),
-                        step,
-                        // Nothing folded when the matrix is all zeros.
-                        info: (matrix.iter().flatten().any(|x| *x != 0.0))
-                            .then_some(Information { matrix, vector }),
-                        folded: Kinds(folded),
-                        captured,
-                        mode,
-                        observations,
-                    })
-                }
-            ),
+            .prop_map(|(step, part, captured, mode, rssi, contributions)| {
+                Message::Answers(Answers {
+                    step,
+                    part,
+                    captured,
+                    mode,
+                    rssi,
+                    contributions: contributions
+                        .into_iter()
+                        .map(|(t, matrix, vector, folded)| Contribution {
+                            target: TargetId(t),
+                            info: Some(Information { matrix, vector }),
+                            folded: Kinds(folded),
+                            ground: None,
+                        })
+                        .collect(),
+                })
+            }),
         (
             mode(),
             any::<[u64; 3]>(),
@@ -354,15 +355,27 @@ fn message() -> impl Strategy<Value = Message> {
                     })
                 }
             ),
-        (any::<u32>(), any::<u64>(), vec6(), psd(), time()).prop_map(|(t, step, mean, cov, deadline)| {
-            Message::Prior(Prior {
-                target: TargetId(t),
-                step,
-                mean,
-                cov,
-                deadline,
-            })
-        }),
+        (
+            any::<u16>(),
+            any::<u64>(),
+            time(),
+            prop::collection::vec((any::<u32>(), vec6(), psd()), 1..4)
+        )
+            .prop_map(|(part, step, deadline, tracks)| {
+                Message::Priors(Priors {
+                    part,
+                    tracks: tracks
+                        .into_iter()
+                        .map(|(t, mean, cov)| Prior {
+                            target: TargetId(t),
+                            step,
+                            mean,
+                            cov,
+                            deadline,
+                        })
+                        .collect(),
+                })
+            }),
         (any::<u32>(), mode()).prop_map(|(n, mode)| Message::Command(Command {
             node: NodeId(n),
             mode
