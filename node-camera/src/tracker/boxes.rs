@@ -20,6 +20,17 @@ pub fn iou(a: &PixelBox, b: &PixelBox) -> f32 {
     if u > 0.0 { i / u } else { 0.0 }
 }
 
+/// Intersection over the smaller box's area, 0 when either has none: 1 for a box inside
+/// another, whatever their sizes.
+pub fn overlap_of_smaller(a: &PixelBox, b: &PixelBox) -> f32 {
+    let smaller = area(a).min(area(b));
+    if smaller > 0.0 {
+        intersection(a, b) / smaller
+    } else {
+        0.0
+    }
+}
+
 pub fn contains(b: &PixelBox, p: [f32; 2]) -> bool {
     (b.xmin..=b.xmax).contains(&p[0]) && (b.ymin..=b.ymax).contains(&p[1])
 }

@@ -2,8 +2,10 @@
 //! A foreground region (from the background model, `adaptive_background`) that no filter explains for
 //! `init-frames` frames starts a filter with its current appearance as target; a filter with no
 //! supporting region for `destroy-frames` frames is destroyed; of two filters that share a
-//! region (and overlap) for `duplicate-frames` frames one is eliminated (the younger, unless
-//! the older's colours matched clearly worse: it drifted there). Each filter
+//! region (and overlap, over the smaller box) for `duplicate-frames` frames one is eliminated:
+//! the smaller when one box lies inside the other without the two being alike (it sits on a
+//! part of the other's person), else the younger, unless the older's colours matched clearly
+//! worse (it drifted there). Each filter
 //! keeps its local id for life. The region assigned to a filter shapes its weights; the
 //! foreground share under its best box gates its adaptation.
 //!
@@ -13,7 +15,7 @@
 
 use crate::adaptive_background::AdaptiveBackground;
 use crate::region::Grid;
-use crate::tracker::boxes::{area, contains, iou, is_finite};
+use crate::tracker::boxes::{area, contains, iou, is_finite, overlap_of_smaller};
 use crate::tracker::filter::{ParticleFilter, Sample, adaptation_rate};
 use crate::tracker::histogram::{BinImage, ColourHistogram};
 use crate::tracker::motion::State;
@@ -185,6 +187,9 @@ struct Shared {
     frames: u32,
     /// Sum over those frames of the older's colour similarity minus the younger's.
     older_lead: f32,
+    /// This frame, the smaller of the two when one box lies (mostly) inside the other without
+    /// the two being alike (IoU below `duplicate-iou`).
+    nested: Option<LocalId>,
 }
 
 /// How much worse (mean colour similarity over the shared frames) the older of two duplicates
@@ -394,10 +399,13 @@ impl MultiTracker {
         Ok(self.estimates(input.with_samples))
     }
 
-    /// Count how long each pair of overlapping filters has shared a region; of a pair that has
-    /// for `duplicate-frames` frames, eliminate the younger — or the older, if its colours
-    /// matched clearly worse over those frames (it drifted onto the other's person). A pair
-    /// that splits starts over.
+    /// Count how long each pair of overlapping filters (intersection over the smaller box) has
+    /// shared a region; of a pair that has for `duplicate-frames` frames, eliminate the smaller
+    /// if its box lies inside the other's without the two being alike (IoU below
+    /// `duplicate-iou`: a filter on a fragment of the other's person, which a region split
+    /// off for a few frames), else the younger — or the older, if its colours matched clearly
+    /// worse over those frames (it drifted onto the other's person). A pair that splits starts
+    /// over.
     fn eliminate_duplicates(&mut self) {
         let p = &self.params;
         let mut shared = Vec::new();
@@ -405,19 +413,26 @@ impl MultiTracker {
         for (i, a) in self.people.iter().enumerate() {
             for b in &self.people[i + 1..] {
                 let same = a.region.is_some() && a.region == b.region;
-                if same && iou(&a.filter.mean().bbox(), &b.filter.mean().bbox()) >= p.duplicate_iou {
-                    let (frames, lead) = self
-                        .shared
-                        .iter()
-                        .find(|s| (s.older, s.younger) == (a.id, b.id))
-                        .map_or((0, 0.0), |s| (s.frames, s.older_lead));
-                    shared.push(Shared {
-                        older: a.id,
-                        younger: b.id,
-                        frames: frames + 1,
-                        older_lead: lead + a.filter.ml_similarity() - b.filter.ml_similarity(),
-                    });
+                let (ab, bb) = (a.filter.mean().bbox(), b.filter.mean().bbox());
+                if !same || overlap_of_smaller(&ab, &bb) < p.duplicate_iou {
+                    continue;
                 }
+                let (frames, lead) = self
+                    .shared
+                    .iter()
+                    .find(|s| (s.older, s.younger) == (a.id, b.id))
+                    .map_or((0, 0.0), |s| (s.frames, s.older_lead));
+                // Boxes that overlap as one but not alike: the smaller lies on a part of the
+                // other's person (a fragment the region split off for a few frames).
+                let nested = (iou(&ab, &bb) < p.duplicate_iou)
+                    .then(|| if area(&ab) < area(&bb) { a.id } else { b.id });
+                shared.push(Shared {
+                    older: a.id,
+                    younger: b.id,
+                    frames: frames + 1,
+                    older_lead: lead + a.filter.ml_similarity() - b.filter.ml_similarity(),
+                    nested,
+                });
             }
         }
         let mut doomed: Vec<LocalId> = Vec::new();
@@ -426,7 +441,11 @@ impl MultiTracker {
                 continue;
             }
             let drifted = s.older_lead / (s.frames as f32) < -DRIFTED_MARGIN;
-            doomed.push(if drifted { s.older } else { s.younger });
+            doomed.push(match s.nested {
+                Some(smaller) => smaller,
+                None if drifted => s.older,
+                None => s.younger,
+            });
         }
         shared.retain(|s| !doomed.contains(&s.younger) && !doomed.contains(&s.older));
         self.shared = shared;

@@ -158,6 +158,37 @@ fn a_duplicate_filter_on_one_region_is_eliminated_and_the_older_id_stays() {
 }
 
 #[test]
+fn a_filter_on_part_of_anothers_person_is_eliminated_whatever_its_age() {
+    // A filter on red's upper half (a fragment the region split off), then one on all of red:
+    // their boxes are not alike (IoU about 0.5 of a box inside the other), but one lies inside
+    // the other in red's one region. The smaller goes, though it is the older.
+    let s = scene(vec![red()]);
+    let params = ParticleParams {
+        duplicate_iou: 0.6,
+        duplicate_frames: 5,
+        ..ParticleParams::default()
+    };
+    let mut tracker = MultiTracker::new(params, 7).unwrap();
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    s.render(0, &mut frame);
+    let whole = s.box_at(0, 0);
+    let upper = PixelBox {
+        ymax: 0.5 * (whole.ymin + whole.ymax),
+        ..whole
+    };
+    let fragment = tracker.start(&frame, &upper).unwrap();
+    let person = tracker.start(&frame, &whole).unwrap();
+    for t in 1..15u32 {
+        s.render(t, &mut frame);
+        tracker
+            .step(&input(&frame, &[detection(&s.box_at(0, t))]))
+            .unwrap();
+    }
+    assert_eq!(tracker.ids(), vec![person], "fragment {fragment} eliminated");
+    assert_eq!(tracker.counters().duplicates_eliminated, 1);
+}
+
+#[test]
 fn two_people_in_one_merged_region_keep_their_filters_unless_the_rule_is_literal() {
     // Red and green walk side by side; the background model sees one region around both.
     let mut a = red();
