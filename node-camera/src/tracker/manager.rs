@@ -2,10 +2,9 @@
 //! A foreground region (from the background model, `adaptive_background`) that no filter explains for
 //! `init-frames` frames starts a filter with its current appearance as target; a filter with no
 //! supporting region for `destroy-frames` frames is destroyed; of two filters that share a
-//! region (and overlap, over the smaller box) for `duplicate-frames` frames one is eliminated:
-//! the smaller when one box lies inside the other without the two being alike (it sits on a
-//! part of the other's person), else the younger, unless the older's colours matched clearly
-//! worse (it drifted there). Each filter
+//! region for `duplicate-frames` frames with boxes alike (IoU) or one inside the other, one is
+//! eliminated: the smaller when nested (it sits on a part of the other's person), else the
+//! younger, unless the older's colours matched clearly worse (it drifted there). Each filter
 //! keeps its local id for life. The region assigned to a filter shapes its weights; the
 //! foreground share under its best box gates its adaptation.
 //!
@@ -187,8 +186,8 @@ struct Shared {
     frames: u32,
     /// Sum over those frames of the older's colour similarity minus the younger's.
     older_lead: f32,
-    /// This frame, the smaller of the two when one box lies (mostly) inside the other without
-    /// the two being alike (IoU below `duplicate-iou`).
+    /// This frame, the smaller of the two when one box lies inside the other without the two
+    /// being alike (IoU below `duplicate-iou`).
     nested: Option<LocalId>,
 }
 
@@ -197,6 +196,11 @@ struct Shared {
 /// else's region gives way to the one that matches them, while two filters on the same person
 /// keep the older id.
 const DRIFTED_MARGIN: f32 = 0.05;
+
+/// How much of the smaller of two filters' boxes must lie inside the larger for the pair to be
+/// nested (a filter on a part of the other's person) although their IoU is under
+/// `duplicate-iou`. Near 1: two people partly hiding each other overlap less than this.
+const NESTED_OVERLAP: f32 = 0.9;
 
 /// The multi-person tracker of one camera.
 #[derive(Debug)]
@@ -399,13 +403,12 @@ impl MultiTracker {
         Ok(self.estimates(input.with_samples))
     }
 
-    /// Count how long each pair of overlapping filters (intersection over the smaller box) has
-    /// shared a region; of a pair that has for `duplicate-frames` frames, eliminate the smaller
-    /// if its box lies inside the other's without the two being alike (IoU below
-    /// `duplicate-iou`: a filter on a fragment of the other's person, which a region split
-    /// off for a few frames), else the younger — or the older, if its colours matched clearly
-    /// worse over those frames (it drifted onto the other's person). A pair that splits starts
-    /// over.
+    /// Count how long each pair of filters with boxes alike (IoU at least `duplicate-iou`) or
+    /// nested (the smaller at least [`NESTED_OVERLAP`] inside the larger) has shared a region;
+    /// of a pair that has for `duplicate-frames` frames, eliminate the smaller of a nested
+    /// pair (a filter on a fragment of the other's person, which a region split off for a few
+    /// frames), else the younger — or the older, if its colours matched clearly worse over
+    /// those frames (it drifted onto the other's person). A pair that splits starts over.
     fn eliminate_duplicates(&mut self) {
         let p = &self.params;
         let mut shared = Vec::new();
@@ -414,7 +417,11 @@ impl MultiTracker {
             for b in &self.people[i + 1..] {
                 let same = a.region.is_some() && a.region == b.region;
                 let (ab, bb) = (a.filter.mean().bbox(), b.filter.mean().bbox());
-                if !same || overlap_of_smaller(&ab, &bb) < p.duplicate_iou {
+                let alike = iou(&ab, &bb) >= p.duplicate_iou;
+                // A box (nearly) inside a larger one: the smaller lies on a part of the other's
+                // person (a fragment the region split off for a few frames).
+                let nested = !alike && overlap_of_smaller(&ab, &bb) >= NESTED_OVERLAP;
+                if !same || !(alike || nested) {
                     continue;
                 }
                 let (frames, lead) = self
@@ -422,10 +429,7 @@ impl MultiTracker {
                     .iter()
                     .find(|s| (s.older, s.younger) == (a.id, b.id))
                     .map_or((0, 0.0), |s| (s.frames, s.older_lead));
-                // Boxes that overlap as one but not alike: the smaller lies on a part of the
-                // other's person (a fragment the region split off for a few frames).
-                let nested = (iou(&ab, &bb) < p.duplicate_iou)
-                    .then(|| if area(&ab) < area(&bb) { a.id } else { b.id });
+                let nested = nested.then(|| if area(&ab) < area(&bb) { a.id } else { b.id });
                 shared.push(Shared {
                     older: a.id,
                     younger: b.id,

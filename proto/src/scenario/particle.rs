@@ -80,10 +80,9 @@ pub struct ParticleParams {
     /// Ours: 10.
     pub duplicate_frames: u32,
     /// Two filters sharing a region count as duplicates only when their boxes overlap at
-    /// least this much, measured over the smaller box (intersection over the smaller area):
-    /// two people side by side in one merged region keep their filters, a filter on a part of
-    /// another's person (a fragment the region split off) does not. 0 is the paper's literal
-    /// rule (any shared region). Ours: 0.4.
+    /// least this much (IoU), or one lies inside the other (a filter on a part of another's
+    /// person): two people inside one merged region keep their filters. 0 is the paper's
+    /// literal rule (any shared region). Ours: 0.4.
     pub duplicate_iou: f32,
     /// A region supports (and explains) a filter when the filter's box centre lies inside it
     /// or their IoU is at least this. Ours: 0.2.

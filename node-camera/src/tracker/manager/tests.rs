@@ -159,12 +159,11 @@ fn a_duplicate_filter_on_one_region_is_eliminated_and_the_older_id_stays() {
 
 #[test]
 fn a_filter_on_part_of_anothers_person_is_eliminated_whatever_its_age() {
-    // A filter on red's upper half (a fragment the region split off), then one on all of red:
-    // their boxes are not alike (IoU about 0.5 of a box inside the other), but one lies inside
+    // A filter on red's upper third (a fragment the region split off), then one on all of
+    // red: their boxes are not alike (IoU a third, under the default 0.4), but one lies inside
     // the other in red's one region. The smaller goes, though it is the older.
     let s = scene(vec![red()]);
     let params = ParticleParams {
-        duplicate_iou: 0.6,
         duplicate_frames: 5,
         ..ParticleParams::default()
     };
@@ -173,7 +172,7 @@ fn a_filter_on_part_of_anothers_person_is_eliminated_whatever_its_age() {
     s.render(0, &mut frame);
     let whole = s.box_at(0, 0);
     let upper = PixelBox {
-        ymax: 0.5 * (whole.ymin + whole.ymax),
+        ymax: whole.ymin + (whole.ymax - whole.ymin) / 3.0,
         ..whole
     };
     let fragment = tracker.start(&frame, &upper).unwrap();
