@@ -5,8 +5,9 @@
 //! In distributed mode it answers a step's `Priors` with one `Answers`: a `Contribution` for
 //! every track the newest frame's detections, paired with the priors jointly, give one to (a
 //! track it has nothing for is not listed), and the fresh tag readings once; detections gated
-//! to no prior go out as `Measurement { target: None }` so heads can start tracks. In centralized mode every detection goes out as a `Measurement`; in grid
-//! mode each processed frame is also reported (`FrameReport`), so the head knows it looked. Modes
+//! to no prior go out as `Measurement { target: None }` so heads can start tracks. In
+//! centralized mode every detection goes out as a `Measurement`; in grid mode each processed
+//! frame is also reported (`FrameReport`), so the head knows it looked. Modes
 //! (Active, CameraOff, Inactive) follow the head's `Command`s; time in each, the runtime's
 //! sync estimate and what it could not deliver are reported in a `NodeStatus` every status
 //! period. In a logging run ([`crate::record_all`]) every frame is measured whatever the mode
@@ -302,7 +303,7 @@ impl CameraNode {
         let contributions = match captured {
             None => Vec::new(),
             Some(c) => {
-                let joint = self.answering(&priors.tracks, age_s, c);
+                let joint = self.answering(&priors.tracks, priors.parts == 1, age_s, c);
                 let gate = self.cfg.gate_chi2;
                 let asked = &priors.tracks;
                 match &self.people {
@@ -339,12 +340,14 @@ impl CameraNode {
     }
 
     /// The priors `asked` (first, in order, their frame `age_s` old) with the priors they are
-    /// answered jointly with: the other tracks' newest, of the same step or the one before (a
-    /// track the head dropped sends no more and drops out), each with the frame's age relative
-    /// to its arrival.
+    /// answered jointly with. When `whole` (the step's priors came in one part) that is all
+    /// of them: a track not among them the head has dropped. Else the other tracks' newest,
+    /// of the same step (another part) or the one before (a part not here yet), each with the
+    /// frame's age relative to its arrival.
     pub(crate) fn answering<'a>(
         &'a self,
         asked: &'a [Prior],
+        whole: bool,
         age_s: f64,
         captured: ClusterTime,
     ) -> Vec<(&'a Prior, f64)> {
@@ -352,6 +355,9 @@ impl CameraNode {
             return Vec::new();
         };
         let mut out: Vec<_> = asked.iter().map(|p| (p, age_s)).collect();
+        if whole {
+            return out;
+        }
         out.extend(
             self.priors
                 .values()

@@ -92,10 +92,10 @@ pub fn nearest_pairs<T>(
     assign::assign(&costs)
 }
 
-/// The item answering `priors[of]`: the one the optimal pairing of every prior with the items
-/// gives it ([`nearest_pairs`]), or none. A camera answers one prior at a time, as each
-/// arrives; pairing jointly keeps two people side by side from both being given to the nearer
-/// track (a crowd's tracks then lost their people and swapped).
+/// Per prior, the item the optimal pairing of every prior with the items gives it
+/// ([`nearest_pairs`]), or none. A camera answers all of a step's priors at once; pairing
+/// jointly keeps two people side by side from both being given to the nearer track (a crowd's
+/// tracks then lost their people and swapped).
 ///
 /// A prior the pairing leaves empty gets nothing: its person is hidden or merged into a
 /// neighbour's region, and the track coasts. Until the background model dropped its ghosts
@@ -105,20 +105,8 @@ pub fn nearest_pairs<T>(
 /// merged two people into one track. Without ghosts the robot has one track and the fallback
 /// does nothing for it (default scenario, seeds 1–5, identical errors with and without it),
 /// and without the fallback four people, the crowd and the hall keep their tracks apart
-/// (`docs/multi-target.md`).
-pub fn joint_choice<'a, T>(
-    priors: &[(&Prior, f64)],
-    of: usize,
-    items: &'a [T],
-    gate_chi2: f64,
-    distance2: impl Fn(&Prior, &T, f64) -> Option<f64>,
-) -> Option<&'a T> {
-    let pairs = nearest_pairs(priors, items, gate_chi2, &distance2);
-    pairs.iter().position(|&p| p == Some(of)).map(|i| &items[i])
-}
-
-/// Per prior, the item the optimal pairing of every prior with the items gives it
-/// ([`nearest_pairs`]), or none: [`joint_choice`] for all priors at once.
+/// (`docs/multi-target.md`). Giving such a prior the merged region that holds its projection,
+/// with the box's extent as its uncertainty, was measured and not kept (same document).
 pub fn joint_choices<'a, T>(
     priors: &[(&Prior, f64)],
     items: &'a [T],

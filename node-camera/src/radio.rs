@@ -50,7 +50,7 @@ pub fn reading(address: [u8; 6], rssi_dbm: i32, time: ClusterTime) -> Result<Tag
 }
 
 /// A bounded first-in first-out buffer of readings; when full the oldest is dropped and
-/// counted (the newest reading of a tag is the one a contribution carries).
+/// counted (the newest reading of a tag is the one a node's answers carry).
 #[derive(Debug)]
 pub struct ReadingBuffer {
     queue: VecDeque<TagReading>,

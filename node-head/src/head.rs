@@ -3,9 +3,10 @@
 //! Every `method.step_ms` a tick opens a step: tracks are predicted and their `Priors` go to
 //! every member node that is up and not Inactive, one message per node (in parts of at most
 //! `MAX_PRIORS` tracks). A node's `Answers` answer every track of a part. The step closes when
-//! every expected node answered every track or the deadline passed; then the sums are applied, RSSI is linearized with each
-//! node's (trained or default) model, a `TrackReport` per track goes to the server, new tracks
-//! are born from agreeing unassociated detections, and activation sends at most one `Command`.
+//! every expected node answered every track or the deadline passed; then the sums are applied,
+//! RSSI is linearized with each node's (trained or default) model, a `TrackReport` per track
+//! goes to the server, new tracks are born from agreeing unassociated detections, and
+//! activation sends at most one `Command`.
 
 use crate::activation::Planner;
 use crate::association::Detection;
@@ -17,7 +18,8 @@ use crate::track::Track;
 use nalgebra::{Matrix2, Matrix6, Vector2};
 use proto::models::{State, mat6_from_wire, mat6_to_wire, vec6_from_wire, vec6_to_wire};
 use proto::msg::{
-    Answers, Contribution, Handover, MAX_PRIORS, Measurement, NodeStatus, PeopleFrame, Prior, Priors,
+    Answers, Contribution, Handover, MAX_PRIOR_PARTS, MAX_PRIORS, Measurement, NodeStatus, PeopleFrame,
+    Prior, Priors,
 };
 use proto::node::{Input, Node, Outgoing};
 use proto::observation::{GroundPerson, ObservationKind};
@@ -343,37 +345,39 @@ impl HeadNode {
             }
             return;
         }
-        let asked: &[TargetId] = if a.step == self.step {
-            self.parts.get(usize::from(a.part)).map_or(&[], Vec::as_slice)
+        // The part's tracks, each with the window's slot it had when the step opened (parts
+        // are the open step's tracks in order, `MAX_PRIORS` a part) and its index now, if it
+        // is still there (a handover may release a track mid-step).
+        let first = usize::from(a.part) * MAX_PRIORS;
+        let asked: Vec<(usize, Option<usize>, Option<&Contribution>)> =
+            match self.parts.get(usize::from(a.part)) {
+                Some(targets) if a.step == self.step => targets
+                    .iter()
+                    .enumerate()
+                    .map(|(i, target)| {
+                        let now_at = self.tracks.iter().position(|tr| tr.local == *target);
+                        (
+                            first + i,
+                            now_at,
+                            a.contributions.iter().find(|c| c.target == *target),
+                        )
+                    })
+                    .collect(),
+                _ => Vec::new(),
+            };
+        let offers: Vec<Offer> = if asked.is_empty() {
+            // Not a part of this step: by its step alone, late or confused.
+            vec![self.window.classify(a.step, now)]
         } else {
-            &[]
-        };
-        for c in &a.contributions {
-            if !asked.contains(&c.target) {
+            let targets = &self.parts[usize::from(a.part)];
+            for c in a.contributions.iter().filter(|c| !targets.contains(&c.target)) {
                 self.counters.unknown_target += 1;
-                debug!(node = %self.nodes[slot].info.id, target = %c.target, part = a.part, "contribution for a track the part did not ask");
+                let node = self.nodes[slot].info.id;
+                debug!(%node, target = %c.target, part = a.part, "contribution to a track the part did not ask");
             }
-        }
-        // Every track the part asked, by its index now; a track gone since is skipped.
-        let answered: Vec<(usize, Option<&Contribution>)> = asked
-            .iter()
-            .filter_map(|target| {
-                let t = self.tracks.iter().position(|tr| tr.local == *target)?;
-                Some((t, a.contributions.iter().find(|c| c.target == *target)))
-            })
-            .collect();
-        let offers: Vec<Offer> = if answered.is_empty() {
-            // Not a part of the open step: an older step's answer is late, a newer one's (or a
-            // part this step never had) is confused.
-            vec![if a.step == self.step {
-                Offer::Future
-            } else {
-                self.window.offer(slot, 0, a.step, now)
-            }]
-        } else {
-            answered
+            asked
                 .iter()
-                .map(|&(t, _)| self.window.offer(slot, t, a.step, now))
+                .map(|&(at_open, _, _)| self.window.offer(slot, at_open, a.step, now))
                 .collect()
         };
         let applied = offers.iter().filter(|&&o| o == Offer::Apply).count();
@@ -382,9 +386,9 @@ impl HeadNode {
             self.offer_readings(now, slot, &a.rssi);
             self.nodes[slot].mode = a.mode;
         }
-        for (&(t, c), offer) in answered.iter().zip(&offers) {
+        for (&(_, t, c), offer) in asked.iter().zip(&offers) {
             if *offer == Offer::Apply
-                && let Some(c) = c
+                && let (Some(t), Some(c)) = (t, c)
             {
                 self.apply_contribution(now, slot, t, c, a.captured);
             }
@@ -699,11 +703,24 @@ impl HeadNode {
             .open(self.step, deadline, self.tracks.len(), &self.expected);
         // One message per node for the step's priors (in parts when there are many), so each
         // node answers them all at once and jointly.
+        // (A cluster past MAX_PRIOR_PARTS × MAX_PRIORS tracks sends the first ones' only; the
+        // step then closes at its deadline.)
         self.parts.clear();
-        for (part, tracks) in self.tracks.chunks(MAX_PRIORS).enumerate() {
+        let parts = self
+            .tracks
+            .len()
+            .div_ceil(MAX_PRIORS)
+            .min(usize::from(MAX_PRIOR_PARTS)) as u16;
+        for (part, tracks) in self
+            .tracks
+            .chunks(MAX_PRIORS)
+            .take(usize::from(parts))
+            .enumerate()
+        {
             self.parts.push(tracks.iter().map(|t| t.local).collect());
             let priors = Priors {
                 part: part as u16,
+                parts,
                 tracks: tracks
                     .iter()
                     .map(|t| Prior {

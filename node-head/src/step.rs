@@ -1,13 +1,13 @@
 //! The distributed step's bookkeeping (paper 002 §III): which (node, track) pairs are expected
-//! to answer, which did, and what to do with each arriving contribution — apply it, or count
-//! it as late or duplicate so it is never applied twice.
+//! to answer, which did, and what to do with each (node, track) answer a node's `Answers`
+//! bring — apply it, or count it as late or duplicate so it is never applied twice.
 //!
 //! The answered table is a flat `nodes × tracks` array of step numbers, sized when a step
-//! opens; offering a contribution is an index and a compare, no allocation.
+//! opens; offering an answer is an index and a compare, no allocation.
 
 use proto::ClusterTime;
 
-/// What to do with an arriving contribution.
+/// What to do with an arriving (node, track) answer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Offer {
     /// New and in time: sum it.
@@ -90,7 +90,7 @@ impl StepWindow {
         self.open && now > self.deadline
     }
 
-    /// Classify a contribution from node `node` for track `track` of step `step` at `now`,
+    /// Classify the answer of node `node` for track `track` of step `step` at `now`,
     /// and record it when it is to be applied. Indices out of range are `Future` (unknown).
     pub fn offer(&mut self, node: usize, track: usize, step: u64, now: ClusterTime) -> Offer {
         let verdict = if step > self.step || node >= self.nodes || track >= self.tracks {
@@ -113,6 +113,19 @@ impl StepWindow {
             Offer::Future => self.counts.future += 1,
         }
         verdict
+    }
+
+    /// Classify an answer by its step alone (it names no (node, track) of the open step): late
+    /// for an earlier step, or this one closed or past its deadline; else future (a step not
+    /// started, or a part this step never had).
+    pub fn classify(&mut self, step: u64, now: ClusterTime) -> Offer {
+        if step < self.step || (step == self.step && (!self.open || now > self.deadline)) {
+            self.counts.late += 1;
+            Offer::Late
+        } else {
+            self.counts.future += 1;
+            Offer::Future
+        }
     }
 
     /// Stop waiting for node `node` (it went down or was commanded Inactive).

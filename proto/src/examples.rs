@@ -189,6 +189,7 @@ pub fn messages() -> Vec<Envelope> {
         })),
         env(Message::Priors(Priors {
             part: 0,
+            parts: 1,
             tracks: vec![
                 Prior {
                     target: TargetId(5),

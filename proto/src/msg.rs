@@ -123,6 +123,9 @@ impl Measurement {
 /// with more tracks sends its step's priors in parts.
 pub const MAX_PRIORS: usize = 32;
 
+/// Most parts one step's priors come in: 128 × [`MAX_PRIORS`] = 4096 tracks in one cluster.
+pub const MAX_PRIOR_PARTS: u16 = 128;
+
 /// A node's answer to one [`Priors`] (paper 002 §III): its information contributions to the
 /// part's tracks, one message per node per step and part, whatever the number of tracks. A
 /// track of the part it does not list gets nothing from the node (Ω_i = 0, ξ_i = 0); the
@@ -246,8 +249,11 @@ pub struct Prior {
 /// deadline, and names a different track.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Priors {
-    /// Which part of the step's priors this is, from 0.
+    /// Which part of the step's priors this is, from 0, of `parts`.
     pub part: u16,
+    /// How many parts the step's priors come in (1 up to [`MAX_PRIOR_PARTS`]): a node that has
+    /// every part of a step knows every track of it, and with one part, this message alone.
+    pub parts: u16,
     pub tracks: Vec<Prior>,
 }
 

@@ -1,5 +1,5 @@
-//! What sensors observe, as typed kinds. A measurement or contribution carries a list of
-//! observations; the head chooses the model for each kind in one place. A new sensor is a new
+//! What sensors observe, as typed kinds. A measurement carries a list of observations (a
+//! contribution at most one ground person, a node's answers their tag readings); the head chooses the model for each kind in one place. A new sensor is a new
 //! kind here (appended: variant order is the wire format), its model in [`crate::models`] and
 //! its source in [`crate::sensor`]. Ground-plane people travel quantised ([`GroundPerson`];
 //! [`GroundPoint`] is their floating-point form), a frame's together in a camera's
@@ -10,7 +10,7 @@ use crate::msg::{ColourSignature, PixelBox};
 use crate::time::ClusterTime;
 use serde::{Deserialize, Serialize};
 
-/// Most observations one measurement or contribution may carry.
+/// Most observations one measurement may carry (and tag readings one answer or people frame).
 pub const MAX_OBSERVATIONS: usize = 64;
 
 /// Most bins a colour histogram or an ILD vector may carry.

@@ -298,11 +298,18 @@ fn check_view_update(u: &crate::view::ViewUpdate) -> Result<(), ValidationError>
     Ok(())
 }
 
-/// A camera's people: bounded lists, each person once, readings in range, every person's
-/// quantised covariance positive definite and its histogram a histogram.
-/// A step's priors: 1 to [`MAX_PRIORS`] of them, of one step and deadline, each track once,
-/// with finite means and proper covariances.
+/// A step's priors: a part within the step's parts, 1 to [`MAX_PRIORS`] priors of one step
+/// and deadline, each track once, with finite means and proper covariances.
 fn check_priors(p: &Priors) -> Result<(), ValidationError> {
+    if p.parts == 0 || p.parts > MAX_PRIOR_PARTS || p.part >= p.parts {
+        return Err(err(
+            "priors.part",
+            format!(
+                "part {} of {} (a step has 1 to {MAX_PRIOR_PARTS} parts)",
+                p.part, p.parts
+            ),
+        ));
+    }
     if p.tracks.is_empty() {
         return Err(err("priors.tracks", "no prior"));
     }
@@ -328,7 +335,7 @@ fn check_priors(p: &Priors) -> Result<(), ValidationError> {
 }
 
 /// A node's answers: at most [`MAX_PRIORS`] contributions, each track once, each bringing
-/// something (information that is finite and positive semi-definite, or a ground-plane person
+/// one thing (information that is finite and positive semi-definite, or a ground-plane person
 /// gated to that track), and bounded, plausible tag readings.
 fn check_answers(a: &Answers) -> Result<(), ValidationError> {
     at_most("answers.rssi", a.rssi.len(), MAX_OBSERVATIONS)?;
@@ -340,11 +347,25 @@ fn check_answers(a: &Answers) -> Result<(), ValidationError> {
         if a.contributions[..i].iter().any(|q| q.target == c.target) {
             return Err(err("answers.contributions", format!("track {} twice", c.target)));
         }
-        if c.info.is_none() && c.ground.is_none() {
-            return Err(err(
-                "answers.contributions",
-                format!("the contribution to {} brings nothing", c.target),
-            ));
+        // Exactly one of the two: what a node folded, or the person for the head to fold.
+        // (It also bounds a full message well inside a frame.)
+        match (&c.info, &c.ground) {
+            (None, None) => {
+                return Err(err(
+                    "answers.contributions",
+                    format!("the contribution to {} brings nothing", c.target),
+                ));
+            }
+            (Some(_), Some(_)) => {
+                return Err(err(
+                    "answers.contributions",
+                    format!(
+                        "the contribution to {} brings both information and a person",
+                        c.target
+                    ),
+                ));
+            }
+            _ => {}
         }
         if let Some(info) = &c.info {
             check_psd6("answers.contributions.info.matrix", &info.matrix)?;
@@ -372,6 +393,8 @@ fn check_answers(a: &Answers) -> Result<(), ValidationError> {
     Ok(())
 }
 
+/// A camera's people: bounded lists, each person once, readings in range, every person's
+/// quantised covariance positive definite and its histogram a histogram.
 fn check_people_frame(f: &PeopleFrame) -> Result<(), ValidationError> {
     at_most("people_frame.people", f.people.len(), MAX_OBSERVATIONS)?;
     at_most("people_frame.rssi", f.rssi.len(), MAX_OBSERVATIONS)?;

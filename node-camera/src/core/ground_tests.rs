@@ -139,6 +139,7 @@ fn a_prior_is_answered_with_the_ground_information() {
         now,
         Input::Message(env(Message::Priors(Priors {
             part: 0,
+            parts: 1,
             tracks: vec![p],
         }))),
     )[..]
@@ -208,6 +209,7 @@ fn a_distributed_camera_leaves_the_gated_people_to_its_contributions() {
             ClusterTime::from_secs_f64(t),
             Input::Message(env(Message::Priors(Priors {
                 part: 0,
+                parts: 1,
                 tracks: vec![prior(t)],
             }))),
         );

@@ -43,6 +43,7 @@ fn env(body: Message) -> Envelope {
 fn priors_of(p: Prior) -> Message {
     Message::Priors(Priors {
         part: 0,
+        parts: 1,
         tracks: vec![p],
     })
 }

@@ -34,7 +34,7 @@ fn ground_points_gate_one_to_one_in_the_floor_plane() {
     let got = associate(&[(&a, 0.0), (&b, 0.0)], &people, 13.8);
     assert_eq!(got, vec![Some(1), Some(0), None]);
     let joint = |priors: &[(&Prior, f64)], of| {
-        crate::measure::joint_choice(priors, of, &people, 13.8, gate_distance2)
+        crate::measure::joint_choices(priors, &people, 13.8, gate_distance2)[of]
     };
     assert_eq!(joint(&[(&a, 0.0), (&b, 0.0)], 0), Some(&people[1]));
     let far = prior(7.0, 6.0);
@@ -48,7 +48,7 @@ fn joint_answers_give_two_close_tracks_two_people() {
     let (a, b) = (prior(2.0, 2.0), prior(2.9, 2.0));
     let people = [person(2.4, 2.0), person(1.5, 2.0)];
     let priors = [(&a, 0.0), (&b, 0.0)];
-    let joint = |of| crate::measure::joint_choice(&priors, of, &people, 13.8, gate_distance2);
+    let joint = |of: usize| crate::measure::joint_choices(&priors, &people, 13.8, gate_distance2)[of];
     assert!(gate_distance2(&a, &people[0], 0.0) < gate_distance2(&a, &people[1], 0.0));
     assert_eq!(gate_distance2(&b, &people[1], 0.0).filter(|d| *d <= 13.8), None);
     assert_eq!(joint(0), Some(&people[1]));
@@ -62,7 +62,7 @@ fn a_prior_the_pairing_leaves_without_a_person_gets_nothing() {
     let (a, b) = (prior(2.0, 2.0), prior(2.3, 2.0));
     let people = [person(2.1, 2.0)];
     let priors = [(&a, 0.0), (&b, 0.0)];
-    let joint = |of| crate::measure::joint_choice(&priors, of, &people, 13.8, gate_distance2);
+    let joint = |of: usize| crate::measure::joint_choices(&priors, &people, 13.8, gate_distance2)[of];
     assert!(
         gate_distance2(&b, &people[0], 0.0).is_some_and(|d| d <= 13.8),
         "b gates the person"
@@ -71,7 +71,7 @@ fn a_prior_the_pairing_leaves_without_a_person_gets_nothing() {
     assert_eq!(joint(1), None);
     // Alone, b takes the person.
     assert_eq!(
-        crate::measure::joint_choice(&[(&b, 0.0)], 0, &people, 13.8, gate_distance2),
+        crate::measure::joint_choices(&[(&b, 0.0)], &people, 13.8, gate_distance2)[0],
         Some(&people[0])
     );
 }

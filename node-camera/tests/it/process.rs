@@ -77,6 +77,7 @@ async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
                     NodeId(10),
                     Message::Priors(Priors {
                         part: 0,
+                        parts: 1,
                         tracks: vec![prior.clone()],
                     }),
                 ),

@@ -46,8 +46,8 @@ pub struct StepSensors<'a> {
 
 /// A fusion method.
 pub trait Fusion: std::fmt::Debug + Send {
-    /// Nodes answer each prior with their information contribution Ω_i, ξ_i and the head waits
-    /// for them; otherwise nodes send measurements and the head models them ([`Fusion::absorb`]).
+    /// Nodes answer the step's priors with their information contributions Ω_i, ξ_i and the
+    /// head waits for them; otherwise nodes send measurements and the head models them ([`Fusion::absorb`]).
     fn distributed(&self) -> bool;
 
     /// Whether tag readings enter the estimate.

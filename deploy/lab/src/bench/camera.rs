@@ -143,6 +143,7 @@ fn run_one(s: &Scenario, kind: Segmentation, step: u32, frames: usize) -> Result
             time: now,
             body: Message::Priors(Priors {
                 part: 0,
+                parts: 1,
                 tracks: targets
                     .iter()
                     .map(|tg| Prior {

@@ -127,6 +127,7 @@ fn the_feed_fills_the_view_and_every_metric_from_real_data() {
                     at,
                     Message::Priors(proto::msg::Priors {
                         part: 0,
+                        parts: 1,
                         tracks: vec![proto::msg::Prior {
                             target: TargetId(1),
                             step: 0,

@@ -640,6 +640,8 @@ fn other_range_checks_name_the_field() {
     assert!(e.contains("twice"), "{e}");
     let empty = answers_with(&|a| a.contributions[1].ground = None);
     assert!(invalid(&raw(&empty)).1.contains("brings nothing"));
+    let both = answers_with(&|a| a.contributions[1].info = a.contributions[0].info.clone());
+    assert!(invalid(&raw(&both)).1.contains("brings both"));
     let many = answers_with(&|a| {
         a.contributions = (0..=proto::msg::MAX_PRIORS as u32)
             .map(|t| Contribution {
@@ -669,6 +671,13 @@ fn other_range_checks_name_the_field() {
         let (field, e) = invalid(&priors_with(edit));
         assert_eq!(field, "priors.tracks");
         assert!(e.contains(want), "{e}");
+    }
+    for edit in [
+        &(|p: &mut Priors| p.parts = 0) as &dyn Fn(&mut Priors),
+        &|p: &mut Priors| p.part = p.parts,
+        &|p: &mut Priors| p.parts = MAX_PRIOR_PARTS + 1,
+    ] {
+        assert_eq!(invalid(&priors_with(edit)).0, "priors.part");
     }
     let mut env = samples()[1].clone();
     let Message::HelloAck(a) = &mut env.body else {
@@ -727,5 +736,67 @@ fn huge_matrices_are_judged_correctly() {
             decode(&with(&|i, j| if (i + j) % 2 == 0 { big } else { -big })).is_ok(),
             "{big:e}"
         );
+    }
+}
+
+/// A full step part fits in a frame: MAX_PRIORS priors, and MAX_PRIORS contributions of the
+/// larger kind (folded information) with the most tag readings, or people with histograms.
+#[test]
+fn the_largest_priors_and_answers_fit_in_a_frame() {
+    let Message::Priors(p) = samples()[6].body.clone() else {
+        panic!("sample 6 is priors")
+    };
+    let mut env = samples()[6].clone();
+    env.body = Message::Priors(Priors {
+        tracks: (0..MAX_PRIORS as u32)
+            .map(|t| Prior {
+                target: TargetId(u32::MAX - t),
+                step: u64::MAX,
+                ..p.tracks[0].clone()
+            })
+            .collect(),
+        ..p
+    });
+    let frame = encode(&env).unwrap();
+    assert!(frame.len() <= MAX_FRAME_BYTES, "{} bytes", frame.len());
+    let Message::Answers(a) = samples()[4].body.clone() else {
+        panic!("sample 4 is answers")
+    };
+    let folded = Answers {
+        rssi: vec![a.rssi[0]; proto::observation::MAX_OBSERVATIONS],
+        contributions: (0..MAX_PRIORS as u32)
+            .map(|t| Contribution {
+                target: TargetId(u32::MAX - t),
+                ..a.contributions[0].clone()
+            })
+            .collect(),
+        step: u64::MAX,
+        ..a.clone()
+    };
+    let mut person = a.contributions[1].ground.clone().unwrap();
+    person.histogram = proto::examples::messages()
+        .into_iter()
+        .find_map(|e| match e.body {
+            Message::PeopleFrame(f) => f.people.into_iter().find_map(|p| p.histogram),
+            _ => None,
+        });
+    let people = Answers {
+        contributions: (0..MAX_PRIORS as u32)
+            .map(|t| Contribution {
+                target: TargetId(u32::MAX - t),
+                info: None,
+                folded: proto::observation::Kinds::NONE,
+                ground: Some(GroundPerson {
+                    target: None,
+                    ..person.clone()
+                }),
+            })
+            .collect(),
+        ..folded.clone()
+    };
+    for answers in [folded, people] {
+        env.body = Message::Answers(answers);
+        let frame = encode(&env).unwrap();
+        assert!(frame.len() <= MAX_FRAME_BYTES, "{} bytes", frame.len());
     }
 }

@@ -362,8 +362,11 @@ fn message() -> impl Strategy<Value = Message> {
             prop::collection::vec((any::<u32>(), vec6(), psd()), 1..4)
         )
             .prop_map(|(part, step, deadline, tracks)| {
+                // A part within the step's parts, up to MAX_PRIOR_PARTS of them.
+                let parts = part % MAX_PRIOR_PARTS + 1;
                 Message::Priors(Priors {
-                    part,
+                    part: part % parts,
+                    parts,
                     tracks: tracks
                         .into_iter()
                         .map(|(t, mean, cov)| Prior {
