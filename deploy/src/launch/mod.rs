@@ -69,9 +69,12 @@ pub struct Launched {
     pub wall_s: f64,
 }
 
-/// A free loopback port (bound then released; the child binds it right after).
-fn free_port() -> Result<u16> {
-    Ok(std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
+/// A free loopback port, with the socket that holds it: the caller keeps it until every port
+/// of the launch is chosen (released at once, the kernel may hand the same port out again: a
+/// 100-camera hall once got one port for two heads), then drops it so the child can bind.
+fn free_port() -> Result<(u16, std::net::TcpListener)> {
+    let l = std::net::TcpListener::bind("127.0.0.1:0")?;
+    Ok((l.local_addr()?.port(), l))
 }
 
 /// The scenario as this launch runs it: its own iceoryx2 domain and, over TCP, free ports.
@@ -82,9 +85,12 @@ pub fn effective_scenario(mut s: Scenario, transport: TransportKind) -> Result<S
     s.network.transport = transport;
     s.network.domain = format!("ocelli-{}", std::process::id());
     if transport == TransportKind::Tcp {
+        let mut held = Vec::new();
         for n in &mut s.nodes {
             if matches!(n.role, NodeRole::Head | NodeRole::Server) {
-                n.listen = Some(format!("127.0.0.1:{}", free_port()?));
+                let (port, socket) = free_port()?;
+                n.listen = Some(format!("127.0.0.1:{port}"));
+                held.push(socket);
             }
         }
     }
@@ -437,4 +443,25 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<Launched> {
         usage,
         wall_s,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every head and the server of a launch over TCP get a port of their own, however many
+    /// (the scenario's own check refuses two nodes of a host on one port).
+    #[test]
+    fn a_tcp_launch_gives_every_listener_its_own_port() {
+        let text = include_str!("../../../proto/scenarios/hall.toml");
+        let s = Scenario::from_toml(text, "hall.toml").unwrap();
+        for _ in 0..20 {
+            let e = effective_scenario(s.clone(), TransportKind::Tcp).unwrap();
+            let ports: Vec<&String> = e.nodes.iter().filter_map(|n| n.listen.as_ref()).collect();
+            let distinct: std::collections::BTreeSet<_> = ports.iter().collect();
+            assert_eq!(distinct.len(), ports.len(), "{ports:?}");
+            assert!(ports.len() >= 6, "five heads and the server");
+            e.validate("launch", None).unwrap();
+        }
+    }
 }
