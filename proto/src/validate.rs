@@ -264,21 +264,30 @@ fn at_most(field: &'static str, len: usize, max: usize) -> Result<(), Validation
     Ok(())
 }
 
+/// A message that is `part` of `parts` (of `whole`, which has 1 to `max` parts).
+fn check_part(
+    field: &'static str,
+    whole: &str,
+    part: u16,
+    parts: u16,
+    max: u16,
+) -> Result<(), ValidationError> {
+    if parts == 0 || parts > max || part >= parts {
+        return Err(err(
+            field,
+            format!("part {part} of {parts} ({whole} has 1 to {max} parts)"),
+        ));
+    }
+    Ok(())
+}
+
 /// A view update: bounded lists, a part within its round, finite tracks with a position
 /// covariance whose variances are not negative.
 fn check_view_update(u: &crate::view::ViewUpdate) -> Result<(), ValidationError> {
     use crate::view::{
         MAX_VIEW_CONTRIBUTORS, MAX_VIEW_HANDOVERS, MAX_VIEW_NODES, MAX_VIEW_PARTS, MAX_VIEW_TRACKS,
     };
-    if u.parts == 0 || u.parts > MAX_VIEW_PARTS || u.part >= u.parts {
-        return Err(err(
-            "view_update.part",
-            format!(
-                "part {} of {} (a round has 1 to {MAX_VIEW_PARTS} parts)",
-                u.part, u.parts
-            ),
-        ));
-    }
+    check_part("view_update.part", "a round", u.part, u.parts, MAX_VIEW_PARTS)?;
     at_most("view_update.tracks", u.tracks.len(), MAX_VIEW_TRACKS)?;
     at_most("view_update.nodes", u.nodes.len(), MAX_VIEW_NODES)?;
     at_most("view_update.handovers", u.handovers.len(), MAX_VIEW_HANDOVERS)?;
@@ -301,15 +310,7 @@ fn check_view_update(u: &crate::view::ViewUpdate) -> Result<(), ValidationError>
 /// A step's priors: a part within the step's parts, 1 to [`MAX_PRIORS`] priors of one step
 /// and deadline, each track once, with finite means and proper covariances.
 fn check_priors(p: &Priors) -> Result<(), ValidationError> {
-    if p.parts == 0 || p.parts > MAX_PRIOR_PARTS || p.part >= p.parts {
-        return Err(err(
-            "priors.part",
-            format!(
-                "part {} of {} (a step has 1 to {MAX_PRIOR_PARTS} parts)",
-                p.part, p.parts
-            ),
-        ));
-    }
+    check_part("priors.part", "a step", p.part, p.parts, MAX_PRIOR_PARTS)?;
     if p.tracks.is_empty() {
         return Err(err("priors.tracks", "no prior"));
     }
