@@ -25,7 +25,7 @@ use proto::node::{Input, Node, Outgoing};
 use proto::observation::{GroundPerson, ObservationKind};
 use proto::scenario::Activation;
 use proto::{ClusterTime, Envelope, Message, Mode, NodeId, TargetId};
-use std::collections::HashMap;
+use std::collections::{BTreeSet, HashMap};
 use tracing::{debug, info, warn};
 
 /// Most detections a head buffers per step; more are dropped and counted.
@@ -56,7 +56,7 @@ pub struct HeadNode {
     nodes: Vec<NodeState>,
     slots: HashMap<NodeId, usize>,
     /// Other heads the server said are down (their floor is anybody's until they are back).
-    heads_down: std::collections::BTreeSet<NodeId>,
+    heads_down: BTreeSet<NodeId>,
     cameras: Vec<proto::camera::CameraModel>,
     tracks: Vec<Track>,
     next_local: u32,
@@ -114,7 +114,7 @@ impl HeadNode {
             cfg,
             nodes,
             slots,
-            heads_down: std::collections::BTreeSet::new(),
+            heads_down: BTreeSet::new(),
             cameras,
             tracks: Vec::new(),
             next_local: 1,
@@ -373,7 +373,8 @@ impl HeadNode {
             for c in a.contributions.iter().filter(|c| !targets.contains(&c.target)) {
                 self.counters.unknown_target += 1;
                 let node = self.nodes[slot].info.id;
-                debug!(%node, target = %c.target, part = a.part, "contribution to a track the part did not ask");
+                let target = c.target;
+                debug!(%node, %target, part = a.part, "contribution to a track the part did not ask");
             }
             asked
                 .iter()

@@ -143,7 +143,7 @@ pub struct Answers {
     /// one track), at most [`crate::observation::MAX_OBSERVATIONS`].
     pub rssi: Vec<RssiReading>,
     /// The part's tracks the node has something for, each at most once, at most
-    /// [`MAX_PRIORS`]; each brings information or a ground-plane person.
+    /// [`MAX_PRIORS`]; each brings exactly one of information and a ground-plane person.
     pub contributions: Vec<Contribution>,
 }
 

@@ -2,7 +2,8 @@
 //! segmentation (regions and foreground mask) into the per-person particle filters, and people
 //! leave as ground-plane observations ([`crate::ground_people`]) — the same split as the
 //! pin-hole points: gated to a prior they go in the contribution to that prior in the node's
-//! `Answers` (distributed; the person itself, which the head folds in: its model is linear) or are sent naming it
+//! `Answers` (distributed; the person itself, which the head folds in: its model is linear) or
+//! are sent naming it
 //! (centralized); ungated ones are sent without a target so heads can start tracks. What is
 //! sent goes in one `PeopleFrame` per head step.
 
