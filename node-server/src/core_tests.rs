@@ -718,6 +718,35 @@ fn the_old_heads_new_track_on_a_handed_over_target_merges_back() {
     assert_eq!(s.globals().count(), 1);
 }
 
+/// A head that keeps a track of its own after the global it fed was handed away (the server
+/// had bound it without naming it, so the head dropped another) does not speak for the global
+/// when it comes back: its report is looked at afresh. Taken as the owner's word, the kept
+/// track on the other head's floor handed the global straight back, every report.
+#[test]
+fn a_kept_track_of_a_handed_away_global_never_hands_it_back() {
+    let mut s = started();
+    s.on_message(ms(0), report(H2, 5, None, ms(0), 5.9, 4.0));
+    let g = s.global_of(H2, TargetId(5)).unwrap();
+    // H2's estimate crosses into H3's floor: handed over, H2's track 5 released.
+    let out = s.on_message(ms(200), report(H2, 5, None, ms(200), 6.5, 4.0));
+    assert_eq!(handovers(&out).len(), 2);
+    s.on_message(ms(400), report(H3, 1, Some(g.0), ms(400), 6.4, 4.0));
+    // H3's track of g walks back onto H2's floor: handed to H2.
+    let out = s.on_message(ms(600), report(H3, 1, Some(g.0), ms(600), 5.4, 4.0));
+    assert!(handovers(&out).iter().any(|(to, h)| *to == H2 && h.to_head == H2));
+    // H2 kept its track 5, still on H3's floor, 1.2 m from g.
+    let out = s.on_message(ms(600), report(H2, 5, None, ms(600), 6.6, 4.0));
+    assert!(handovers(&out).is_empty(), "{:?}", handovers(&out));
+    assert_eq!(s.global_of(H2, TargetId(5)), None);
+    // A late report of the very track H3 was told to drop is no word on g either.
+    let out = s.on_message(ms(650), report(H3, 1, Some(g.0), ms(400), 6.9, 4.0));
+    assert!(handovers(&out).is_empty(), "{:?}", handovers(&out));
+    assert_eq!(
+        s.globals().find(|(id, _)| *id == g).map(|(_, gt)| gt.owner),
+        Some(H2)
+    );
+}
+
 /// Over TCP the transport's heartbeats stay inside the transport; the core hears a camera only
 /// when it sends its status (about once a second). Its live link keeps it up all the same: no
 /// down/up flapping however quiet it is, and down at once when the link goes.

@@ -41,7 +41,9 @@
 //!   tracks well turns into a second global id.
 //! - On a handover the old head stops tracking the target, so its local tracks bound to the
 //!   global are released: a track it starts again on the target merges back into the global
-//!   instead of founding a new one (its old binding stays, so a late report of it still counts).
+//!   instead of founding a new one. A released track never speaks for the global again: a late
+//!   report of it (it carries the global's id) is ignored, and a track the head kept (one the
+//!   server had bound without naming it) is looked at afresh, as a track first seen.
 //! - When the owner is down, on the next tick the track goes to a live head that follows it (a
 //!   local track bound or pending on it that reported recently), which continues from its own
 //!   estimate when that is newer; else to the live head covering its last position, else the

@@ -62,6 +62,24 @@ impl Tracks {
             foreign: self.foreign(head, r, members),
         };
         let mut out = Vec::new();
+        if let Some(l) = self.locals.get(&rep.key())
+            && l.released
+        {
+            let (Binding::Bound(g) | Binding::Pending(g)) = l.binding;
+            // A report of the very track the head was told to drop (it carries the global):
+            // sent before the handover reached the head. It is no word on the global; if the
+            // head somehow kept the track, it falls silent here, is forgotten, and is claimed
+            // afresh.
+            if r.global == Some(g) {
+                return out;
+            }
+            // A track of the head's own that the server had bound without naming it, and that
+            // the head kept: it is the head's view of someone, looked at afresh. Taken as the
+            // global's owner word when the global came back to this head, it moved the global
+            // to wherever that track was, and two such tracks on two heads handed one global
+            // back and forth every report (the crowd: 120 handovers in 3 s).
+            self.locals.remove(&rep.key());
+        }
         // `None`: the track waits without a global id; nothing more to do for this report.
         let binding = match self.locals.get(&rep.key()).map(|l| l.binding) {
             None => self.bind_unknown(&rep, &mut out),
