@@ -517,21 +517,27 @@ impl ServerNode {
             }
             Decision::Handover { global, from, to, .. } => {
                 self.counters.handovers += 1;
-                if let Some(gt) = self.tracks.global(global) {
-                    let msg = Message::Handover(Handover {
-                        global,
-                        to_head: to,
-                        from_head: from,
-                        time: gt.time,
-                        mean: gt.mean,
-                        cov: gt.cov,
-                    });
-                    out.push(Outgoing::new(to, msg.clone()));
+                // The old head drops its track nearest the global's posterior (its own last
+                // word); the new head adopts the track nearest the posterior it is given.
+                if let Some(gt) = self.tracks.global(global)
+                    && let Some((time, mean, cov)) = self.tracks.handover_posterior(now, global, to)
+                {
+                    let handover = |time, mean, cov| {
+                        Message::Handover(Handover {
+                            global,
+                            to_head: to,
+                            from_head: from,
+                            time,
+                            mean,
+                            cov,
+                        })
+                    };
+                    out.push(Outgoing::new(to, handover(time, mean, cov)));
                     if let Some(f) = from
                         && f != to
                         && self.members.is_up(f)
                     {
-                        out.push(Outgoing::new(f, msg));
+                        out.push(Outgoing::new(f, handover(gt.time, gt.mean, gt.cov)));
                     }
                 }
             }

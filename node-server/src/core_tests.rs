@@ -327,6 +327,29 @@ fn a_dead_heads_targets_and_cameras_move_to_a_live_head() {
         && matches!(&o.body, Message::Assignment(a) if a.node == CAM && a.head == H2)));
 }
 
+/// The new head already tracks the target (its track is bound to the global): the handover
+/// gives it that track's posterior, so it takes it for the named track instead of starting a
+/// second one beside it from the old head's estimate. The old head gets its own last word, by
+/// which it finds the track to drop.
+#[test]
+fn a_handover_gives_the_new_head_its_own_track_of_the_target() {
+    let mut s = started();
+    s.on_message(ms(0), report(H2, 5, None, ms(0), 5.0, 4.0));
+    let g = s.global_of(H2, TargetId(5)).unwrap();
+    for k in 1..=3i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H2, 5, None, t, 5.5, 4.0));
+        s.on_message(t, report(H3, 9, None, t, 5.9, 4.3));
+    }
+    assert_eq!(s.global_of(H3, TargetId(9)), Some(g));
+    let out = s.on_message(ms(800), report(H2, 5, None, ms(800), 6.4, 4.0));
+    let h = handovers(&out);
+    let to_new = h.iter().find(|(to, _)| *to == H3).expect("sent to the new head");
+    assert_eq!((&to_new.1.mean[..2], to_new.1.time), (&[5.9, 4.3][..], ms(600)));
+    let to_old = h.iter().find(|(to, _)| *to == H2).expect("sent to the old head");
+    assert_eq!((&to_old.1.mean[..2], to_old.1.time), (&[6.4, 4.0][..], ms(800)));
+}
+
 #[test]
 fn reports_of_one_target_by_two_heads_merge_after_hysteresis_and_split_back() {
     let mut s = started();
