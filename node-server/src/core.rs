@@ -12,8 +12,9 @@
 //! and last posteriors, and reproduces the recorded decisions.
 //!
 //! Handover messages: a [`Handover`] with `to_head` = the new head is sent to the new head (start
-//! from this posterior) *and* to the old head if it is up (stop tracking it; its later reports of
-//! that target are treated as a second opinion and merged or split like any other). Assignments
+//! from this posterior: its own bound track's, when it has one) *and*, with the global's
+//! posterior, to the old head if it is up (stop tracking it; a late report of the dropped track
+//! is ignored, any other report of it is looked at afresh, as a track first seen). Assignments
 //! are likewise sent to the camera, its new head and its previous head. When a head's track
 //! gets a global id (new or merged) and its report carried none, the head is told with a
 //! *naming* handover: `to_head` = that head, `from_head` = `None`, the report's own posterior —
@@ -517,11 +518,14 @@ impl ServerNode {
             }
             Decision::Handover { global, from, to, .. } => {
                 self.counters.handovers += 1;
-                // The old head drops its track nearest the global's posterior (its own last
-                // word); the new head adopts the track nearest the posterior it is given.
-                if let Some(gt) = self.tracks.global(global)
-                    && let Some((time, mean, cov)) = self.tracks.handover_posterior(now, global, to)
-                {
+                // The old head drops its track nearest the global's posterior (the owner's last
+                // word, its own in a region handover); the new head adopts the track nearest
+                // the posterior it is given.
+                if let Some(gt) = self.tracks.global(global) {
+                    let (time, mean, cov) = self
+                        .tracks
+                        .handover_posterior(now, global, to)
+                        .unwrap_or((gt.time, gt.mean, gt.cov));
                     let handover = |time, mean, cov| {
                         Message::Handover(Handover {
                             global,

@@ -741,10 +741,11 @@ fn the_old_heads_new_track_on_a_handed_over_target_merges_back() {
     assert_eq!(s.globals().count(), 1);
 }
 
-/// A head that keeps a track of its own after the global it fed was handed away (the server
-/// had bound it without naming it, so the head dropped another) does not speak for the global
-/// when it comes back: its report is looked at afresh. Taken as the owner's word, the kept
-/// track on the other head's floor handed the global straight back, every report.
+/// A head that keeps a track of its own after the global it fed was handed away (here it was
+/// told the name, but a head that adopted a handover beside its own unnamed track drops the
+/// named one and keeps this) does not speak for the global when it comes back: its report is
+/// looked at afresh. Taken as the owner's word, the kept track on the other head's floor
+/// handed the global straight back, every report.
 #[test]
 fn a_kept_track_of_a_handed_away_global_never_hands_it_back() {
     let mut s = started();
@@ -761,13 +762,38 @@ fn a_kept_track_of_a_handed_away_global_never_hands_it_back() {
     let out = s.on_message(ms(600), report(H2, 5, None, ms(600), 6.6, 4.0));
     assert!(handovers(&out).is_empty(), "{:?}", handovers(&out));
     assert_eq!(s.global_of(H2, TargetId(5)), None);
-    // A late report of the very track H3 was told to drop is no word on g either.
+    // A late report of the very track H3 was told to drop is no word on g: no decision at all
+    // (taken afresh, it would be claimed back).
+    s.take_records();
     let out = s.on_message(ms(650), report(H3, 1, Some(g.0), ms(400), 6.9, 4.0));
     assert!(handovers(&out).is_empty(), "{:?}", handovers(&out));
+    assert_eq!(decisions(&mut s), Vec::new());
     assert_eq!(
         s.globals().find(|(id, _)| *id == g).map(|(_, gt)| gt.owner),
         Some(H2)
     );
+}
+
+/// A global handed away and straight back to a head that kept its released track: the head
+/// names that track by the handover back, and its reports are the owner's word again (they
+/// were ignored as late reports, and the global was lost).
+#[test]
+fn a_released_track_named_by_a_handover_back_speaks_for_the_global() {
+    let mut s = started();
+    s.on_message(ms(0), report(H2, 5, None, ms(0), 5.9, 4.0));
+    let g = s.global_of(H2, TargetId(5)).unwrap();
+    s.on_message(ms(200), report(H2, 5, None, ms(200), 6.5, 4.0));
+    let out = s.on_message(ms(400), report(H3, 1, Some(g.0), ms(400), 5.6, 4.0));
+    assert!(handovers(&out).iter().any(|(to, h)| *to == H2 && h.to_head == H2));
+    // H2 never dropped track 5 and names it g.
+    s.on_message(ms(600), report(H2, 5, Some(g.0), ms(600), 5.2, 4.0));
+    assert_eq!(s.global_of(H2, TargetId(5)), Some(g));
+    let gt = s
+        .globals()
+        .find(|(id, _)| *id == g)
+        .map(|(_, gt)| gt.clone())
+        .unwrap();
+    assert_eq!((gt.owner, gt.mean[0], gt.time), (H2, 5.2, ms(600)));
 }
 
 /// Over TCP the transport's heartbeats stay inside the transport; the core hears a camera only

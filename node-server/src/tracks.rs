@@ -43,9 +43,10 @@
 //!   tracks well turns into a second global id.
 //! - On a handover the old head stops tracking the target, so its local tracks bound to the
 //!   global are released: a track it starts again on the target merges back into the global
-//!   instead of founding a new one. A released track never speaks for the global again: a late
-//!   report of it (it carries the global's id) is ignored, and a track the head kept (one the
-//!   server had bound without naming it) is looked at afresh, as a track first seen.
+//!   instead of founding a new one. A released track does not speak for the global: a late
+//!   report of it (it carries the global's id while another head owns it) is ignored, and any
+//!   other report of it (a track the head kept, or the global came back to this head) is looked
+//!   at afresh, as a track first seen.
 //! - When the owner is down, on the next tick the track goes to a live head that follows it (a
 //!   local track bound or pending on it that reported recently), which continues from its own
 //!   estimate when that is newer; else to the live head covering its last position, else the
@@ -200,31 +201,36 @@ impl Tracks {
         self.globals.iter().map(|(k, v)| (*k, v))
     }
 
-    /// The posterior a handover of `g` gives `to`: that of `to`'s own live track bound to `g`
-    /// when it has one (the most recent), else `g`'s. A head never learns which of its tracks
-    /// the server bound, so it takes the handover for one of its unnamed tracks only when the
-    /// posterior lies on it; given the old owner's estimate it started a second track beside
-    /// its own, and its two tracks then took turns moving `g` (the crowd, seed 1: 172 of 2254
-    /// steps of a global).
+    /// The posterior of `to`'s own live track bound to `g` (the most recent), which a handover
+    /// of `g` gives `to` when it has one. A head takes a handover for one of its unnamed tracks
+    /// only when the posterior lies on it; given the old owner's estimate instead, a head that
+    /// already tracked the target started a second track beside its own, and its two tracks
+    /// then took turns moving `g` (the crowd, seed 1: 172 of 2254 steps of a global).
     pub fn handover_posterior(
         &self,
         now: ClusterTime,
         g: TargetId,
         to: NodeId,
     ) -> Option<(ClusterTime, Vec6, Mat6)> {
-        let gt = self.globals.get(&g)?;
-        let own = self
-            .locals
-            .iter()
-            .filter(|((h, _), l)| {
-                *h == to
-                    && l.binding == Binding::Bound(g)
-                    && !l.released
-                    && now - l.last <= self.params.owner_stale_ns
+        self.live_bound(now, to, g)
+            .max_by(|a, b| a.1.last.cmp(&b.1.last).then(b.0.cmp(&a.0)))
+            .map(|(_, l)| l.posterior)
+    }
+
+    /// `head`'s local tracks bound to `g` that are live: not released by a handover, and
+    /// reported within the owner staleness.
+    fn live_bound(
+        &self,
+        now: ClusterTime,
+        head: NodeId,
+        g: TargetId,
+    ) -> impl Iterator<Item = (TargetId, &LocalTrack)> {
+        self.locals
+            .range((head, TargetId(0))..=(head, TargetId(u32::MAX)))
+            .filter(move |(_, l)| {
+                l.binding == Binding::Bound(g) && !l.released && now - l.last <= self.params.owner_stale_ns
             })
-            .max_by(|a, b| a.1.last.cmp(&b.1.last).then(b.0.cmp(a.0)))
-            .map(|(_, l)| l.posterior);
-        Some(own.unwrap_or((gt.time, gt.mean, gt.cov)))
+            .map(|((_, local), l)| (*local, l))
     }
 
     /// The global id a head's local track is bound to (`None` while pending or unknown).
@@ -353,13 +359,7 @@ impl Tracks {
 
     /// Whether `head` has another live local track bound to `g`.
     fn feeds_other(&self, head: NodeId, local: TargetId, g: TargetId, now: ClusterTime) -> bool {
-        self.locals.iter().any(|((h, l), t)| {
-            *h == head
-                && *l != local
-                && t.binding == Binding::Bound(g)
-                && !t.released
-                && now - t.last <= self.params.owner_stale_ns
-        })
+        self.live_bound(now, head, g).any(|(l, _)| l != local)
     }
 }
 

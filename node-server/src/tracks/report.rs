@@ -66,19 +66,21 @@ impl Tracks {
             && l.released
         {
             let (Binding::Bound(g) | Binding::Pending(g)) = l.binding;
-            // A report of the very track the head was told to drop (it carries the global):
-            // sent before the handover reached the head. It is no word on the global; if the
-            // head somehow kept the track, it falls silent here, is forgotten, and is claimed
-            // afresh.
-            if r.global == Some(g) {
+            // A report of the very track the head was told to drop (it carries the global),
+            // while the global is another head's: sent before the handover reached the head.
+            // It is no word on the global. (If the head somehow kept the track, it falls
+            // silent here, is forgotten after the track timeout, and is then claimed afresh.)
+            if r.global == Some(g) && self.globals.get(&g).is_some_and(|gt| gt.owner != head) {
                 return out;
             }
-            // A track of the head's own that the server had bound without naming it, and that
-            // the head kept: it is the head's view of someone, looked at afresh. Taken as the
-            // global's owner word when the global came back to this head, it moved the global
-            // to wherever that track was, and two such tracks on two heads handed one global
-            // back and forth every report (the crowd: 120 handovers in 3 s).
+            // Otherwise the head's track is looked at afresh, as one first seen: a track of its
+            // own that the server had bound and the head kept (it dropped another), or the
+            // global came back to this head, which named this track by that handover. Taken
+            // as the owner's word when the global came back, a kept track moved the global to
+            // wherever it was, and two such tracks on two heads handed one global back and
+            // forth every report (the crowd, seed 1: 120 handovers of one id in about 20 s).
             self.locals.remove(&rep.key());
+            self.waiting.remove(&rep.key());
         }
         // `None`: the track waits without a global id; nothing more to do for this report.
         let binding = match self.locals.get(&rep.key()).map(|l| l.binding) {
