@@ -754,6 +754,13 @@ fn a_kept_track_of_a_handed_away_global_never_hands_it_back() {
     // H2's estimate crosses into H3's floor: handed over, H2's track 5 released.
     let out = s.on_message(ms(200), report(H2, 5, None, ms(200), 6.5, 4.0));
     assert_eq!(handovers(&out).len(), 2);
+    // A report H2 made before it heard of the handover (its estimate is older), arriving late
+    // and far from g: no word on anything (taken afresh, it founded a global and named a track
+    // on H2, which may be a neighbour's).
+    s.take_records();
+    let out = s.on_message(ms(250), report(H2, 5, None, ms(200), 4.0, 4.0));
+    assert!(out.is_empty(), "{out:?}");
+    assert_eq!(decisions(&mut s), Vec::new());
     s.on_message(ms(400), report(H3, 1, Some(g.0), ms(400), 6.4, 4.0));
     // H3's track of g walks back onto H2's floor: handed to H2.
     let out = s.on_message(ms(600), report(H3, 1, Some(g.0), ms(600), 5.4, 4.0));

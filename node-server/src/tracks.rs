@@ -44,9 +44,9 @@
 //! - On a handover the old head stops tracking the target, so its local tracks bound to the
 //!   global are released: a track it starts again on the target merges back into the global
 //!   instead of founding a new one. A released track does not speak for the global: a late
-//!   report of it (it carries the global's id while another head owns it) is ignored, and any
-//!   other report of it (a track the head kept, or the global came back to this head) is looked
-//!   at afresh, as a track first seen.
+//!   report of it (its estimate older than the handover, or it carries the global's id while
+//!   another head owns it) is ignored, and any other report of it (a track the head kept, or
+//!   the global came back to this head) is looked at afresh, as a track first seen.
 //! - When the owner is down, on the next tick the track goes to a live head that follows it (a
 //!   local track bound or pending on it that reported recently), which continues from its own
 //!   estimate when that is newer; else to the live head covering its last position, else the
@@ -137,9 +137,9 @@ struct LocalTrack {
     posterior: (ClusterTime, Vec6, Mat6),
     agree: u32,
     disagree: u32,
-    /// Its global was handed away from this head, which drops the track: it no longer counts
-    /// as the head feeding the global.
-    released: bool,
+    /// When (server time) its global was handed away from this head, which drops the track:
+    /// it no longer counts as the head feeding the global.
+    released: Option<ClusterTime>,
 }
 
 /// The global track table.
@@ -228,7 +228,9 @@ impl Tracks {
         self.locals
             .range((head, TargetId(0))..=(head, TargetId(u32::MAX)))
             .filter(move |(_, l)| {
-                l.binding == Binding::Bound(g) && !l.released && now - l.last <= self.params.owner_stale_ns
+                l.binding == Binding::Bound(g)
+                    && l.released.is_none()
+                    && now - l.last <= self.params.owner_stale_ns
             })
             .map(|((_, local), l)| (*local, l))
     }
@@ -302,7 +304,9 @@ impl Tracks {
     fn fed_by(&self, now: ClusterTime, head: NodeId) -> Vec<TargetId> {
         self.locals
             .iter()
-            .filter(|((h, _), l)| *h == head && now - l.last <= self.params.owner_stale_ns && !l.released)
+            .filter(|((h, _), l)| {
+                *h == head && now - l.last <= self.params.owner_stale_ns && l.released.is_none()
+            })
             .map(|(_, l)| match l.binding {
                 Binding::Bound(g) | Binding::Pending(g) => g,
             })
@@ -371,7 +375,7 @@ impl LocalTrack {
             posterior: (r.time, r.mean, r.cov),
             agree: 0,
             disagree: 0,
-            released: false,
+            released: None,
         }
     }
 }

@@ -77,7 +77,7 @@ impl Tracks {
                 .iter()
                 .filter(|(_, l)| {
                     matches!(l.binding, Binding::Bound(x) | Binding::Pending(x) if x == g)
-                        && !l.released
+                        && l.released.is_none()
                         && now - l.last <= self.params.owner_stale_ns
                 })
                 .map(|((h, _), _)| *h)
@@ -88,7 +88,12 @@ impl Tracks {
     }
 
     /// Hand `g` to the head whose region it entered, if it left its owner's.
-    pub(super) fn region_handover(&mut self, g: TargetId, members: &Membership) -> Option<Decision> {
+    pub(super) fn region_handover(
+        &mut self,
+        now: ClusterTime,
+        g: TargetId,
+        members: &Membership,
+    ) -> Option<Decision> {
         let gt = self.globals.get_mut(&g)?;
         let region = members.region(gt.owner)?;
         let (x, y) = (gt.mean[0], gt.mean[1]);
@@ -105,7 +110,7 @@ impl Tracks {
         gt.entered = true; // `to` covers the estimate
         for ((h, _), l) in self.locals.iter_mut() {
             if *h == from && l.binding == Binding::Bound(g) {
-                l.released = true;
+                l.released = Some(now);
             }
         }
         Some(Decision::Handover {
@@ -173,7 +178,7 @@ impl Tracks {
             .iter()
             .filter(|((h, _), l)| {
                 matches!(l.binding, Binding::Bound(x) | Binding::Pending(x) if x == g)
-                    && !l.released
+                    && l.released.is_none()
                     && *h != dead
                     && members.is_up(*h)
                     && now - l.last <= self.params.owner_stale_ns

@@ -63,14 +63,17 @@ impl Tracks {
         };
         let mut out = Vec::new();
         if let Some(l) = self.locals.get(&rep.key())
-            && l.released
+            && let Some(released) = l.released
         {
             let (Binding::Bound(g) | Binding::Pending(g)) = l.binding;
-            // A report of the very track the head was told to drop (it carries the global),
-            // while the global is another head's: sent before the handover reached the head.
-            // It is no word on the global. (If the head somehow kept the track, it falls
-            // silent here, is forgotten after the track timeout, and is then claimed afresh.)
-            if r.global == Some(g) && self.globals.get(&g).is_some_and(|gt| gt.owner != head) {
+            // A late report: its estimate is older than the handover, so the head sent it
+            // before it could know. Or a report of the very track the head was told to drop
+            // (it carries the global) while the global is another head's. Either is no word
+            // on the global. (If the head somehow kept the named track, it falls silent here,
+            // is forgotten after the track timeout, and is then claimed afresh.)
+            if r.time <= released
+                || (r.global == Some(g) && self.globals.get(&g).is_some_and(|gt| gt.owner != head))
+            {
                 return out;
             }
             // Otherwise the head's track is looked at afresh, as one first seen: a track of its
@@ -328,7 +331,7 @@ impl Tracks {
                 gt.appearance.clone_from(&rep.r.appearance);
             }
         }
-        if let Some(d) = self.region_handover(g, rep.members) {
+        if let Some(d) = self.region_handover(rep.now, g, rep.members) {
             out.push(d);
         }
         out.extend(self.merge_globals(rep.now, g));
