@@ -303,6 +303,51 @@ fn a_dead_heads_targets_and_cameras_move_to_a_live_head() {
         && matches!(&o.body, Message::Assignment(a) if a.node == CAM && a.head == H2)));
 }
 
+/// A head that never comes up: after the start-up grace its cameras go to the live head, and
+/// that head hears it is down (a head starts no track on a live head's floor, so its floor
+/// would stay untracked for good).
+#[test]
+fn a_head_that_never_came_up_leaves_its_floor_and_cameras_to_the_live_head() {
+    let mut s = started_without_h2();
+    let liveness_to_h3 = |out: &[Outgoing]| -> Vec<(NodeId, bool)> {
+        out.iter()
+            .filter(|o| o.to == H3)
+            .filter_map(|o| match &o.body {
+                Message::Liveness(l) if l.node == H2 => Some((l.node, l.up)),
+                _ => None,
+            })
+            .collect()
+    };
+    let mut given = None;
+    for t in (50..=11_000).step_by(50) {
+        s.on_message(ms(t), env(H3, Message::Heartbeat));
+        s.on_message(ms(t), env(CAM, Message::Heartbeat));
+        let out = s.tick(ms(t));
+        if !liveness_to_h3(&out).is_empty() {
+            assert_eq!(liveness_to_h3(&out), vec![(H2, false)]);
+            assert!(
+                out.iter().any(|o| o.to == H3
+                    && matches!(&o.body, Message::Assignment(a) if a.node == CAM && a.head == H3)),
+                "head 2's camera goes to head 3"
+            );
+            given = Some(t);
+            break;
+        }
+    }
+    let t = given.expect("head 2 declared down");
+    assert!(t > 10_000, "not before the grace: {t} ms");
+    assert!(
+        decisions(&mut s)
+            .iter()
+            .any(|d| matches!(d, Decision::Down { node, .. } if *node == H2))
+    );
+    assert_eq!(s.membership().head_of(CAM), Some(H3));
+    // It starts at last: its camera goes home and head 3 leaves its floor to it again.
+    let out = s.on_message(ms(12_000), hello(H2, Role::Head));
+    assert_eq!(liveness_to_h3(&out), vec![(H2, true)]);
+    assert_eq!(s.membership().head_of(CAM), Some(H2));
+}
+
 #[test]
 fn reports_of_one_target_by_two_heads_merge_after_hysteresis_and_split_back() {
     let mut s = started();

@@ -9,7 +9,10 @@
 //! speaks again is re-admitted. Cameras start on their scenario head (a camera with
 //! none goes to the head whose region covers the floor point it looks at); while that head
 //! is down they are moved to the live head whose region is nearest (paper 002's clusters keep
-//! tracking while a head is away), and they move back when it returns.
+//! tracking while a head is away), and they move back when it returns. A declared head that
+//! has not come up [`STARTUP_GRACE_NS`] (or the liveness timeout, if longer) after the first
+//! node was admitted is down as well: its floor would otherwise stay untracked for good, its
+//! cameras reporting to nobody and the other heads leaving its region to it.
 
 use crate::decision::Decision;
 use proto::scenario::{NodeRole, PoseSpec, Scenario};
@@ -39,7 +42,17 @@ pub struct Membership {
     assigned: BTreeMap<NodeId, NodeId>,
     members: BTreeMap<NodeId, Member>,
     timeout_ns: i64,
+    /// When the first node was admitted: a declared head still unseen a grace period later
+    /// is down. Taken from an admission (a received message, always recorded), so a replay
+    /// of the recording comes to the same decision at the same tick.
+    first_admitted: Option<ClusterTime>,
 }
+
+/// How long after the first admission a declared head may take to come up before it is
+/// down, ns (the liveness timeout when that is longer): processes started together connect
+/// within a few seconds, and a head marked down a moment too soon only moves its cameras
+/// away and back.
+pub const STARTUP_GRACE_NS: i64 = 10_000_000_000;
 
 fn role_of(r: NodeRole) -> Role {
     match r {
@@ -112,6 +125,7 @@ impl Membership {
             timeout_ns: i64::try_from(scenario.network.liveness_timeout_ms)
                 .unwrap_or(i64::MAX / 1_000_000)
                 .saturating_mul(1_000_000),
+            first_admitted: None,
         }
     }
 
@@ -203,6 +217,7 @@ impl Membership {
     /// Admit `node` as `role` (handshake or implicit). Returns the decision if it was not an
     /// up member already.
     pub fn admit(&mut self, now: ClusterTime, node: NodeId, role: Role) -> Option<Decision> {
+        self.first_admitted.get_or_insert(now);
         match self.members.get(&node) {
             Some(m) if m.role == role => self.seen(now, node),
             _ => {
@@ -239,7 +254,44 @@ impl Membership {
                 });
             }
         }
+        out.extend(self.expire_unseen_heads(now));
         out
+    }
+
+    /// Declared heads never admitted, a grace period after the first admission: members from
+    /// now on, down (`Down` with the silence since that admission). One that comes up later is
+    /// admitted as any down node that speaks again.
+    fn expire_unseen_heads(&mut self, now: ClusterTime) -> Vec<Decision> {
+        let Some(start) = self.first_admitted else {
+            return Vec::new();
+        };
+        if now - start <= STARTUP_GRACE_NS.max(self.timeout_ns) {
+            return Vec::new();
+        }
+        let unseen: Vec<NodeId> = self
+            .declared
+            .iter()
+            .filter(|&(id, &role)| role == Role::Head && !self.members.contains_key(id))
+            .map(|(id, _)| *id)
+            .collect();
+        unseen
+            .into_iter()
+            .map(|node| {
+                self.members.insert(
+                    node,
+                    Member {
+                        role: Role::Head,
+                        up: false,
+                        last_seen: start,
+                        linked: false,
+                    },
+                );
+                Decision::Down {
+                    node,
+                    silent_ms: u64::try_from((now - start) / 1_000_000).unwrap_or(0),
+                }
+            })
+            .collect()
     }
 
     /// Mark a member down at once (its link closed). `None` if it was not up.
@@ -272,8 +324,8 @@ impl Membership {
         let mut out = Vec::new();
         let homes: Vec<(NodeId, NodeId)> = self.home.iter().map(|(c, h)| (*c, *h)).collect();
         for (cam, home) in homes {
-            // Only a head that was seen and went down loses its cameras; one not seen yet (at
-            // start-up) keeps them.
+            // Only a head that is down loses its cameras; one not seen yet (at start-up) keeps
+            // them until its grace runs out (`expire_unseen_heads`).
             let down = self.members.get(&home).is_some_and(|m| !m.up);
             let want = if !down || self.live_heads().is_empty() {
                 home
@@ -333,6 +385,11 @@ mod tests {
         let mut m = Membership::new(&s);
         m.admit(ms(0), NodeId(10), Role::Camera);
         m.set_linked(NodeId(10), true);
+        // The heads never came up (`expire_unseen_heads`); only the camera matters here.
+        for h in [2, 3] {
+            m.admit(ms(0), NodeId(h), Role::Head);
+            m.set_linked(NodeId(h), true);
+        }
         assert!(m.expire(ms(60_000)).is_empty(), "the transport vouches for it");
         m.set_linked(NodeId(10), false);
         assert_eq!(m.expire(ms(60_000)).len(), 1);
@@ -340,6 +397,9 @@ mod tests {
         m.seen(ms(60_001), NodeId(10));
         m.set_linked(NodeId(10), true);
         m.refresh_all(ms(60_002));
+        for h in [2, 3] {
+            m.set_linked(NodeId(h), true);
+        }
         assert_eq!(m.expire(ms(62_000)).len(), 1);
     }
 
@@ -360,6 +420,37 @@ mod tests {
         m.seen(ms(1600), NodeId(2));
         assert_eq!(m.rebalance().len(), mine.len());
         assert_eq!(m.cameras_of(NodeId(2)), mine);
+    }
+
+    #[test]
+    fn a_head_that_never_comes_up_is_down_after_the_grace_and_its_cameras_move() {
+        let s = crate::testkit::scenario();
+        let mut m = Membership::new(&s);
+        m.admit(ms(0), NodeId(2), Role::Head);
+        m.set_linked(NodeId(2), true);
+        let theirs = m.cameras_of(NodeId(3));
+        assert!(!theirs.is_empty());
+        // Within the grace head 3 keeps its cameras: it may still be starting.
+        assert!(m.expire(ms(10_000)).is_empty());
+        assert!(m.rebalance().is_empty());
+        let down = m.expire(ms(10_001));
+        assert_eq!(
+            down,
+            vec![Decision::Down {
+                node: NodeId(3),
+                silent_ms: 10_001
+            }]
+        );
+        assert!(m.expire(ms(20_000)).is_empty(), "down once");
+        assert_eq!(m.rebalance().len(), theirs.len());
+        assert!(theirs.iter().all(|c| m.head_of(*c) == Some(NodeId(2))));
+        // It comes up at last: admitted as any node back from down, and its cameras go home.
+        assert_eq!(
+            m.admit(ms(30_000), NodeId(3), Role::Head),
+            Some(Decision::Up { node: NodeId(3) })
+        );
+        assert_eq!(m.rebalance().len(), theirs.len());
+        assert_eq!(m.cameras_of(NodeId(3)), theirs);
     }
 
     #[test]
