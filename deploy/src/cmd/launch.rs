@@ -69,6 +69,11 @@ pub struct Args {
     /// No chaos kill before this many seconds into the run.
     #[arg(long, value_parser = seconds, default_value_t = 10.0, requires = "chaos_every")]
     pub chaos_after: f64,
+    /// Start every node but these (ids, comma-separated or repeated): they run on other hosts,
+    /// or are left out to see how the rest copes. A head left out is declared down 10 s after
+    /// the first node joins, and its cameras go to the live heads. Never the server.
+    #[arg(long, value_name = "ID", value_delimiter = ',')]
+    pub skip: Vec<u32>,
 }
 
 pub fn run(args: Args, log_json: bool) -> Result<ExitCode> {
@@ -92,6 +97,7 @@ pub fn run(args: Args, log_json: bool) -> Result<ExitCode> {
             seed: args.chaos_seed,
             after: Duration::from_secs_f64(args.chaos_after),
         }),
+        skip: args.skip,
     };
     let launched = launch(scenario, &opts)?;
     for (node, n) in &launched.restarts {

@@ -53,6 +53,9 @@ pub struct LaunchOptions {
     pub view: Option<std::net::SocketAddr>,
     /// Kill random nodes at random times for the supervisor to restart (needs `restart`).
     pub chaos: Option<chaos::ChaosOptions>,
+    /// Nodes of the scenario not to start here (they run on other hosts, or are left out to
+    /// see how the others cope); never the server, whose recording the launch reports on.
+    pub skip: Vec<u32>,
 }
 
 /// What a launch leaves behind.
@@ -199,7 +202,21 @@ fn write_pids(sup: &mut Supervisor, path: &Path) -> Result<()> {
     std::fs::write(path, pids).with_context(|| format!("writing {}", path.display()))
 }
 
-/// Start every node: the server, then heads, then cameras, then acoustic nodes.
+/// Every node `--skip` names is one the scenario declares, and none is the server.
+fn check_skip(scenario: &Scenario, skip: &[u32]) -> Result<()> {
+    for id in skip {
+        match scenario.node(*id).map(|n| n.role) {
+            None => anyhow::bail!("--skip {id}: the scenario declares no node {id}"),
+            Some(NodeRole::Server) => {
+                anyhow::bail!("--skip {id}: node {id} is the server, whose recording the launch reports on")
+            }
+            Some(_) => {}
+        }
+    }
+    Ok(())
+}
+
+/// Start every node but the skipped: the server, then heads, then cameras, then acoustic nodes.
 fn spawn_all(sup: &mut Supervisor, scenario: &Scenario, how: &Spawn, run: &RunDir) -> Result<()> {
     for (role, name) in [
         (NodeRole::Server, "server"),
@@ -207,7 +224,11 @@ fn spawn_all(sup: &mut Supervisor, scenario: &Scenario, how: &Spawn, run: &RunDi
         (NodeRole::Camera, "camera"),
         (NodeRole::Acoustic, "acoustic"),
     ] {
-        for n in scenario.nodes.iter().filter(|n| n.role == role) {
+        for n in scenario
+            .nodes
+            .iter()
+            .filter(|n| n.role == role && !how.opts.skip.contains(&n.id))
+        {
             let node = format!("{name}-{}", n.id);
             let make = how.command(name, n.id, run.log(&node));
             sup.spawn(node, make, instant_now())?;
@@ -368,6 +389,7 @@ fn remove_domain_files(domain: &str) -> usize {
 /// The run folder or recording cannot be claimed, a child cannot be started, or the recording
 /// cannot be read at the end.
 pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<Launched> {
+    check_skip(&scenario, &opts.skip)?;
     let scenario = effective_scenario(scenario, opts.transport)?;
     // The cameras' synthetic world is the room the scenario is prepared for (its default RSSI
     // model surveyed in it, what the method needs of the targets filled in); every node reads

@@ -262,6 +262,66 @@ fn killing_a_camera_mid_run_leaves_tracking_running() {
     run.assert_clean();
 }
 
+/// A head that never starts (`ocelli launch --skip 2`): once the server's start-up grace has
+/// run out it declares head 2 down, head 3 is given its cameras and may start tracks on its
+/// floor, and the robot, walking on head 2's floor, is tracked by head 3 with head 2's cameras.
+/// Before, its floor stayed untracked for the whole run (head 3 starts no track on a live
+/// head's floor, and a head never seen was never down).
+#[test]
+fn a_head_that_never_starts_leaves_its_floor_to_the_other_head() {
+    // The robot starts on head 2's floor and stays there 18.75 s: (2.5, 6) down to (2.5, 2),
+    // then right, crossing x = 6 after 8.75 m.
+    let scenario_dir = scratch("skip-head-scenario");
+    let text = proto::scenario::DEFAULT_SCENARIO_TOML.replace(
+        "waypoints = [[2.5, 2.0], [9.5, 2.0], [9.5, 6.0], [2.5, 6.0]]",
+        "waypoints = [[2.5, 6.0], [2.5, 2.0], [9.5, 2.0], [9.5, 6.0]]",
+    );
+    assert_ne!(
+        text,
+        proto::scenario::DEFAULT_SCENARIO_TOML,
+        "default scenario layout changed"
+    );
+    let path = scenario_dir.join("robot-on-head-2.toml");
+    std::fs::write(&path, text).unwrap();
+    let run = Launch::start_with("skip-head", "ipc", 20.0, Some(&path), &["--skip", "2"]);
+    let (_report, run) = run.finish(Duration::from_secs(90));
+    let pids = std::fs::read_to_string(run.run_dir().join("pids")).expect("the launch's pids");
+    assert!(
+        pids.contains("head-3 ") && !pids.contains("head-2 "),
+        "head 2 was started, or head 3 not:\n{pids}"
+    );
+    let error_of = robot_error(&run);
+    let rows = owner_rows(&run.record());
+    assert!(
+        rows.iter().all(|r| r["head"].as_u64() == Some(3)),
+        "a track owned by a head that never ran"
+    );
+    // The robot's truth at a row, to keep the rows while it is on head 2's floor.
+    let scenario =
+        proto::scenario::Scenario::load(&run.run_dir().join("scenario.toml")).expect("the launch's scenario");
+    let robot = &world::targets(&scenario).expect("its targets")[0];
+    let epoch_ns: i64 = std::fs::read_to_string(run.run_dir().join("epoch-ns"))
+        .expect("the launch's epoch")
+        .trim()
+        .parse()
+        .expect("epoch nanoseconds");
+    let epoch = proto::ClusterTime(epoch_ns).as_secs_f64();
+    let on_head_2: Vec<&Value> = rows
+        .iter()
+        .filter(|r| robot.position_at(f(r, "t") - epoch).x < 5.0 && f(r, "cameras") >= 1.0)
+        .collect();
+    assert!(
+        on_head_2.len() >= 10,
+        "the robot on head 2's floor was never tracked by head 3 with cameras ({} rows); launch log:\n{}",
+        on_head_2.len(),
+        run.launch_log()
+    );
+    let errors: Vec<f64> = on_head_2.iter().map(|r| error_of(r)).collect();
+    let m = median(errors);
+    assert!(m < 0.5, "median error on head 2's floor {m:.2} m");
+    run.assert_clean();
+}
+
 /// The head owning the robot's track is killed: the server fails over to the other head, the
 /// robot keeps its global id, the surviving head has cameras within the liveness timeout
 /// and three steps (over TCP the cameras dial the head they are reassigned to) and the error
