@@ -255,7 +255,9 @@ impl CameraNode {
                     return out;
                 }
                 self.counters.priors += p.tracks.len() as u64;
-                for prior in &p.tracks {
+                // A radio track's prior is no camera's to pair (`Prior::radio`): it is answered
+                // with the tag readings only.
+                for prior in p.tracks.iter().filter(|p| !p.radio) {
                     self.priors.insert(prior.target, (now, prior.clone()));
                 }
                 if self.cfg.fusion.distributed() {
@@ -300,12 +302,13 @@ impl CameraNode {
         // here stands for that time on this node's own clock (the link's latency is small
         // against a frame period), so the frame's age needs no clock shared with the head.
         let age_s = captured.map_or(0.0, |t| now.secs_since(t));
+        // Radio tracks' priors get no camera contribution (`Prior::radio`).
+        let asked: Vec<Prior> = priors.tracks.iter().filter(|p| !p.radio).cloned().collect();
         let contributions = match captured {
             None => Vec::new(),
             Some(c) => {
-                let joint = self.answering(&priors.tracks, priors.parts == 1, age_s, c);
+                let joint = self.answering(&asked, priors.parts == 1, age_s, c);
                 let gate = self.cfg.gate_chi2;
-                let asked = &priors.tracks;
                 match &self.people {
                     Some(people) => {
                         let chosen = measure::joint_choices(&joint, people.latest(), gate, gate_distance2);

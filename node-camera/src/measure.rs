@@ -231,6 +231,7 @@ mod tests {
             mean: models::vec6_to_wire(&mean),
             cov: models::mat6_to_wire(&(Matrix6::identity() * sd * sd)),
             deadline: ClusterTime::ZERO,
+            radio: false,
         }
     }
 

@@ -69,6 +69,8 @@ pub struct HeadNode {
     detections: Vec<Detection>,
     /// The step's tag readings, the evidence of which tag is on which track, the bindings.
     tags: crate::tags::TagBook,
+    /// Tags heard unbound, waiting for a radio track (`crate::unseen`).
+    unseen: crate::unseen::UnseenTags,
     planner: Planner,
     expected: Vec<bool>,
     counters: Counters,
@@ -125,6 +127,7 @@ impl HeadNode {
             next_step_at: None,
             detections: Vec::new(),
             tags: crate::tags::TagBook::new(taken_memory_ns),
+            unseen: crate::unseen::UnseenTags::default(),
             planner,
             expected: Vec::new(),
             counters: Counters::default(),
@@ -614,13 +617,15 @@ impl HeadNode {
     }
 
     /// Our track without a global id nearest (Mahalanobis, positions, summed covariances) to a
-    /// posterior the server sent, within the gate.
+    /// posterior the server sent, within the gate. Never a radio track of a cluster with
+    /// cameras (`crate::unseen`): a search track is nobody, and a tag's radio track is as wide
+    /// as its fix.
     fn nearest_unnamed(&self, mean: &State, cov: &Matrix6<f64>) -> Option<usize> {
         let gate = self.cfg.method.gate_chi2;
         self.tracks
             .iter()
             .enumerate()
-            .filter(|(_, t)| t.global.is_none())
+            .filter(|(_, t)| t.global.is_none() && !self.is_radio_track(t))
             .filter_map(|(i, t)| {
                 let d = t.position() - mean.fixed_rows::<3>(0);
                 let s = t.filter.cov().fixed_view::<3, 3>(0, 0) + cov.fixed_view::<3, 3>(0, 0);
@@ -719,17 +724,20 @@ impl HeadNode {
             .enumerate()
         {
             self.parts.push(tracks.iter().map(|t| t.local).collect());
+            let radio: Vec<bool> = tracks.iter().map(|t| self.is_radio_track(t)).collect();
             let priors = Priors {
                 part: part as u16,
                 parts,
                 tracks: tracks
                     .iter()
-                    .map(|t| Prior {
+                    .zip(radio)
+                    .map(|(t, radio)| Prior {
                         target: t.local,
                         step: self.step,
                         mean: vec6_to_wire(t.filter.mean()),
                         cov: mat6_to_wire(t.filter.cov()),
                         deadline,
+                        radio,
                     })
                     .collect(),
             };

@@ -27,6 +27,7 @@ pub mod stats;
 pub mod step;
 pub mod tags;
 pub mod track;
+pub mod unseen;
 
 pub use config::{ConfigError, HeadConfig};
 pub use head::HeadNode;

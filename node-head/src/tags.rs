@@ -192,6 +192,20 @@ impl TagBook {
             .unwrap_or(0.0)
     }
 
+    /// The strongest evidence any track has that it holds `tag` (−∞ when none was weighed):
+    /// how far the tag is from being some track's (`crate::unseen`).
+    pub fn strongest_claim(&self, tag: TagId) -> f64 {
+        self.tags.get(&tag).map_or(f64::NEG_INFINITY, |t| {
+            t.evidence.values().copied().fold(f64::NEG_INFINITY, f64::max)
+        })
+    }
+
+    /// Bind `tag` to track `local` as evidence would (it may move or unbind it again): a radio
+    /// track started for a tag no camera sees (`crate::unseen`).
+    pub fn give(&mut self, tag: TagId, local: TargetId) {
+        self.set(tag, local, false);
+    }
+
     /// Give `tag` to track `local` for good (a radio track started for the tag: it keeps the
     /// tag whatever the evidence says, until it is gone), undoing any binding either had.
     pub fn bind(&mut self, tag: TagId, local: TargetId) {

@@ -68,6 +68,21 @@ pub struct Track {
     /// The colour histogram the ground-plane observations fused into it carried, blended
     /// over time (empty until one came): its appearance for identity at the server.
     pub appearance: Vec<f32>,
+    /// A radio track of a cluster with cameras (`crate::unseen`): cameras pair nothing with
+    /// it until one measures it.
+    pub radio: Option<Radio>,
+}
+
+/// Why a cluster with cameras holds a track no camera measures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Radio {
+    /// The cluster holds no other track: this one's priors ask the nodes for the tags they
+    /// hear (a node answers priors, and sends its readings only then). Never reported; it
+    /// times out like any unfed track, and another follows while the cluster has none.
+    Search,
+    /// Started for a tag no camera track held: it stands on its tag's readings alone and ends
+    /// with its tag.
+    Tag,
 }
 
 impl Track {
@@ -112,6 +127,7 @@ impl Track {
             anchor: None,
             confirmed: global.is_some(),
             appearance: Vec::new(),
+            radio: None,
         })
     }
 

@@ -197,6 +197,7 @@ pub fn messages() -> Vec<Envelope> {
                     mean: vec6(2),
                     cov: spd(2),
                     deadline: ClusterTime(1_500_080_000),
+                    radio: false,
                 },
                 Prior {
                     target: TargetId(7),
@@ -204,6 +205,7 @@ pub fn messages() -> Vec<Envelope> {
                     mean: vec6(4),
                     cov: spd(4),
                     deadline: ClusterTime(1_500_080_000),
+                    radio: true,
                 },
             ],
         })),

@@ -241,6 +241,10 @@ pub struct Prior {
     pub cov: Mat6,
     /// Contributions arriving after this cluster time are late.
     pub deadline: ClusterTime,
+    /// A radio track: a tag no camera sees, placed by RSSI alone (`node_head::unseen`). Its
+    /// covariance is as wide as the fix, so a camera pairs no region with it (it would take
+    /// whoever walks by); the node answers it with its tag readings only.
+    pub radio: bool,
 }
 
 /// A step's priors, broadcast to every node at the start of the step: one message per node

@@ -317,6 +317,13 @@ pub struct Method {
     /// on counts as its mode says.
     #[serde(default)]
     pub drop_lost_cameras: bool,
+    /// Track tags no camera sees by their radio alone (`node_head::unseen`): a cluster with
+    /// cameras keeps a radio search track while it holds none (so its nodes report the tags
+    /// they hear), wakes its radios for a tag no track claims, and gives such a tag a radio
+    /// track at its RSSI fix. Off (the default): in the simulated rooms an RSSI fix is 1.5–2 m
+    /// off, and with radios awake a visible tagged person's binding wavers (docs/multi-target.md).
+    #[serde(default)]
+    pub unseen_tags: bool,
     /// Height above the floor of the point a track's position stands for, metres (a robot's
     /// centre, a person's mid-height): where a lone camera's ray is cut to start a track and
     /// where ML fusion lifts detections. Absent: 0.5, or in the simulation half the height of
@@ -375,6 +382,7 @@ impl Default for Method {
             track_timeout_ms: 3000,
             gate_chi2: 13.8,
             drop_lost_cameras: false,
+            unseen_tags: false,
             target_plane_z: None,
             target_colours: Vec::new(),
             camera_tracker: CameraTracker::Segmentation,

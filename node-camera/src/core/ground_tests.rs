@@ -132,6 +132,7 @@ fn a_prior_is_answered_with_the_ground_information() {
             mean: models::vec6_to_wire(&mean),
             cov: models::mat6_to_wire(&(Matrix6::identity() * 0.09)),
             deadline: ClusterTime::from_secs_f64(t + 0.08),
+            radio: false,
         }
     };
     let now = ClusterTime::from_secs_f64(t + 0.01);
@@ -203,6 +204,7 @@ fn a_distributed_camera_leaves_the_gated_people_to_its_contributions() {
         mean: models::vec6_to_wire(&truth(&s, t)),
         cov: models::mat6_to_wire(&(Matrix6::identity() * 0.09)),
         deadline: ClusterTime::from_secs_f64(t + 0.08),
+        radio: false,
     };
     let answer = |node: &mut CameraNode, t: f64| {
         let out = node.handle(

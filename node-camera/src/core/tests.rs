@@ -70,6 +70,7 @@ fn prior(s: &Scenario, t: f64, offset: f64, step: u64) -> Prior {
         mean: models::vec6_to_wire(&mean),
         cov: models::mat6_to_wire(&(Matrix6::identity() * 0.04)),
         deadline: ClusterTime::from_secs_f64(t + 0.08),
+        radio: false,
     }
 }
 
@@ -105,6 +106,7 @@ fn a_frame_is_gated_against_where_the_prior_puts_the_target_then() {
         mean: models::vec6_to_wire(&mean),
         cov: models::mat6_to_wire(&(Matrix6::identity() * 0.0025)),
         deadline: ClusterTime::from_secs_f64(5.98),
+        radio: false,
     };
     node.on_message(ClusterTime::from_secs_f64(5.9), env(priors_of(p)));
     let mut f = Frame::new(0, 0, ClusterTime::ZERO);
@@ -136,6 +138,30 @@ fn a_frame_far_from_the_prior_is_not_used_either_way() {
             "a frame 10 s from the prior was used (arrival {arrival} s)"
         );
     }
+}
+
+/// A radio track's prior (`Prior::radio`: a tag no camera sees, placed by RSSI) gets no camera
+/// contribution even with the person right there, and gates nothing: the detection still goes
+/// out as a track-starting measurement. The node still answers it (with its tag readings).
+#[test]
+fn a_radio_prior_is_answered_without_a_camera_contribution_and_gates_nothing() {
+    let (s, mut node, r) = setup(Fusion::DistributedEif);
+    run(&mut node, &s, &r, 0.0, 6.0);
+    let t = 6.0;
+    let now = ClusterTime::from_secs_f64(t + 0.01);
+    node.on_tag(tag(t, -60.0));
+    let mut p = prior(&s, t, 0.15, 31);
+    p.radio = true;
+    let got = node.on_message(now, env(priors_of(p)));
+    let (a, c) = answers(&got);
+    assert!(c.is_none(), "a camera contribution to a radio track: {c:?}");
+    assert_eq!((a.step, a.rssi.len()), (31, 1), "answered with the tag reading");
+    let next = run(&mut node, &s, &r, 6.2, 6.2);
+    assert!(
+        next.iter()
+            .any(|o| matches!(&o.body, Message::Measurement(m) if m.target.is_none())),
+        "the person is offered for a track of their own: {next:?}"
+    );
 }
 
 #[test]

@@ -24,6 +24,7 @@ fn prior(x: f64, y: f64) -> Prior {
         mean: models::vec6_to_wire(&State::new(x, y, 0.9, 0.0, 0.0, 0.0)),
         cov: models::mat6_to_wire(&(nalgebra::Matrix6::identity() * 0.05)),
         deadline: ClusterTime::ZERO,
+        radio: false,
     }
 }
 

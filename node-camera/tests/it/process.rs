@@ -69,6 +69,7 @@ async fn runs_without_its_head_answers_when_it_comes_and_stops_cleanly() {
             mean: models::vec6_to_wire(&world::targets(&scenario).unwrap()[0].truth_at(0.0)),
             cov: models::mat6_to_wire(&(nalgebra::Matrix6::identity() * 0.04)),
             deadline: ClusterTime::ZERO,
+            radio: false,
         };
         let mut answered = false;
         for _ in 0..30 {

@@ -25,10 +25,17 @@ impl HeadNode {
         let counts = self.window.counts();
         // Associate detections; leftovers may start tracks.
         let dets = std::mem::take(&mut self.detections);
-        let priors: Vec<(State, Matrix6<f64>, ClusterTime)> = self
-            .tracks
+        // Radio tracks take no detection and gate none (`crate::unseen`): their width would
+        // take whoever a camera sees nearby, and keep that person from a track of their own.
+        let seen: Vec<usize> = (0..self.tracks.len())
+            .filter(|&t| !self.is_radio_track(&self.tracks[t]))
+            .collect();
+        let priors: Vec<(State, Matrix6<f64>, ClusterTime)> = seen
             .iter()
-            .map(|t| (*t.filter.mean(), *t.filter.cov(), t.time))
+            .map(|&t| {
+                let t = &self.tracks[t];
+                (*t.filter.mean(), *t.filter.cov(), t.time)
+            })
             .collect();
         let costs = gated_costs(&priors, &dets, &self.cameras, self.cfg.method.gate_chi2);
         let assigned = costs
@@ -37,7 +44,7 @@ impl HeadNode {
         let gated = |i: usize| costs.as_ref().is_some_and(|c| c.gated(i));
         let mut free = Vec::new();
         for (i, (d, a)) in dets.into_iter().zip(assigned).enumerate() {
-            match a {
+            match a.map(|k| seen[k]) {
                 Some(t) if !self.fusion.distributed() => {
                     self.tracks[t].last_seen = now;
                     self.tracks[t].detections.push(d);
@@ -230,7 +237,7 @@ impl HeadNode {
     /// [`BIRTH_REGION_MARGIN_M`] from this head's region and in another's that the server has
     /// not said is down, grown by the slack births have around the world's box (a birth just
     /// past a tiled wall is still that head's). Always false for a head without a region.
-    fn on_another_heads_floor(&self, x: f64, y: f64) -> bool {
+    pub(super) fn on_another_heads_floor(&self, x: f64, y: f64) -> bool {
         self.cfg
             .region
             .is_some_and(|r| distance_to_region(&r, x, y) > BIRTH_REGION_MARGIN_M)
@@ -278,7 +285,10 @@ impl HeadNode {
                 // Two tracks holding two tags are two people, however close (asked only of a
                 // pair that agrees: the book is searched per tag).
                 let two_tags = || self.tags.tag_of(a.local).is_some() && self.tags.tag_of(b.local).is_some();
-                if same && !two_tags() {
+                // A radio track is as wide as its RSSI fix: its tag's evidence, not the gate,
+                // says whether a camera track is its person (`crate::unseen`).
+                let radio = self.is_radio_track(a) || self.is_radio_track(b);
+                if same && !two_tags() && !radio {
                     // Prefer the track the server knows, then a confirmed one, then the older
                     // (lower index).
                     let rank = |t: &crate::track::Track| (t.global.is_some(), t.confirmed);
@@ -314,8 +324,13 @@ impl HeadNode {
             Activation::FullNode => Some(Variant::FullNode),
             Activation::ThreeMode => Some(Variant::ThreeMode),
         };
-        // All on, or no track to look for: wake every member (search).
-        if variant.is_none() || self.tracks.is_empty() {
+        // All on, or no track to look for (a radio search track is none): wake every member
+        // (search).
+        let searching_only = self
+            .tracks
+            .iter()
+            .all(|t| t.radio == Some(crate::track::Radio::Search));
+        if variant.is_none() || searching_only {
             for s in 0..self.nodes.len() {
                 let n = &self.nodes[s];
                 let on = n.info.working_mode(Mode::Active);
@@ -326,6 +341,19 @@ impl HeadNode {
             return None;
         }
         let variant = variant?;
+        // A tag no track holds and no fix places (`crate::unseen`): wake every sleeping radio
+        // of the cluster to hear it; the planner may not put one to sleep while the search
+        // lasts.
+        let searching = self.unseen.searching() && self.uses_rssi();
+        if searching {
+            for s in 0..self.nodes.len() {
+                let n = &self.nodes[s];
+                if n.member && n.up && n.info.rssi && !n.mode.radio_on() {
+                    let on = n.info.working_mode(Mode::CameraOff);
+                    self.command(s, on, out);
+                }
+            }
+        }
         let dt = self.cfg.method.step_ms as f64 * 1e-3;
         let motion = self.cfg.method.motion;
         let mut predicted: Vec<Info> = Vec::with_capacity(self.tracks.len());
@@ -348,6 +376,8 @@ impl HeadNode {
             })
             .collect();
         let sigma = self.cfg.method.pixel_sigma;
+        // No camera looks for a radio track (`Prior::radio`).
+        let radio: Vec<bool> = self.tracks.iter().map(|t| self.is_radio_track(t)).collect();
         let (nodes, tracks, walls) = (&self.nodes, &self.tracks, &self.cfg.walls);
         let decision = self.planner.decide(
             variant,
@@ -365,13 +395,17 @@ impl HeadNode {
                     .weighed(&tracks[t].trainers[slots[n]].model());
                 let heard = node.rssi && tracks[t].rssi_heard[slots[n]];
                 let rssi = heard.then_some((&model, &node.position));
-                let camera = (!node.radio_only).then_some(&node.camera);
+                let camera = (!node.radio_only && !radio[t]).then_some(&node.camera);
                 Expected::at(camera, walls, sigma, rssi, &means[t])
             },
         )?;
         let slot = self.slots[&decision.node];
         let to = self.nodes[slot].info.working_mode(decision.to);
         if to == self.nodes[slot].mode {
+            return Some(decision);
+        }
+        if searching && !to.radio_on() && self.nodes[slot].info.rssi {
+            // Searching for an unseen tag: its radios stay on.
             return Some(decision);
         }
         debug!(node = %decision.node, from = ?decision.from, to = ?decision.to, reward = decision.reward, cost = decision.cost, "activation");

@@ -6,11 +6,13 @@
 //! tag's RSSI at once (it is confirmed: no camera can confirm it), is reported to the server
 //! only once its tag was heard, and is dropped like any track when nothing was heard for
 //! `track-timeout-ms`; the next step starts another search track if none is left. Clusters
-//! with a camera start tracks from cameras only, as before, and their radio-only members add
-//! RSSI to the tracks their tags are bound to.
+//! with a camera start tracks from cameras, and their radio-only members add RSSI to the
+//! tracks their tags are bound to; a tag no camera track claims for a while gets a radio track
+//! there too (`crate::unseen`, [`HeadNode::unseen_tag_tracks`]).
 
 use super::HeadNode;
 use crate::tags::Heard;
+use crate::track::Radio;
 use nalgebra::{Matrix6, Vector3};
 use proto::models::State;
 use proto::{ClusterTime, TargetId};
@@ -40,12 +42,34 @@ impl HeadNode {
             && self.fusion.fuses_rssi()
     }
 
-    /// Start a radio search track if this is a radio-only cluster with no track and a member
-    /// up.
+    /// Start a radio search track if the cluster holds no track and a member is up (and drop
+    /// a [`Radio::Search`] track once it holds another): in a
+    /// radio-only cluster the track the first tag heard is bound to, in one with cameras a
+    /// [`Radio::Search`] track whose priors ask the radio nodes for the tags they hear (for
+    /// `crate::unseen`; without a prior to answer a node sends none).
     pub(super) fn radio_search(&mut self, now: ClusterTime) {
-        if self.tracks.is_empty() && self.radio_only_cluster() {
-            self.start_radio_track(now);
+        // A search track is needed only while the cluster holds no other.
+        if self.tracks.iter().any(|t| t.radio != Some(Radio::Search)) {
+            self.tracks.retain(|t| t.radio != Some(Radio::Search));
         }
+        if !self.tracks.is_empty() {
+            return;
+        }
+        if self.radio_only_cluster() {
+            self.start_radio_track(now, None);
+        } else if self.tracks_unseen_tags() {
+            self.start_radio_track(now, Some(Radio::Search));
+        }
+    }
+
+    /// Whether this cluster (one with cameras) tracks tags no camera sees: the method asks for
+    /// it (`unseen-tags`), it fuses tag readings and has a member radio to hear them.
+    pub(super) fn tracks_unseen_tags(&self) -> bool {
+        self.cfg.method.unseen_tags
+            && !self.radio_only_cluster()
+            && self.uses_rssi()
+            && self.fusion.fuses_rssi()
+            && self.nodes.iter().any(|n| n.member && n.info.rssi)
     }
 
     /// In a radio-only cluster, give every tag heard this step that no track holds a track of
@@ -69,15 +93,117 @@ impl HeadNode {
                 debug!(tag = %tag, tracks = self.tracks.len(), "no radio track for a tag: the cluster holds the most");
                 continue;
             }
-            if let Some(local) = search.or_else(|| self.start_radio_track(now)) {
+            if let Some(local) = search.or_else(|| self.start_radio_track(now, None)) {
                 info!(tag = %tag, target = %local, "radio track holds a tag");
                 self.tags.bind(tag, local);
             }
         }
     }
 
+    /// In a cluster with cameras that tracks unseen tags ([`Self::tracks_unseen_tags`]), give
+    /// each tag that waited unbound and unclaimed
+    /// (`crate::unseen`) a radio track at its RSSI fix, bound to it by evidence's rules. None
+    /// on another live head's floor (that head's tracks may hold the tag) or past
+    /// [`MAX_RADIO_TRACKS`] radio tracks.
+    pub(super) fn unseen_tag_tracks(&mut self, heard: &[Heard], now: ClusterTime) {
+        if !self.tracks_unseen_tags() {
+            return;
+        }
+        self.unseen.note(heard, &self.tags, now);
+        for (tag, means) in self.unseen.due(&self.tags, now) {
+            let radio_tracks = self.tracks.iter().filter(|t| self.is_radio_track(t)).count();
+            if radio_tracks >= MAX_RADIO_TRACKS {
+                self.unseen.done(tag);
+                self.counters.tag_readings_refused += 1;
+                debug!(tag = %tag, "no radio track for an unseen tag: the cluster holds the most");
+                continue;
+            }
+            let readings: Vec<(Vector3<f64>, f64)> = means
+                .iter()
+                .map(|&(slot, dbm)| (self.nodes[slot].info.position, dbm))
+                .collect();
+            let z = self.cfg.target_plane_z;
+            let Some((p, c)) = crate::unseen::fix(
+                self.cfg.bounds,
+                &self.cfg.walls,
+                &self.cfg.method.rssi_default,
+                z,
+                &readings,
+            )
+            .filter(|(_, c)| c.trace().sqrt() <= crate::unseen::MAX_FIX_SIGMA_M) else {
+                debug!(tag = %tag, nodes = readings.len(), "no usable RSSI fix for an unseen tag yet: searching");
+                self.unseen.search(tag);
+                continue;
+            };
+            self.unseen.done(tag);
+            if self.on_another_heads_floor(p.x, p.y) {
+                self.counters.births_elsewhere += 1;
+                debug!(tag = %tag, x = p.x, y = p.y, "an unseen tag on another head's floor: left to it");
+                continue;
+            }
+            let mut cov = Matrix6::from_diagonal(&nalgebra::Vector6::new(
+                0.0,
+                0.0,
+                RADIO_HEIGHT_SIGMA_M.powi(2),
+                RADIO_SEARCH_SIGMA_V.powi(2),
+                RADIO_SEARCH_SIGMA_V.powi(2),
+                RADIO_SEARCH_SIGMA_VZ.powi(2),
+            ));
+            cov.fixed_view_mut::<2, 2>(0, 0).copy_from(&c);
+            let local = self.alloc_local();
+            match self.new_track(local, None, State::new(p.x, p.y, z, 0.0, 0.0, 0.0), cov, now) {
+                Ok(mut t) => {
+                    t.confirmed = true;
+                    t.radio = Some(Radio::Tag);
+                    // The planner counts on these nodes' readings of it (they heard the tag).
+                    for &(slot, _) in &means {
+                        t.rssi_heard[slot] = true;
+                    }
+                    info!(tag = %tag, target = %local, x = p.x, y = p.y, sigma_m = c.trace().sqrt(), nodes = readings.len(), "radio track for a tag no camera track holds");
+                    self.counters.births += 1;
+                    self.tracks.push(t);
+                    self.tags.give(tag, local);
+                }
+                Err(e) => {
+                    self.counters.numeric_failures += 1;
+                    warn!(error = %e, "radio track with an unusable covariance");
+                }
+            }
+        }
+    }
+
+    /// A radio track of a cluster with cameras that no camera has measured yet.
+    pub(super) fn is_radio_track(&self, t: &crate::track::Track) -> bool {
+        t.radio.is_some() && t.camera_steps == 0
+    }
+
+    /// Drop the radio tracks that no camera measured yet and whose tag is gone or claimed:
+    /// the evidence moved the tag to a camera track or turned against this one, or a camera
+    /// track's evidence for it reached [`crate::unseen::UNSEEN_LLR`] (the person is seen after
+    /// all: binding follows by the evidence's rules once the radio track is gone).
+    pub(super) fn drop_superseded_radio_tracks(&mut self) {
+        let before = self.tracks.len();
+        let gone: Vec<TargetId> = self
+            .tracks
+            .iter()
+            .filter(|t| t.radio == Some(Radio::Tag) && t.camera_steps == 0)
+            .filter(|t| match self.tags.tag_of(t.local) {
+                None => true,
+                Some(tag) => self.tracks.iter().any(|k| {
+                    k.camera_steps > 0 && self.tags.evidence(tag, k.local) >= crate::unseen::UNSEEN_LLR
+                }),
+            })
+            .map(|t| t.local)
+            .collect();
+        for local in &gone {
+            info!(target = %local, "radio track's tag is gone or a camera track claims it; dropped");
+        }
+        self.tracks.retain(|t| !gone.contains(&t.local));
+        self.counters.deaths += (before - self.tracks.len()) as u64;
+    }
+
     /// Start a radio track, wide at the centre of the up members; returns its local id.
-    fn start_radio_track(&mut self, now: ClusterTime) -> Option<TargetId> {
+    fn start_radio_track(&mut self, now: ClusterTime, radio: Option<Radio>) -> Option<TargetId> {
         let up: Vec<Vector3<f64>> = self
             .nodes
             .iter()
@@ -101,7 +227,8 @@ impl HeadNode {
         match self.new_track(local, None, mean, cov, now) {
             Ok(mut t) => {
                 t.confirmed = true;
-                info!(target = %local, x = centre.x, y = centre.y, nodes = up.len(), "radio search track");
+                t.radio = radio;
+                debug!(target = %local, x = centre.x, y = centre.y, nodes = up.len(), "radio search track");
                 self.counters.births += 1;
                 self.tracks.push(t);
                 Some(local)
@@ -114,12 +241,13 @@ impl HeadNode {
         }
     }
 
-    /// In a radio-only cluster, hold track `t`'s height at the method's target plane (a
-    /// pseudo-measurement of σ [`RADIO_HEIGHT_SIGMA_M`] in this step's sums), as the BLE
-    /// experiment's RSSI-only filter does: ranges from sensors mounted at about one height
-    /// hardly tell the tag's, and the filter would wander up and down.
+    /// In a radio-only cluster, and for a radio track in any, hold track `t`'s height at the
+    /// method's target plane (a pseudo-measurement of σ [`RADIO_HEIGHT_SIGMA_M`] in this
+    /// step's sums), as the BLE experiment's RSSI-only filter does: ranges from sensors
+    /// mounted at about one height hardly tell the tag's, and the filter would wander up and
+    /// down.
     pub(super) fn hold_height(&mut self, t: usize) {
-        if !self.radio_only_cluster() {
+        if !(self.radio_only_cluster() || self.is_radio_track(&self.tracks[t])) {
             return;
         }
         let w = RADIO_HEIGHT_SIGMA_M.powi(-2);

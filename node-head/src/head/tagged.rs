@@ -41,7 +41,8 @@ impl HeadNode {
     }
 
     /// Weigh the step's readings, bind tags by the evidence, and hand each track its tag's
-    /// readings (a radio-only cluster's tracks first take the tags no track holds).
+    /// readings (a radio-only cluster's tracks first take the tags no track holds, and a tag
+    /// no track claims for a while gets a radio track: `crate::unseen`).
     pub(super) fn hand_readings_to_tracks(&mut self, now: ClusterTime) {
         let heard = self.tags.take_step(now);
         let nodes = &self.cfg.nodes;
@@ -64,7 +65,9 @@ impl HeadNode {
                 Change::Unbound { tag, track } => info!(tag = %tag, target = %track, "tag unbound"),
             }
         }
+        self.drop_superseded_radio_tracks();
         self.radio_tracks_for(&heard, now);
+        self.unseen_tag_tracks(&heard, now);
         for t in &mut self.tracks {
             let Some(tag) = self.tags.tag_of(t.local) else {
                 continue;

@@ -152,6 +152,7 @@ fn run_one(s: &Scenario, kind: Segmentation, step: u32, frames: usize) -> Result
                         mean: models::vec6_to_wire(&tg.truth_at(t)),
                         cov: models::mat6_to_wire(&(nalgebra::Matrix6::identity() * 0.04)),
                         deadline: now + 80_000_000,
+                        radio: false,
                     })
                     .collect(),
             }),

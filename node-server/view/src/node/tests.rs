@@ -134,6 +134,7 @@ fn the_feed_fills_the_view_and_every_metric_from_real_data() {
                             mean: [0.0; 6],
                             cov: [[0.0; 6]; 6],
                             deadline: ms(0),
+                            radio: false,
                         }],
                     }),
                 ),

@@ -375,6 +375,7 @@ fn message() -> impl Strategy<Value = Message> {
                             mean,
                             cov,
                             deadline,
+                            radio: false,
                         })
                         .collect(),
                 })
