@@ -16,6 +16,7 @@ fn paper004_short_run_has_every_study_with_finite_rows_and_evaluated_checks() {
     let table = experiment::table::to_text(&o);
     for study in [
         "1 occlusion",
+        "1 wide occlusion",
         "2 dimming",
         "2 dimming with colour shift",
         "3 crowd",
@@ -28,7 +29,7 @@ fn paper004_short_run_has_every_study_with_finite_rows_and_evaluated_checks() {
             "no rows of {study}: {table}"
         );
     }
-    assert_eq!(o.rows.len(), 16, "{table}");
+    assert_eq!(o.rows.len(), 18, "{table}");
     for r in &o.rows {
         assert!(!r.extra.is_empty(), "{} has no figures", r.method);
         let values = r.extra.iter().filter_map(|e| e.value).chain(r.mean_error_m);
@@ -43,6 +44,10 @@ fn paper004_short_run_has_every_study_with_finite_rows_and_evaluated_checks() {
             .and_then(|e| e.value)
     };
     assert!(tracked("1 occlusion: particle filters").is_some(), "{table}");
-    assert!(o.shape.len() >= 7, "{table}");
+    assert!(
+        tracked("1 wide occlusion: segmentation alone").is_some(),
+        "{table}"
+    );
+    assert!(o.shape.len() >= 9, "{table}");
     assert!(!o.traces.is_empty());
 }
