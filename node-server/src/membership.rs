@@ -385,7 +385,8 @@ mod tests {
         let mut m = Membership::new(&s);
         m.admit(ms(0), NodeId(10), Role::Camera);
         m.set_linked(NodeId(10), true);
-        // The heads never came up (`expire_unseen_heads`); only the camera matters here.
+        // The heads up and linked: a head never admitted would go down after the start-up
+        // grace (`expire_unseen_heads`), and only the camera is looked at here.
         for h in [2, 3] {
             m.admit(ms(0), NodeId(h), Role::Head);
             m.set_linked(NodeId(h), true);

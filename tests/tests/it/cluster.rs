@@ -297,15 +297,8 @@ fn a_head_that_never_starts_leaves_its_floor_to_the_other_head() {
         "a track owned by a head that never ran"
     );
     // The robot's truth at a row, to keep the rows while it is on head 2's floor.
-    let scenario =
-        proto::scenario::Scenario::load(&run.run_dir().join("scenario.toml")).expect("the launch's scenario");
-    let robot = &world::targets(&scenario).expect("its targets")[0];
-    let epoch_ns: i64 = std::fs::read_to_string(run.run_dir().join("epoch-ns"))
-        .expect("the launch's epoch")
-        .trim()
-        .parse()
-        .expect("epoch nanoseconds");
-    let epoch = proto::ClusterTime(epoch_ns).as_secs_f64();
+    let (targets, epoch) = world_truth(&run);
+    let robot = &targets[0];
     let on_head_2: Vec<&Value> = rows
         .iter()
         .filter(|r| robot.position_at(f(r, "t") - epoch).x < 5.0 && f(r, "cameras") >= 1.0)
@@ -435,8 +428,8 @@ fn owning_head_fails_over(transport: &str) {
     run.assert_clean();
 }
 
-/// The robot's error at an exported row: the launch's scenario and synthetic-world epoch.
-pub(crate) fn robot_error(run: &Launch) -> impl Fn(&Value) -> f64 {
+/// The launch's targets (its scenario's) and the synthetic world's time 0, in cluster seconds.
+pub(crate) fn world_truth(run: &Launch) -> (Vec<world::Target>, f64) {
     let scenario =
         proto::scenario::Scenario::load(&run.run_dir().join("scenario.toml")).expect("the launch's scenario");
     let targets = world::targets(&scenario).expect("its targets");
@@ -445,7 +438,12 @@ pub(crate) fn robot_error(run: &Launch) -> impl Fn(&Value) -> f64 {
         .trim()
         .parse()
         .expect("epoch nanoseconds");
-    let epoch = proto::ClusterTime(epoch_ns).as_secs_f64();
+    (targets, proto::ClusterTime(epoch_ns).as_secs_f64())
+}
+
+/// The robot's error at an exported row: the launch's scenario and synthetic-world epoch.
+pub(crate) fn robot_error(run: &Launch) -> impl Fn(&Value) -> f64 {
+    let (targets, epoch) = world_truth(run);
     move |r: &Value| {
         targets
             .iter()
