@@ -578,8 +578,11 @@ impl HeadNode {
         let mean = vec6_from_wire(&h.mean);
         let cov = mat6_from_wire(&h.cov);
         // The server naming one of our tracks: adopt the global id. The nearest of our unnamed
-        // tracks within the gate: in a crowd the first one within it may be the neighbour.
-        if let Some(i) = self.nearest_unnamed(&mean, &cov) {
+        // tracks within the gate: in a crowd the first one within it may be the neighbour. A
+        // radio track is named (its own report came back), never adopted for another head's
+        // target: that is a camera track to start.
+        let naming = h.from_head.is_none();
+        if let Some(i) = self.nearest_unnamed(&mean, &cov, naming) {
             let t = &mut self.tracks[i];
             t.global = Some(h.global);
             t.confirmed = true;
@@ -607,7 +610,7 @@ impl HeadNode {
         let before = self.tracks.len();
         self.tracks.retain(|t| t.global != Some(h.global));
         if self.tracks.len() == before
-            && let Some(i) = self.nearest_unnamed(&vec6_from_wire(&h.mean), &mat6_from_wire(&h.cov))
+            && let Some(i) = self.nearest_unnamed(&vec6_from_wire(&h.mean), &mat6_from_wire(&h.cov), true)
         {
             self.tracks.remove(i);
         }
@@ -617,15 +620,18 @@ impl HeadNode {
     }
 
     /// Our track without a global id nearest (Mahalanobis, positions, summed covariances) to a
-    /// posterior the server sent, within the gate. Never a radio track of a cluster with
-    /// cameras (`crate::unseen`): a search track is nobody, and a tag's radio track is as wide
-    /// as its fix.
-    fn nearest_unnamed(&self, mean: &State, cov: &Matrix6<f64>) -> Option<usize> {
+    /// posterior the server sent, within the gate. Never a radio search track (it is nobody);
+    /// a tag's radio track (`crate::unseen`) only with `radio`.
+    fn nearest_unnamed(&self, mean: &State, cov: &Matrix6<f64>, radio: bool) -> Option<usize> {
         let gate = self.cfg.method.gate_chi2;
         self.tracks
             .iter()
             .enumerate()
-            .filter(|(_, t)| t.global.is_none() && !self.is_radio_track(t))
+            .filter(|(_, t)| {
+                t.global.is_none()
+                    && t.radio != Some(crate::track::Radio::Search)
+                    && (radio || !self.is_radio_track(t))
+            })
             .filter_map(|(i, t)| {
                 let d = t.position() - mean.fixed_rows::<3>(0);
                 let s = t.filter.cov().fixed_view::<3, 3>(0, 0) + cov.fixed_view::<3, 3>(0, 0);
@@ -671,7 +677,9 @@ impl HeadNode {
         let mut left = 0;
         self.tracks.retain(|t| {
             let silent = now - t.last_seen > timeout;
-            if silent {
+            if silent && t.radio == Some(crate::track::Radio::Search) {
+                debug!(target = %t.local, "radio search track timed out");
+            } else if silent {
                 info!(target = %t.local, "track silent too long; dropped");
             }
             let p = t.position();

@@ -69,7 +69,7 @@ pub struct Track {
     /// over time (empty until one came): its appearance for identity at the server.
     pub appearance: Vec<f32>,
     /// A radio track of a cluster with cameras (`crate::unseen`): cameras pair nothing with
-    /// it until one measures it.
+    /// it (`Prior::radio`).
     pub radio: Option<Radio>,
 }
 

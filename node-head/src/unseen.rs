@@ -3,23 +3,23 @@
 //! a tagged person no camera sees — behind a wall, in a corridor the cameras do not cover, or
 //! simply not detected — had no track, though the radio nodes heard their tag. Nodes send
 //! their readings only in answer to priors, so a cluster holding no track keeps a radio search
-//! track (`track::Radio::Search`) whose priors ask for them. A tag that stays unbound for [`UNSEEN_WAIT_S`] while no track's evidence
-//! claims it (every track's is below −[`UNSEEN_LLR`]: the tag is clearly elsewhere) gets a
+//! track (`track::Radio::Search`) whose priors ask for them. A tag that stays unbound for
+//! [`UNSEEN_WAIT_S`] while no track's evidence claims it (every track's is below −[`UNSEEN_LLR`]: the tag is clearly elsewhere) gets a
 //! *radio track*, started at the RSSI fix of its readings of that wait ([`fix`]) and bound to
 //! the tag by the ordinary rules: it takes the tag's readings and is confirmed at once (no
 //! camera can confirm it), and its tag moves to a camera track whose evidence leads, or is
-//! unbound if the evidence turns against it, after which the radio track, hearing nothing,
-//! times out. A camera that later sees the person answers the radio track's prior, and it
-//! becomes a camera track.
+//! unbound if the evidence turns against it. Cameras never pair a radio track
+//! (`Prior::radio`): a camera that later sees the person starts a camera track of its own,
+//! whose evidence for the tag soon claims it, and the radio track is dropped.
 //!
 //! The wait and the evidence bound keep a tagged person whom cameras do track from getting a
 //! second track: binding a seen tag takes a second or two, and a track near the tag gathers
 //! positive evidence long before the wait is over. A fix looser than [`MAX_FIX_SIGMA_M`] starts
 //! nothing: the tag goes on waiting and the head wakes its sleeping radios to hear it
 //! (`HeadNode::activate`). A radio track is never merged with a camera track as a duplicate
-//! (its width would merge it with anybody nearby); the tag's evidence decides: a radio track
-//! that loses its tag before a camera measured it, or whose tag a camera track's evidence
-//! claims (above +[`UNSEEN_LLR`]), is dropped at once.
+//! (its width would merge it with anybody nearby) nor adopted for another head's target (only
+//! named by the server); the tag's evidence decides: a radio track that loses its tag, or
+//! whose tag a camera track's evidence claims (above +[`UNSEEN_LLR`]), is dropped at once.
 
 use crate::grid::belief::Belief;
 use crate::grid::layout::Grid;

@@ -42,9 +42,9 @@ pub struct Membership {
     assigned: BTreeMap<NodeId, NodeId>,
     members: BTreeMap<NodeId, Member>,
     timeout_ns: i64,
-    /// When the first node was admitted: a declared head still unseen a grace period later
-    /// is down. Taken from an admission (a received message, always recorded), so a replay
-    /// of the recording comes to the same decision at the same tick.
+    /// When the first declared node was admitted (or the server resumed): a declared head
+    /// still unseen a grace period later is down. Taken from an admission (a received message)
+    /// or a resume, both recorded, so a replay comes to the same decision at the same tick.
     first_admitted: Option<ClusterTime>,
 }
 
@@ -217,7 +217,10 @@ impl Membership {
     /// Admit `node` as `role` (handshake or implicit). Returns the decision if it was not an
     /// up member already.
     pub fn admit(&mut self, now: ClusterTime, node: NodeId, role: Role) -> Option<Decision> {
-        self.first_admitted.get_or_insert(now);
+        // A tool or viewer attached before the nodes start does not start the heads' grace.
+        if self.declared.contains_key(&node) {
+            self.first_admitted.get_or_insert(now);
+        }
         match self.members.get(&node) {
             Some(m) if m.role == role => self.seen(now, node),
             _ => {
@@ -310,6 +313,11 @@ impl Membership {
     /// Give every up member a fresh grace period from `now` (after a server restart). The old
     /// process's links are gone: members are unlinked until the transport reports new ones.
     pub fn refresh_all(&mut self, now: ClusterTime) {
+        // Heads not seen yet get a fresh start-up grace too (the restart is recorded, so a
+        // replay comes to the same decisions).
+        if self.first_admitted.is_some() {
+            self.first_admitted = Some(now);
+        }
         for m in self.members.values_mut() {
             m.linked = false;
             if m.up {
@@ -452,6 +460,25 @@ mod tests {
         );
         assert_eq!(m.rebalance().len(), theirs.len());
         assert_eq!(m.cameras_of(NodeId(3)), theirs);
+    }
+
+    #[test]
+    fn the_start_up_grace_runs_from_the_first_declared_node_and_again_after_a_restart() {
+        let s = crate::testkit::scenario();
+        let mut m = Membership::new(&s);
+        // A tool (undeclared) attached early starts nothing.
+        m.admit(ms(0), NodeId(99), Role::Tool);
+        m.admit(ms(5_000), NodeId(2), Role::Head);
+        m.set_linked(NodeId(2), true);
+        assert!(
+            m.expire(ms(15_000)).is_empty(),
+            "10 s from head 2, not from the tool"
+        );
+        // A restart at 14 s gives head 3 a fresh grace.
+        m.refresh_all(ms(14_000));
+        m.set_linked(NodeId(2), true);
+        assert!(m.expire(ms(24_000)).is_empty());
+        assert_eq!(m.expire(ms(24_001)).len(), 1);
     }
 
     #[test]

@@ -324,13 +324,10 @@ impl HeadNode {
             Activation::FullNode => Some(Variant::FullNode),
             Activation::ThreeMode => Some(Variant::ThreeMode),
         };
-        // All on, or no track to look for (a radio search track is none): wake every member
-        // (search).
-        let searching_only = self
-            .tracks
-            .iter()
-            .all(|t| t.radio == Some(crate::track::Radio::Search));
-        if variant.is_none() || searching_only {
+        // All on, or no track a camera looks for (radio tracks are none: `Prior::radio`): wake
+        // every member (search). The planner would put every camera to sleep for them.
+        let radio_only_tracks = self.tracks.iter().all(|t| self.is_radio_track(t));
+        if variant.is_none() || radio_only_tracks {
             for s in 0..self.nodes.len() {
                 let n = &self.nodes[s];
                 let on = n.info.working_mode(Mode::Active);
@@ -405,8 +402,8 @@ impl HeadNode {
             return Some(decision);
         }
         if searching && !to.radio_on() && self.nodes[slot].info.rssi {
-            // Searching for an unseen tag: its radios stay on.
-            return Some(decision);
+            // Searching for an unseen tag: its radios stay on (no decision taken).
+            return None;
         }
         debug!(node = %decision.node, from = ?decision.from, to = ?decision.to, reward = decision.reward, cost = decision.cost, "activation");
         self.command(slot, to, out);

@@ -28,7 +28,8 @@ pub const RADIO_HEIGHT_SIGMA_M: f64 = 0.1;
 const RADIO_SEARCH_SIGMA_V: f64 = 1.0;
 /// … of its vertical velocity, m/s.
 const RADIO_SEARCH_SIGMA_VZ: f64 = 0.1;
-/// Most tracks a radio-only cluster holds; a further tag gets none (counted).
+/// Most tracks a radio-only cluster holds, and most radio tracks a cluster with cameras holds;
+/// a further tag gets none (counted).
 pub const MAX_RADIO_TRACKS: usize = 32;
 
 impl HeadNode {
@@ -50,7 +51,9 @@ impl HeadNode {
     pub(super) fn radio_search(&mut self, now: ClusterTime) {
         // A search track is needed only while the cluster holds no other.
         if self.tracks.iter().any(|t| t.radio != Some(Radio::Search)) {
+            let before = self.tracks.len();
             self.tracks.retain(|t| t.radio != Some(Radio::Search));
+            self.counters.deaths += (before - self.tracks.len()) as u64;
         }
         if !self.tracks.is_empty() {
             return;
@@ -107,6 +110,8 @@ impl HeadNode {
     /// [`MAX_RADIO_TRACKS`] radio tracks.
     pub(super) fn unseen_tag_tracks(&mut self, heard: &[Heard], now: ClusterTime) {
         if !self.tracks_unseen_tags() {
+            // (Members reassigned away may end it: no search is left waking radios.)
+            self.unseen = crate::unseen::UnseenTags::default();
             return;
         }
         self.unseen.note(heard, &self.tags, now);
@@ -157,7 +162,9 @@ impl HeadNode {
                     t.radio = Some(Radio::Tag);
                     // The planner counts on these nodes' readings of it (they heard the tag).
                     for &(slot, _) in &means {
-                        t.rssi_heard[slot] = true;
+                        if let Some(h) = t.rssi_heard.get_mut(slot) {
+                            *h = true;
+                        }
                     }
                     info!(tag = %tag, target = %local, x = p.x, y = p.y, sigma_m = c.trace().sqrt(), nodes = readings.len(), "radio track for a tag no camera track holds");
                     self.counters.births += 1;
@@ -172,12 +179,12 @@ impl HeadNode {
         }
     }
 
-    /// A radio track of a cluster with cameras that no camera has measured yet.
+    /// A radio track of a cluster with cameras (cameras never measure one: `Prior::radio`).
     pub(super) fn is_radio_track(&self, t: &crate::track::Track) -> bool {
-        t.radio.is_some() && t.camera_steps == 0
+        t.radio.is_some()
     }
 
-    /// Drop the radio tracks that no camera measured yet and whose tag is gone or claimed:
+    /// Drop the radio tracks whose tag is gone or claimed:
     /// the evidence moved the tag to a camera track or turned against this one, or a camera
     /// track's evidence for it reached [`crate::unseen::UNSEEN_LLR`] (the person is seen after
     /// all: binding follows by the evidence's rules once the radio track is gone).
@@ -186,7 +193,7 @@ impl HeadNode {
         let gone: Vec<TargetId> = self
             .tracks
             .iter()
-            .filter(|t| t.radio == Some(Radio::Tag) && t.camera_steps == 0)
+            .filter(|t| t.radio == Some(Radio::Tag))
             .filter(|t| match self.tags.tag_of(t.local) {
                 None => true,
                 Some(tag) => self.tracks.iter().any(|k| {

@@ -933,17 +933,22 @@ fn answer_with_tag(
 fn an_unseen_tag_gets_a_radio_track_at_its_fix_with_unseen_tags_on() {
     let tag = proto::TagId::simulated(5);
     let at = nalgebra::Vector3::new(3.0, 4.5, 0.5);
-    let run = |unseen: bool| {
+    // A camera cluster holding a track 3 m from the tag (kept alive by a long timeout): its
+    // priors bring the readings. Only with the option does the tag get a radio track.
+    let radio_tracks = |unseen: bool| {
         let mut s = Scenario::default_scenario();
         s.method.activation = Activation::ThreeMode;
         s.method.unseen_tags = unseen;
-        let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
-        let mut h = HeadNode::new(cfg.clone());
-        let priors = answer_with_tag(&mut h, &cfg, tag, at, 0, 25);
-        (h, priors)
+        s.method.track_timeout_ms = 30_000;
+        let (cfg, mut h) = head_with_a_track(&s, State::new(1.0, 2.0, 0.5, 0.0, 0.0, 0.0));
+        answer_with_tag(&mut h, &cfg, tag, at, 200, 25);
+        h.tracks()
+            .iter()
+            .filter(|t| t.radio == Some(crate::track::Radio::Tag))
+            .count()
     };
-    let (h, _) = run(false);
-    assert!(h.tracks().is_empty(), "no track without the option");
+    assert_eq!(radio_tracks(false), 0, "a radio track without the option");
+    assert_eq!(radio_tracks(true), 1);
 
     let mut s = Scenario::default_scenario();
     s.method.activation = Activation::ThreeMode;
@@ -1007,6 +1012,42 @@ fn an_unseen_tag_gets_a_radio_track_at_its_fix_with_unseen_tags_on() {
     }
     out.extend(h.tick(ClusterTime::from_millis(4281)));
     assert_eq!(reports(&out), 1);
+    // With only a radio track, no camera sleeps: none looks for it, all look for newcomers.
+    let cameras: Vec<NodeId> = cfg
+        .nodes
+        .iter()
+        .filter(|n| n.member && !n.radio_only)
+        .map(|n| n.id)
+        .collect();
+    assert!(
+        cameras.iter().all(|&c| h.mode_of(c) == Some(Mode::Active)),
+        "{:?}",
+        cameras.iter().map(|&c| h.mode_of(c)).collect::<Vec<_>>()
+    );
+    // The server names it (a handover from no head, its own report's posterior): it takes the
+    // global id, and no second track starts.
+    let radio_local = h.tracks()[0].local;
+    let report = out
+        .iter()
+        .find_map(|o| match &o.body {
+            Message::TrackReport(r) => Some(r.clone()),
+            _ => None,
+        })
+        .unwrap();
+    let naming = Message::Handover(Handover {
+        global: TargetId(42),
+        to_head: NodeId(2),
+        from_head: None,
+        time: report.time,
+        mean: report.mean,
+        cov: report.cov,
+    });
+    h.on_message(ClusterTime::from_millis(4300), env(1, naming));
+    assert_eq!(h.tracks().len(), 1, "a twin of the radio track");
+    assert_eq!(
+        (h.tracks()[0].local, h.tracks()[0].global),
+        (radio_local, Some(TargetId(42)))
+    );
 }
 
 /// A radio track whose tag a camera track claims (its evidence reaches `UNSEEN_LLR`: the

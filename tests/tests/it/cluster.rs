@@ -269,12 +269,12 @@ fn killing_a_camera_mid_run_leaves_tracking_running() {
 /// head's floor, and a head never seen was never down).
 #[test]
 fn a_head_that_never_starts_leaves_its_floor_to_the_other_head() {
-    // The robot starts on head 2's floor and stays there 18.75 s: (2.5, 6) down to (2.5, 2),
-    // then right, crossing x = 6 after 8.75 m.
+    // The robot stays on head 2's floor, more than head 3's birth margin (1 m) from its region
+    // (x ≥ 6): a loop through (2.5, 6), (2.5, 2), (4.5, 2) and (4.5, 6).
     let scenario_dir = scratch("skip-head-scenario");
     let text = proto::scenario::DEFAULT_SCENARIO_TOML.replace(
         "waypoints = [[2.5, 2.0], [9.5, 2.0], [9.5, 6.0], [2.5, 6.0]]",
-        "waypoints = [[2.5, 6.0], [2.5, 2.0], [9.5, 2.0], [9.5, 6.0]]",
+        "waypoints = [[2.5, 6.0], [2.5, 2.0], [4.5, 2.0], [4.5, 6.0]]",
     );
     assert_ne!(
         text,
@@ -283,7 +283,7 @@ fn a_head_that_never_starts_leaves_its_floor_to_the_other_head() {
     );
     let path = scenario_dir.join("robot-on-head-2.toml");
     std::fs::write(&path, text).unwrap();
-    let run = Launch::start_with("skip-head", "ipc", 20.0, Some(&path), &["--skip", "2"]);
+    let run = Launch::start_with("skip-head", "ipc", 24.0, Some(&path), &["--skip", "2"]);
     let (_report, run) = run.finish(Duration::from_secs(90));
     let pids = std::fs::read_to_string(run.run_dir().join("pids")).expect("the launch's pids");
     assert!(

@@ -359,7 +359,7 @@ fn message() -> impl Strategy<Value = Message> {
             any::<u16>(),
             any::<u64>(),
             time(),
-            prop::collection::vec((any::<u32>(), vec6(), psd()), 1..4)
+            prop::collection::vec((any::<u32>(), vec6(), psd(), any::<bool>()), 1..4)
         )
             .prop_map(|(part, step, deadline, tracks)| {
                 // A part within the step's parts, up to MAX_PRIOR_PARTS of them.
@@ -369,13 +369,13 @@ fn message() -> impl Strategy<Value = Message> {
                     parts,
                     tracks: tracks
                         .into_iter()
-                        .map(|(t, mean, cov)| Prior {
+                        .map(|(t, mean, cov, radio)| Prior {
                             target: TargetId(t),
                             step,
                             mean,
                             cov,
                             deadline,
-                            radio: false,
+                            radio,
                         })
                         .collect(),
                 })

@@ -172,27 +172,27 @@ fn extra(row: Option<&Row>, name: &str) -> f64 {
 /// often too small a region for segmentation alone (paper 004's case: the filter keeps a
 /// person segmentation loses).
 const PILLARS: [(&str, f64); 2] = [("1 occlusion", 0.2), ("1 wide occlusion", 0.45)];
+/// How each pillar's checks and note name it, and how much of the person it hides.
+const PILLAR_WORDS: [(&str, &str); 2] = [
+    ("Partial occlusion", "a vertical strip"),
+    ("Wide partial occlusion", "all but a sliver"),
+];
 
 /// Study 1: the pillars.
 ///
 /// # Errors
 /// As [`camera::run`].
 pub fn occlusion(opts: &Options, duration_s: f64, out: &mut Outcome) -> crate::error::Result<()> {
-    for (study, width_m) in PILLARS {
-        pillar(opts, duration_s, study, width_m, out)?;
+    for k in 0..PILLARS.len() {
+        pillar(opts, duration_s, k, out)?;
     }
     Ok(())
 }
 
-/// One pillar's rows, traces (the narrow pillar's also the particle figure), note and checks.
-fn pillar(
-    opts: &Options,
-    duration_s: f64,
-    study: &str,
-    width_m: f64,
-    out: &mut Outcome,
-) -> crate::error::Result<()> {
-    let narrow = width_m == PILLARS[0].1;
+/// Pillar `k`'s rows, traces (the first pillar's also the particle figure), note and checks.
+fn pillar(opts: &Options, duration_s: f64, k: usize, out: &mut Outcome) -> crate::error::Result<()> {
+    let ((study, width_m), (name, hides)) = (PILLARS[k], PILLAR_WORDS[k]);
+    let narrow = k == 0;
     let scene = occlusion_scene(duration_s, width_m);
     for (label, tracker) in [(SEGMENTATION, Tracker::Segmentation), (PARTICLE, particle())] {
         let runs = runs(&scene, &tracker, opts, 0)?;
@@ -233,10 +233,9 @@ fn pillar(
             }
             let hidden_s: f64 = windows.iter().map(|w| w.1 - w.0).sum();
             out.notes.push(format!(
-                "{}: a pillar {width_m} m wide, 3 m high, 1.2 m in front of the middle of a 2.8 m walk at 0.5 m/s across node 10's view, 3.5 m away; it hides the person's centre {hidden_s:.1} s of {duration_s:.0} s in the first run ({} passes), {} of them (they are 0.5 m wide) while it does. The person enters after {ENTER_S} s of empty room. Segmentation alone keeps an id while a region overlaps the previous frame's region of that id; a region that splits off, or comes back after a frame without one, gets a new id.",
+                "{}: a pillar {width_m} m wide, 3 m high, 1.2 m in front of the middle of a 2.8 m walk at 0.5 m/s across node 10's view, 3.5 m away; it hides the person's centre {hidden_s:.1} s of {duration_s:.0} s in the first run ({} passes), {hides} of them (they are 0.5 m wide) while it does. The person enters after {ENTER_S} s of empty room. Segmentation alone keeps an id while a region overlaps the previous frame's region of that id; a region that splits off, or comes back after a frame without one, gets a new id.",
                 if narrow { "Occlusion" } else { "Wide occlusion" },
                 windows.len(),
-                if narrow { "a vertical strip" } else { "all but a sliver" }
             ));
         }
     }
@@ -252,15 +251,16 @@ fn pillar(
         ));
     } else {
         out.shape.push(Check::new(
-            "Wide partial occlusion (a pillar 0.45 m wide before a 0.5 m wide person): the particle filters keep the person in more hidden frames than segmentation alone, which loses them",
+            &format!(
+                "{name} (a pillar {width_m} m wide before a 0.5 m wide person): the particle filters keep the person in more hidden frames than segmentation alone, which loses them"
+            ),
             th_p > th_s && th_s < 1.0,
             format!("tracked while hidden {th_p:.3} vs {th_s:.3}"),
         ));
     }
     out.shape.push(Check::new(
         &format!(
-            "{}: the particle filters give the person fewer identities than segmentation alone (no loss, no split)",
-            if narrow { "Partial occlusion" } else { "Wide partial occlusion" }
+            "{name}: the particle filters give the person fewer identities than segmentation alone (no loss, no split)"
         ),
         id_p < id_s,
         format!("{id_p:.2} vs {id_s:.2} ids per run"),
