@@ -44,10 +44,10 @@ impl HeadNode {
     }
 
     /// Start a radio search track if the cluster holds no track and a member is up (and drop
-    /// a [`Radio::Search`] track once it holds another): in a
-    /// radio-only cluster the track the first tag heard is bound to, in one with cameras a
-    /// [`Radio::Search`] track whose priors ask the radio nodes for the tags they hear (for
-    /// `crate::unseen`; without a prior to answer a node sends none).
+    /// a [`Radio::Search`] track once it holds another): in a radio-only cluster the track the
+    /// first tag heard is bound to, in one with cameras a [`Radio::Search`] track whose priors
+    /// ask the radio nodes for the tags they hear (for `crate::unseen`; without a prior to
+    /// answer a node sends none).
     pub(super) fn radio_search(&mut self, now: ClusterTime) {
         // A search track is needed only while the cluster holds no other.
         if self.tracks.iter().any(|t| t.radio != Some(Radio::Search)) {
@@ -104,10 +104,9 @@ impl HeadNode {
     }
 
     /// In a cluster with cameras that tracks unseen tags ([`Self::tracks_unseen_tags`]), give
-    /// each tag that waited unbound and unclaimed
-    /// (`crate::unseen`) a radio track at its RSSI fix, bound to it by evidence's rules. None
-    /// on another live head's floor (that head's tracks may hold the tag) or past
-    /// [`MAX_RADIO_TRACKS`] radio tracks.
+    /// each tag that waited unbound and unclaimed (`crate::unseen`) a radio track at its RSSI
+    /// fix, bound to it by evidence's rules. None on another live head's floor (that head's
+    /// tracks may hold the tag) or past [`MAX_RADIO_TRACKS`] radio tracks.
     pub(super) fn unseen_tag_tracks(&mut self, heard: &[Heard], now: ClusterTime) {
         if !self.tracks_unseen_tags() {
             // (Members reassigned away may end it: no search is left waking radios.)
@@ -184,10 +183,10 @@ impl HeadNode {
         t.radio.is_some()
     }
 
-    /// Drop the radio tracks whose tag is gone or claimed:
-    /// the evidence moved the tag to a camera track or turned against this one, or a camera
-    /// track's evidence for it reached [`crate::unseen::UNSEEN_LLR`] (the person is seen after
-    /// all: binding follows by the evidence's rules once the radio track is gone).
+    /// Drop the radio tracks whose tag is gone or claimed: the evidence moved the tag to a
+    /// camera track or turned against this one, or a camera track's evidence for it reached
+    /// [`crate::unseen::UNSEEN_LLR`] (the person is seen after all: binding follows by the
+    /// evidence's rules once the radio track is gone).
     pub(super) fn drop_superseded_radio_tracks(&mut self) {
         let before = self.tracks.len();
         let gone: Vec<TargetId> = self
@@ -235,7 +234,13 @@ impl HeadNode {
             Ok(mut t) => {
                 t.confirmed = true;
                 t.radio = radio;
-                debug!(target = %local, x = centre.x, y = centre.y, nodes = up.len(), "radio search track");
+                // A camera cluster's search track comes and goes every few seconds while the
+                // cluster is empty: not news.
+                if radio.is_none() {
+                    info!(target = %local, x = centre.x, y = centre.y, nodes = up.len(), "radio search track");
+                } else {
+                    debug!(target = %local, x = centre.x, y = centre.y, nodes = up.len(), "radio search track");
+                }
                 self.counters.births += 1;
                 self.tracks.push(t);
                 Some(local)
