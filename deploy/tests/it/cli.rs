@@ -243,3 +243,34 @@ fn piped_output_has_no_progress_bar_and_no_colour_codes() {
     assert!(!err.contains('\u{1b}'), "no escape codes when piped: {err}");
     serde_json::from_slice::<serde_json::Value>(&out.stdout).expect("--json prints only JSON");
 }
+
+/// `ocelli launch --skip` names what is wrong with a node it cannot leave out, before it starts
+/// anything or claims a run folder: the server (the launch reports on its recording) and a node
+/// the scenario does not declare.
+#[test]
+fn launch_refuses_to_skip_the_server_or_an_undeclared_node() {
+    let dir = std::env::temp_dir().join(format!("ocelli-skip-{}", std::process::id()));
+    for (skip, want) in [("1", "is the server"), ("999", "declares no node 999")] {
+        let run_dir = dir.join(skip);
+        let out = Command::new(env!("CARGO_BIN_EXE_ocelli"))
+            .args([
+                "launch",
+                "--no-view",
+                "--quiet",
+                "--duration",
+                "5",
+                "--skip",
+                skip,
+            ])
+            .arg("--run-dir")
+            .arg(&run_dir)
+            .env("NO_COLOR", "1")
+            .stdin(Stdio::null())
+            .output()
+            .expect("ocelli launch");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "--skip {skip} was accepted: {err}");
+        assert!(err.contains(want), "--skip {skip}: {err}");
+        assert!(!run_dir.exists(), "--skip {skip} claimed a run folder");
+    }
+}
