@@ -628,9 +628,7 @@ impl HeadNode {
             .iter()
             .enumerate()
             .filter(|(_, t)| {
-                t.global.is_none()
-                    && t.radio != Some(crate::track::Radio::Search)
-                    && (radio || !self.is_radio_track(t))
+                t.global.is_none() && t.radio != Some(crate::track::Radio::Search) && (radio || !t.is_radio())
             })
             .filter_map(|(i, t)| {
                 let d = t.position() - mean.fixed_rows::<3>(0);
@@ -732,20 +730,18 @@ impl HeadNode {
             .enumerate()
         {
             self.parts.push(tracks.iter().map(|t| t.local).collect());
-            let radio: Vec<bool> = tracks.iter().map(|t| self.is_radio_track(t)).collect();
             let priors = Priors {
                 part: part as u16,
                 parts,
                 tracks: tracks
                     .iter()
-                    .zip(radio)
-                    .map(|(t, radio)| Prior {
+                    .map(|t| Prior {
                         target: t.local,
                         step: self.step,
                         mean: vec6_to_wire(t.filter.mean()),
                         cov: mat6_to_wire(t.filter.cov()),
                         deadline,
-                        radio,
+                        radio: t.is_radio(),
                     })
                     .collect(),
             };

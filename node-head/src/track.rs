@@ -170,6 +170,11 @@ impl Track {
                 .is_some_and(|a| (self.position() - a).norm() >= CONFIRM_DISTANCE_M);
     }
 
+    /// A radio track of a cluster with cameras (cameras never measure one: `Prior::radio`).
+    pub fn is_radio(&self) -> bool {
+        self.radio.is_some()
+    }
+
     pub fn position(&self) -> Vector3<f64> {
         self.filter.mean().fixed_rows::<3>(0).into_owned()
     }

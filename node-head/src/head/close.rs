@@ -28,7 +28,7 @@ impl HeadNode {
         // Radio tracks take no detection and gate none (`crate::unseen`): their width would
         // take whoever a camera sees nearby, and keep that person from a track of their own.
         let seen: Vec<usize> = (0..self.tracks.len())
-            .filter(|&t| !self.is_radio_track(&self.tracks[t]))
+            .filter(|&t| !self.tracks[t].is_radio())
             .collect();
         let priors: Vec<(State, Matrix6<f64>, ClusterTime)> = seen
             .iter()
@@ -287,7 +287,7 @@ impl HeadNode {
                 let two_tags = || self.tags.tag_of(a.local).is_some() && self.tags.tag_of(b.local).is_some();
                 // A radio track is as wide as its RSSI fix: its tag's evidence, not the gate,
                 // says whether a camera track is its person (`crate::unseen`).
-                let radio = self.is_radio_track(a) || self.is_radio_track(b);
+                let radio = a.is_radio() || b.is_radio();
                 if same && !two_tags() && !radio {
                     // Prefer the track the server knows, then a confirmed one, then the older
                     // (lower index).
@@ -326,7 +326,7 @@ impl HeadNode {
         };
         // All on, or no track a camera looks for (radio tracks are none: `Prior::radio`): wake
         // every member (search). The planner would put every camera to sleep for them.
-        let radio_only_tracks = self.tracks.iter().all(|t| self.is_radio_track(t));
+        let radio_only_tracks = self.tracks.iter().all(|t| t.is_radio());
         if variant.is_none() || radio_only_tracks {
             for s in 0..self.nodes.len() {
                 let n = &self.nodes[s];
@@ -373,8 +373,6 @@ impl HeadNode {
             })
             .collect();
         let sigma = self.cfg.method.pixel_sigma;
-        // No camera looks for a radio track (`Prior::radio`).
-        let radio: Vec<bool> = self.tracks.iter().map(|t| self.is_radio_track(t)).collect();
         let (nodes, tracks, walls) = (&self.nodes, &self.tracks, &self.cfg.walls);
         let decision = self.planner.decide(
             variant,
@@ -392,7 +390,8 @@ impl HeadNode {
                     .weighed(&tracks[t].trainers[slots[n]].model());
                 let heard = node.rssi && tracks[t].rssi_heard[slots[n]];
                 let rssi = heard.then_some((&model, &node.position));
-                let camera = (!node.radio_only && !radio[t]).then_some(&node.camera);
+                // No camera looks for a radio track (`Prior::radio`).
+                let camera = (!node.radio_only && !tracks[t].is_radio()).then_some(&node.camera);
                 Expected::at(camera, walls, sigma, rssi, &means[t])
             },
         )?;

@@ -115,7 +115,7 @@ impl HeadNode {
         }
         self.unseen.note(heard, &self.tags, now);
         for (tag, means) in self.unseen.due(&self.tags, now) {
-            let radio_tracks = self.tracks.iter().filter(|t| self.is_radio_track(t)).count();
+            let radio_tracks = self.tracks.iter().filter(|t| t.is_radio()).count();
             if radio_tracks >= MAX_RADIO_TRACKS {
                 self.unseen.done(tag);
                 self.counters.tag_readings_refused += 1;
@@ -176,11 +176,6 @@ impl HeadNode {
                 }
             }
         }
-    }
-
-    /// A radio track of a cluster with cameras (cameras never measure one: `Prior::radio`).
-    pub(super) fn is_radio_track(&self, t: &crate::track::Track) -> bool {
-        t.radio.is_some()
     }
 
     /// Drop the radio tracks whose tag is gone or claimed: the evidence moved the tag to a
@@ -259,7 +254,7 @@ impl HeadNode {
     /// mounted at about one height hardly tell the tag's, and the filter would wander up and
     /// down.
     pub(super) fn hold_height(&mut self, t: usize) {
-        if !(self.radio_only_cluster() || self.is_radio_track(&self.tracks[t])) {
+        if !(self.radio_only_cluster() || self.tracks[t].is_radio()) {
             return;
         }
         let w = RADIO_HEIGHT_SIGMA_M.powi(-2);
