@@ -13,7 +13,7 @@
 use super::HeadNode;
 use crate::tags::Heard;
 use crate::track::Radio;
-use nalgebra::{Matrix6, Vector3};
+use nalgebra::{Matrix2, Matrix6, Vector2, Vector3};
 use proto::models::State;
 use proto::{ClusterTime, TargetId};
 use tracing::{debug, info, warn};
@@ -126,12 +126,11 @@ impl HeadNode {
                 .iter()
                 .map(|&(slot, dbm)| (self.nodes[slot].info.position, dbm))
                 .collect();
-            let z = self.cfg.target_plane_z;
             let Some((p, c)) = crate::unseen::fix(
                 self.cfg.bounds,
                 &self.cfg.walls,
                 &self.cfg.method.rssi_default,
-                z,
+                self.cfg.target_plane_z,
                 &readings,
             )
             .filter(|(_, c)| c.trace().sqrt() <= crate::unseen::MAX_FIX_SIGMA_M) else {
@@ -145,36 +144,19 @@ impl HeadNode {
                 debug!(tag = %tag, x = p.x, y = p.y, "an unseen tag on another head's floor: left to it");
                 continue;
             }
-            let mut cov = Matrix6::from_diagonal(&nalgebra::Vector6::new(
-                0.0,
-                0.0,
-                RADIO_HEIGHT_SIGMA_M.powi(2),
-                RADIO_SEARCH_SIGMA_V.powi(2),
-                RADIO_SEARCH_SIGMA_V.powi(2),
-                RADIO_SEARCH_SIGMA_VZ.powi(2),
-            ));
-            cov.fixed_view_mut::<2, 2>(0, 0).copy_from(&c);
-            let local = self.alloc_local();
-            match self.new_track(local, None, State::new(p.x, p.y, z, 0.0, 0.0, 0.0), cov, now) {
-                Ok(mut t) => {
-                    t.confirmed = true;
-                    t.radio = Some(Radio::Tag);
-                    // The planner counts on these nodes' readings of it (they heard the tag).
-                    for &(slot, _) in &means {
-                        if let Some(h) = t.rssi_heard.get_mut(slot) {
-                            *h = true;
-                        }
+            let Some(local) = self.push_radio_track(now, Some(Radio::Tag), p, c) else {
+                continue;
+            };
+            info!(tag = %tag, target = %local, x = p.x, y = p.y, sigma_m = c.trace().sqrt(), nodes = readings.len(), "radio track for a tag no camera track holds");
+            // The planner counts on these nodes' readings of it (they heard the tag).
+            if let Some(t) = self.tracks.last_mut() {
+                for &(slot, _) in &means {
+                    if let Some(h) = t.rssi_heard.get_mut(slot) {
+                        *h = true;
                     }
-                    info!(tag = %tag, target = %local, x = p.x, y = p.y, sigma_m = c.trace().sqrt(), nodes = readings.len(), "radio track for a tag no camera track holds");
-                    self.counters.births += 1;
-                    self.tracks.push(t);
-                    self.tags.give(tag, local);
-                }
-                Err(e) => {
-                    self.counters.numeric_failures += 1;
-                    warn!(error = %e, "radio track with an unusable covariance");
                 }
             }
+            self.tags.give(tag, local);
         }
     }
 
@@ -215,34 +197,54 @@ impl HeadNode {
             return None;
         }
         let centre = up.iter().sum::<Vector3<f64>>() / up.len() as f64;
-        let z = self.cfg.method.target_plane_z();
-        let mean = State::new(centre.x, centre.y, z, 0.0, 0.0, 0.0);
-        let (p, pz, v, vz) = (
-            RADIO_SEARCH_SIGMA_M.powi(2),
+        let local = self.push_radio_track(
+            now,
+            radio,
+            centre.xy(),
+            Matrix2::identity() * RADIO_SEARCH_SIGMA_M.powi(2),
+        )?;
+        // A camera cluster's search track comes and goes every few seconds while the cluster
+        // is empty: not news.
+        if radio.is_none() {
+            info!(target = %local, x = centre.x, y = centre.y, nodes = up.len(), "radio search track");
+        } else {
+            debug!(target = %local, x = centre.x, y = centre.y, nodes = up.len(), "radio search track");
+        }
+        Some(local)
+    }
+
+    /// Push a confirmed track standing on radio alone at floor point `at` (covariance `floor`)
+    /// on the target plane, still, with the radio tracks' height and velocity spreads; its
+    /// local id, or `None` (counted) for a covariance the filter refuses.
+    fn push_radio_track(
+        &mut self,
+        now: ClusterTime,
+        radio: Option<Radio>,
+        at: Vector2<f64>,
+        floor: Matrix2<f64>,
+    ) -> Option<TargetId> {
+        let mut cov = Matrix6::from_diagonal(&nalgebra::Vector6::new(
+            0.0,
+            0.0,
             RADIO_HEIGHT_SIGMA_M.powi(2),
             RADIO_SEARCH_SIGMA_V.powi(2),
+            RADIO_SEARCH_SIGMA_V.powi(2),
             RADIO_SEARCH_SIGMA_VZ.powi(2),
-        );
-        let cov = Matrix6::from_diagonal(&nalgebra::Vector6::new(p, p, pz, v, v, vz));
+        ));
+        cov.fixed_view_mut::<2, 2>(0, 0).copy_from(&floor);
+        let mean = State::new(at.x, at.y, self.cfg.target_plane_z, 0.0, 0.0, 0.0);
         let local = self.alloc_local();
         match self.new_track(local, None, mean, cov, now) {
             Ok(mut t) => {
                 t.confirmed = true;
                 t.radio = radio;
-                // A camera cluster's search track comes and goes every few seconds while the
-                // cluster is empty: not news.
-                if radio.is_none() {
-                    info!(target = %local, x = centre.x, y = centre.y, nodes = up.len(), "radio search track");
-                } else {
-                    debug!(target = %local, x = centre.x, y = centre.y, nodes = up.len(), "radio search track");
-                }
                 self.counters.births += 1;
                 self.tracks.push(t);
                 Some(local)
             }
             Err(e) => {
                 self.counters.numeric_failures += 1;
-                warn!(error = %e, "radio search track with an unusable covariance");
+                warn!(error = %e, "radio track with an unusable covariance");
                 None
             }
         }
@@ -261,7 +263,7 @@ impl HeadNode {
         let mut omega = Matrix6::zeros();
         omega[(2, 2)] = w;
         let mut xi = State::zeros();
-        xi[2] = w * self.cfg.method.target_plane_z();
+        xi[2] = w * self.cfg.target_plane_z;
         self.tracks[t].acc.add(&omega, &xi);
     }
 }
