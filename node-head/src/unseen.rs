@@ -93,9 +93,13 @@ impl UnseenTags {
         self.searching.retain(|tag| waiting.contains_key(tag));
     }
 
-    /// Tag `tag` was due but its fix was too loose: it goes on waiting, and the head
-    /// searches for it.
-    pub fn search(&mut self, tag: TagId) {
+    /// Tag `tag` was due at `now` but its fix was too loose: it waits another
+    /// [`UNSEEN_WAIT_S`] (readings of radios woken meanwhile make the next fix, and a grid is
+    /// not computed every step), and the head searches for it.
+    pub fn search(&mut self, tag: TagId, now: ClusterTime) {
+        if let Some(w) = self.waiting.get_mut(&tag) {
+            w.since = now;
+        }
         self.searching.insert(tag);
     }
 
@@ -274,7 +278,19 @@ mod tests {
         assert_eq!(means.len(), 2);
         assert_eq!(means[0], (0, -60.0));
         assert!((means[1].1 - -71.0).abs() < 0.2, "{means:?}");
+        // A fix too loose: the tag searches and waits another window before the next try.
+        u.search(TagId(7), ClusterTime::from_millis(3000));
+        assert!(u.searching());
+        assert!(u.due(&book, ClusterTime::from_millis(3200)).is_empty());
+        let mut ms = 3200;
+        while ms <= 6000 {
+            let now = ClusterTime::from_millis(ms);
+            u.note(&[heard(0, 7, -60.0, ms), heard(1, 7, -71.0, ms)], &book, now);
+            ms += 200;
+        }
+        assert_eq!(u.due(&book, ClusterTime::from_millis(6000)).len(), 1);
         u.done(TagId(7));
+        assert!(!u.searching());
         assert!(u.due(&book, ClusterTime::from_millis(3000)).is_empty());
         // Unheard for a whole window, a tag waits afresh.
         u.note(&[heard(0, 8, -60.0, 3000)], &book, ClusterTime::from_millis(3000));

@@ -135,7 +135,7 @@ impl HeadNode {
             )
             .filter(|(_, c)| c.trace().sqrt() <= crate::unseen::MAX_FIX_SIGMA_M) else {
                 debug!(tag = %tag, nodes = readings.len(), "no usable RSSI fix for an unseen tag yet: searching");
-                self.unseen.search(tag);
+                self.unseen.search(tag, now);
                 continue;
             };
             self.unseen.done(tag);
