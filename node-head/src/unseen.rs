@@ -162,21 +162,11 @@ pub fn fix(
         geo: None,
     };
     let grid = Arc::new(Grid::new(&world, FIX_CELL_M).ok()?);
-    let mut likelihood = vec![1.0; grid.len()];
-    // Each node's factor in log space, then one exponent: the product of twenty Gaussians
-    // underflows far from the tag.
+    // In log space, then one exponent: the product of twenty Gaussians underflows far from
+    // the tag.
     let mut log_l = vec![0.0f64; grid.len()];
-    let inv = -0.5 / model.variance();
-    if !inv.is_finite() {
-        return None;
-    }
     for (node, dbm) in readings {
-        for (k, l) in log_l.iter_mut().enumerate() {
-            let [x, y] = grid.centre_of(k);
-            let d = (Vector3::new(x, y, z) - node).norm().max(0.1);
-            let r = dbm - model.predict(d);
-            *l += inv * r * r;
-        }
+        crate::grid::rssi::add_log(&grid, node, model, *dbm, z, &mut log_l).ok()?;
     }
     let best = log_l
         .iter()
@@ -187,9 +177,11 @@ pub fn fix(
     if !best.is_finite() {
         return None;
     }
-    for (l, v) in likelihood.iter_mut().zip(&log_l) {
-        *l = (v - best).exp();
-    }
+    let likelihood: Vec<f64> = log_l
+        .iter()
+        .enumerate()
+        .map(|(k, v)| if grid.is_free(k) { (v - best).exp() } else { 0.0 })
+        .collect();
     let mut belief = Belief::uniform(grid);
     belief.correct(&likelihood).ok()?;
     let e = belief.estimate();

@@ -22,30 +22,67 @@ pub fn apply(
     target_z: f64,
     likelihood: &mut [f64],
 ) -> Result<(), GridError> {
+    let exponent = log_factor(grid, node, model, dbm, target_z, likelihood.len())?;
+    for (k, l) in likelihood.iter_mut().enumerate() {
+        if grid.is_free(k) {
+            *l *= exponent(k).exp();
+        }
+    }
+    Ok(())
+}
+
+/// As [`apply`], in log space: add the log of the reading's likelihood to `log_likelihood` on
+/// each free cell. Summed over many readings it stays finite where their product underflows
+/// far from the tag (`crate::unseen::fix`).
+///
+/// # Errors
+/// As [`apply`]; `log_likelihood` is then unchanged.
+pub fn add_log(
+    grid: &Grid,
+    node: &Vector3<f64>,
+    model: &RssiModel,
+    dbm: f64,
+    target_z: f64,
+    log_likelihood: &mut [f64],
+) -> Result<(), GridError> {
+    let exponent = log_factor(grid, node, model, dbm, target_z, log_likelihood.len())?;
+    for (k, l) in log_likelihood.iter_mut().enumerate() {
+        if grid.is_free(k) {
+            *l += exponent(k);
+        }
+    }
+    Ok(())
+}
+
+/// The reading's log-likelihood (up to a constant) at cell `k`: a Gaussian in dB around what
+/// the model predicts at the cell's distance; checks the reading, the model and the length.
+fn log_factor<'a>(
+    grid: &'a Grid,
+    node: &'a Vector3<f64>,
+    model: &'a RssiModel,
+    dbm: f64,
+    target_z: f64,
+    len: usize,
+) -> Result<impl Fn(usize) -> f64 + 'a, GridError> {
     let var = model.variance();
     if !(dbm.is_finite() && var.is_finite() && var > 0.0) {
         return Err(GridError::Invalid(format!(
             "RSSI reading {dbm} dBm with model variance {var} dB²"
         )));
     }
-    if likelihood.len() != grid.len() {
+    if len != grid.len() {
         return Err(GridError::Invalid(format!(
-            "likelihood has {} cells, the grid {}",
-            likelihood.len(),
+            "likelihood has {len} cells, the grid {}",
             grid.len()
         )));
     }
     let inv = -0.5 / var;
-    for (k, l) in likelihood.iter_mut().enumerate() {
-        if !grid.is_free(k) {
-            continue;
-        }
+    Ok(move |k: usize| {
         let [x, y] = grid.centre_of(k);
         let d = (Vector3::new(x, y, target_z) - node).norm().max(0.1);
         let r = dbm - model.predict(d);
-        *l *= (inv * r * r).exp();
-    }
-    Ok(())
+        inv * r * r
+    })
 }
 
 #[cfg(test)]
