@@ -302,8 +302,13 @@ impl CameraNode {
         // here stands for that time on this node's own clock (the link's latency is small
         // against a frame period), so the frame's age needs no clock shared with the head.
         let age_s = captured.map_or(0.0, |t| now.secs_since(t));
-        // Radio tracks' priors get no camera contribution (`Prior::radio`).
-        let asked: Vec<Prior> = priors.tracks.iter().filter(|p| !p.radio).cloned().collect();
+        // Radio tracks' priors get no camera contribution (`Prior::radio`); copied only when a
+        // step has any (this runs for every prior message).
+        let asked: std::borrow::Cow<[Prior]> = if priors.tracks.iter().any(|p| p.radio) {
+            priors.tracks.iter().filter(|p| !p.radio).cloned().collect()
+        } else {
+            std::borrow::Cow::Borrowed(&priors.tracks)
+        };
         let contributions = match captured {
             None => Vec::new(),
             Some(c) => {
