@@ -167,15 +167,33 @@ fn extra(row: Option<&Row>, name: &str) -> f64 {
         .unwrap_or(f64::NAN)
 }
 
-/// Study 1's pillars: (row label, width in metres). The narrow one hides a vertical strip of
-/// the 0.5 m wide person; the wide one nine tenths of them, so that the sliver beside it is
-/// often too small a region for segmentation alone (paper 004's case: the filter keeps a
-/// person segmentation loses).
-const PILLARS: [(&str, f64); 2] = [("1 occlusion", 0.2), ("1 wide occlusion", 0.45)];
-/// How each pillar's checks and note name it, and how much of the person it hides.
-const PILLAR_WORDS: [(&str, &str); 2] = [
-    ("Partial occlusion", "a vertical strip"),
-    ("Wide partial occlusion", "all but a sliver"),
+/// One of study 1's pillars.
+struct Pillar {
+    /// Row label.
+    study: &'static str,
+    width_m: f64,
+    /// How its checks and note name it.
+    name: &'static str,
+    /// How much of the person it hides.
+    hides: &'static str,
+}
+
+/// Study 1's pillars. The narrow one hides a vertical strip of the 0.5 m wide person; the wide
+/// one nine tenths of them, so that the sliver beside it is often too small a region for
+/// segmentation alone (paper 004's case: the filter keeps a person segmentation loses).
+const PILLARS: [Pillar; 2] = [
+    Pillar {
+        study: "1 occlusion",
+        width_m: 0.2,
+        name: "Partial occlusion",
+        hides: "a vertical strip",
+    },
+    Pillar {
+        study: "1 wide occlusion",
+        width_m: 0.45,
+        name: "Wide partial occlusion",
+        hides: "all but a sliver",
+    },
 ];
 
 /// Study 1: the pillars.
@@ -191,7 +209,12 @@ pub fn occlusion(opts: &Options, duration_s: f64, out: &mut Outcome) -> crate::e
 
 /// Pillar `k`'s rows, traces (the first pillar's also the particle figure), note and checks.
 fn pillar(opts: &Options, duration_s: f64, k: usize, out: &mut Outcome) -> crate::error::Result<()> {
-    let ((study, width_m), (name, hides)) = (PILLARS[k], PILLAR_WORDS[k]);
+    let Pillar {
+        study,
+        width_m,
+        name,
+        hides,
+    } = PILLARS[k];
     let narrow = k == 0;
     let scene = occlusion_scene(duration_s, width_m);
     for (label, tracker) in [(SEGMENTATION, Tracker::Segmentation), (PARTICLE, particle())] {
