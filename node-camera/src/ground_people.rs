@@ -1,18 +1,21 @@
 //! The camera's paper 004 mode (`[method] camera-tracker = "particle"`): each frame's
 //! foreground regions feed the per-person colour particle filters ([`crate::tracker`]), and
-//! every person tracked becomes a ground-plane [`GroundPoint`] — the mean state's position,
+//! every person tracked becomes a ground-plane [`GroundPoint`] — the mean state's position
+//! (its box's lower edge where the frame's foreground puts it, [`crate::tracker::feet`]),
 //! covariance from the sample spread through the ray geometry, width, height, the
 //! maximum-likelihood state's floor position and confidence, and the colour histogram.
 //! Distributed fusion answers a prior with the one gated to it, quantised, in its
 //! `Contribution` (the head folds it in, [`contribution`]); the others (all of them, in
 //! centralized fusion) leave in one [`PeopleFrame`] per head step ([`PeopleSender`]): each
 //! person quantised ([`GroundPerson`]), its histogram only when new, changed or due for a
-//! refresh. On a
-//! [`proto::msg::SampleRequest`] the camera answers with the filters' sample sets.
+//! refresh. A filter that lost its region at the frame's border (its person walked out) is
+//! not reported. On a [`proto::msg::SampleRequest`] the camera answers with the filters'
+//! sample sets.
 //!
 //! The measurement-level simulation has no frames: its projected boxes are converted to the
 //! ground plane directly ([`GroundPeople::from_boxes`]), with no spread and no histogram.
 
+use crate::tracker::feet;
 use crate::tracker::ground::{self, GroundObservation};
 use crate::tracker::histogram::{BINS, ColourHistogram, KernelCounts};
 use crate::tracker::manager::{Foreground, MultiTracker, PersonEstimate, TrackerError, TrackerInput};
@@ -95,8 +98,12 @@ impl GroundPeople {
         })?;
         let captured = frame.captured;
         self.people.clear();
-        for person in &estimates {
-            if let Some(obs) = ground::observe(camera, person, 1.0, self.corner_sigma_px, captured) {
+        let edges = feet::lower_edges(&estimates, regions, foreground.as_ref());
+        for (person, edge) in estimates.iter().zip(edges) {
+            if left_the_view(person, frame) {
+                continue;
+            }
+            if let Some(obs) = ground::observe(camera, person, edge, 1.0, self.corner_sigma_px, captured) {
                 let ml = ml_position(camera, person).unwrap_or(obs.position);
                 self.people
                     .push(to_point(person.id, person.ml_confidence, obs, ml));
@@ -182,6 +189,20 @@ fn to_point(local: u32, confidence: f32, obs: GroundObservation, ml: [f64; 2]) -
         captured: obs.captured,
         ml_position: ml,
     }
+}
+
+/// Within this many pixels of the frame's border a box touches it.
+const BORDER_PX: f32 = 1.0;
+
+/// A filter that lost its region with its box at the frame's border: its person walked out of
+/// view. The filter lives on for `destroy-frames` (they may step back in), but nothing measures
+/// where it stands any more, and reported it would be a person at the border who is not there.
+/// A filter that lost its region inside the frame (a person hidden) is still reported.
+fn left_the_view(person: &PersonEstimate, frame: &Frame) -> bool {
+    let b = person.mean.bbox();
+    let (w, h) = (frame.width as f32, frame.height as f32);
+    person.unsupported_frames > 0
+        && (b.xmin <= BORDER_PX || b.ymin <= BORDER_PX || b.xmax >= w - BORDER_PX || b.ymax >= h - BORDER_PX)
 }
 
 /// Where the maximum-likelihood state's box stands on the floor (its bottom centre).

@@ -274,3 +274,24 @@ fn a_frame_carries_every_person_quantised_and_leaves_out_impossible_ones() {
     };
     assert_eq!(proto::decode(&proto::encode(&env).unwrap()).unwrap(), env);
 }
+
+#[test]
+fn a_filter_that_lost_its_region_at_the_border_has_left_the_view() {
+    let frame = Frame::new(352, 288, ClusterTime::ZERO);
+    let b = |xmin: f32, xmax: f32| PixelBox {
+        xmin,
+        ymin: 100.0,
+        xmax,
+        ymax: 200.0,
+    };
+    let edge = PersonEstimate::at_box(0, b(330.0, 352.0), None);
+    assert!(left_the_view(&edge, &frame), "no region, at the right border");
+    let left = PersonEstimate::at_box(1, b(-3.0, 20.0), None);
+    assert!(left_the_view(&left, &frame), "no region, over the left border");
+    // Still supported at the border: walking out, but measured.
+    let walking = PersonEstimate::at_box(2, b(330.0, 352.0), Some(0));
+    assert!(!left_the_view(&walking, &frame));
+    // No region inside the frame: hidden (behind a pillar), still reported.
+    let hidden = PersonEstimate::at_box(3, b(150.0, 180.0), None);
+    assert!(!left_the_view(&hidden, &frame));
+}

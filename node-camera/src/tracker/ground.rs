@@ -142,16 +142,29 @@ pub fn to_ground(
 }
 
 /// [`to_ground`] for a tracked person's mean box, its sample spread and target histogram.
+/// `lower_edge` is where the frame's foreground says the person's box ends
+/// ([`crate::tracker::feet`]); it replaces the mean box's lower edge when it lies below the box's
+/// top (the sample spread stays as it is: wider than the measured edge's, so on the safe side).
 /// `scale` maps the tracker's pixels to the camera model's (2 for a half-resolution Bayer
 /// frame, else 1).
 pub fn observe(
     camera: &CameraModel,
     person: &PersonEstimate,
+    lower_edge: Option<f32>,
     scale: f32,
     corner_sigma_px: f64,
     captured: ClusterTime,
 ) -> Option<GroundObservation> {
-    let bbox = person.mean.scaled(scale).bbox();
+    let mut own = person.mean.bbox();
+    if let Some(edge) = lower_edge.filter(|&e| e > own.ymin) {
+        own.ymax = edge;
+    }
+    let bbox = PixelBox {
+        xmin: own.xmin * scale,
+        ymin: own.ymin * scale,
+        xmax: own.xmax * scale,
+        ymax: own.ymax * scale,
+    };
     let s2 = (scale as f64).powi(2);
     let spread = person.box_covariance.map(|row| row.map(|v| v * s2));
     to_ground(

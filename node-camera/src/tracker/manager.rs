@@ -85,6 +85,29 @@ impl<'a> Foreground<'a> {
         Foreground::new(seg.mask(), grid).ok()
     }
 
+    /// The lower edge (frame pixels, continuous) of a person standing in `columns`, found
+    /// between the rows `rows.0..=rows.1`: per grid column the lowest foreground pixel, and
+    /// of those the median, so that a few columns of a neighbour's legs or of noise do not
+    /// move it. `None` when no column has a foreground pixel there.
+    pub fn lowest_edge(&self, columns: (f32, f32), rows: (f32, f32)) -> Option<f32> {
+        let g = &self.grid;
+        let s = g.step as f32;
+        let x0 = (columns.0 / s).ceil().max(0.0) as usize;
+        let x1 = ((columns.1 / s).floor().max(0.0) as usize).min(g.width.saturating_sub(1));
+        let y0 = (rows.0 / s).ceil().max(0.0) as usize;
+        let y1 = ((rows.1 / s).floor().max(0.0) as usize).min(g.height.saturating_sub(1));
+        let mut lowest: Vec<usize> = (x0..=x1)
+            .filter_map(|x| (y0..=y1).rev().find(|&y| self.mask[y * g.width + x] != 0))
+            .collect();
+        if lowest.is_empty() {
+            return None;
+        }
+        let mid = lowest.len() / 2;
+        let (_, &mut y, _) = lowest.select_nth_unstable(mid);
+        // A region's box ends half a pixel below its lowest pixel (`region_box`).
+        Some(y as f32 * s + 0.5)
+    }
+
     /// Share of the grid pixels under `b` (frame pixels) that are foreground; 0 for a box
     /// outside the grid.
     pub fn fraction(&self, b: &PixelBox) -> f32 {
@@ -149,6 +172,35 @@ pub struct PersonEstimate {
     pub frames_tracked: u64,
     /// Consecutive frames without a supporting region.
     pub unsupported_frames: u32,
+    /// This frame's supporting region (index into the input's regions), if any.
+    pub region: Option<usize>,
+}
+
+#[cfg(test)]
+impl PersonEstimate {
+    /// A person at rest filling `bbox`, supported by `region` (tests of what reads estimates).
+    pub(crate) fn at_box(id: LocalId, bbox: PixelBox, region: Option<usize>) -> PersonEstimate {
+        let mut counts = crate::tracker::histogram::KernelCounts::default();
+        counts.bins[0] = 1.0;
+        counts.total = 1.0;
+        let state = State::from_box(&bbox);
+        PersonEstimate {
+            id,
+            mean: state,
+            ml: state,
+            ml_confidence: 1.0,
+            ml_similarity: 1.0,
+            peak_weight: 1.0,
+            foreground: None,
+            bbox,
+            box_covariance: [[0.0; 4]; 4],
+            histogram: ColourHistogram::from_counts(&counts).expect("a histogram with a count"),
+            samples: Vec::new(),
+            frames_tracked: 1,
+            unsupported_frames: u32::from(region.is_none()),
+            region,
+        }
+    }
 }
 
 /// What the tracker did since it started.
@@ -515,6 +567,7 @@ impl MultiTracker {
                     },
                     frames_tracked: f.iterations(),
                     unsupported_frames: q.unsupported,
+                    region: q.region,
                 }
             })
             .collect()

@@ -275,3 +275,37 @@ fn a_corner_floor_keeps_a_collapsed_sample_set_uncertain() {
     assert_eq!(none.cov, [0.0; 3]);
     assert!(floor.cov[0] > 0.0 && floor.cov[2] > 0.0);
 }
+
+#[test]
+fn a_measured_lower_edge_puts_a_filter_on_the_upper_body_where_the_person_stands() {
+    let cam = camera([0.0, 0.0, 3.0], [6.0, 2.0, 0.0], Distortion::default());
+    let (mid, width, height) = ([4.0, 1.0], 0.5, 1.7);
+    let whole = person_box(&cam, mid, width, height);
+    // The filter's box covers the upper half of the person only.
+    let upper = PixelBox {
+        ymax: 0.5 * (whole.ymin + whole.ymax),
+        ..whole
+    };
+    let person = PersonEstimate::at_box(0, upper, Some(0));
+    let at = ClusterTime::from_millis(7);
+    let own = observe(&cam, &person, None, 1.0, 1.0, at).unwrap();
+    let off = (own.position[0] - mid[0]).hypot(own.position[1] - mid[1]);
+    assert!(off > 1.0, "the box's own edge puts them {off:.2} m off");
+    let measured = observe(&cam, &person, Some(whole.ymax), 1.0, 1.0, at).unwrap();
+    assert_close(&measured, mid, width, height, 0.01, "measured edge");
+    // An edge above the box's top is no edge: the box stands as it is.
+    assert_eq!(
+        observe(&cam, &person, Some(upper.ymin - 1.0), 1.0, 1.0, at),
+        Some(own.clone())
+    );
+    // At half resolution the box and the edge scale together.
+    let half = PixelBox {
+        xmin: upper.xmin / 2.0,
+        ymin: upper.ymin / 2.0,
+        xmax: upper.xmax / 2.0,
+        ymax: upper.ymax / 2.0,
+    };
+    let small = PersonEstimate::at_box(0, half, Some(0));
+    let scaled = observe(&cam, &small, Some(whole.ymax / 2.0), 2.0, 1.0, at).unwrap();
+    assert_close(&scaled, mid, width, height, 0.01, "half resolution");
+}

@@ -137,8 +137,9 @@ pub struct FrameRecord {
     /// `observation_bytes` with a deployment's time stamps (nanoseconds since the Unix epoch,
     /// [`WALL_CLOCK_EPOCH`] + the run's time) instead of the run's (from 0).
     pub wall_clock_bytes: usize,
-    /// Bytes of every filter's sample set, were they asked for this frame.
+    /// Bytes of every filter's sample set, were they asked for this frame, and how many sets.
     pub sample_set_bytes: usize,
+    pub sample_sets: usize,
     /// Bytes of the frame as a JPEG, when asked for.
     pub jpeg_bytes: Option<usize>,
 }
@@ -295,6 +296,7 @@ pub fn run(
             every_frame_bytes: 0,
             wall_clock_bytes: 0,
             sample_set_bytes: 0,
+            sample_sets: 0,
             jpeg_bytes: (jpeg_every > 0 && k % jpeg_every == 0)
                 .then(|| jpeg_size(&frame))
                 .transpose()?,
@@ -403,6 +405,7 @@ fn record_people(
     }
     for set in people.samples(None) {
         rec.sample_set_bytes += proto::wire::encode(&envelope(Message::SampleSet(set)))?.len();
+        rec.sample_sets += 1;
     }
     Ok(())
 }
