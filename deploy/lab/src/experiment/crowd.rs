@@ -1,7 +1,8 @@
 //! `ocelli experiment crowd` (issue 16): many people at once. The crowd scenario
 //! (`proto/scenarios/crowd.toml`: the default room's 21 cameras and two heads, ten people —
 //! similar and different colours, crossing, meeting, side by side, one standing still 10 s, two
-//! tagged) at pixel level, per fusion method (distributed and centralized EIF) over seeded runs,
+//! tagged) at pixel level, per fusion method (distributed and centralized EIF) and camera
+//! tracker (segmentation, paper 004's particle filters) over seeded runs,
 //! scored by node-server's report with the standard multi-target metrics (CLEAR MOT, IDF1,
 //! GOSPA, `node_server::metrics`, on the floor with a 1 m threshold), each a mean over the runs
 //! with its 95% interval. A guard row keeps the single-target default scenario's error in
@@ -12,7 +13,7 @@
 use super::runner::{self, Method, ci95, mean_std};
 use super::{Check, Extra, Options, Outcome, Row};
 use node_server::report::{ASSOCIATION_GATE_M, Report};
-use proto::scenario::{Fusion, Scenario};
+use proto::scenario::{CameraTracker, Fusion, Scenario};
 use sim::Level;
 use sim::faults::Faults;
 
@@ -22,10 +23,28 @@ pub const NAME: &str = "crowd";
 pub const SCENARIO_TOML: &str = include_str!("../../../../proto/scenarios/crowd.toml");
 /// Simulated seconds per run.
 pub const DURATION_S: f64 = 60.0;
-/// The methods compared.
-pub const METHODS: [(&str, Fusion); 2] = [
-    ("distributed EIF", Fusion::DistributedEif),
-    ("centralized EIF", Fusion::CentralizedEif),
+/// The methods compared: fusion at the heads, and what the cameras make of their frames.
+pub const METHODS: [(&str, Fusion, CameraTracker); 4] = [
+    (
+        "distributed EIF",
+        Fusion::DistributedEif,
+        CameraTracker::Segmentation,
+    ),
+    (
+        "centralized EIF",
+        Fusion::CentralizedEif,
+        CameraTracker::Segmentation,
+    ),
+    (
+        "distributed EIF, particle cameras",
+        Fusion::DistributedEif,
+        CameraTracker::Particle,
+    ),
+    (
+        "centralized EIF, particle cameras",
+        Fusion::CentralizedEif,
+        CameraTracker::Particle,
+    ),
 ];
 /// The guard row's label.
 pub const GUARD: &str = "guard: default scenario, one robot (distributed EIF)";
@@ -114,9 +133,10 @@ pub fn row(method: &str, people: usize, scores: &[RunScore]) -> Row {
     }
 }
 
-fn method_on(scenario: &Scenario, label: &str, fusion: Fusion) -> Method {
+fn method_on(scenario: &Scenario, label: &str, fusion: Fusion, cameras: CameraTracker) -> Method {
     let mut scenario = scenario.clone();
     scenario.method.fusion = fusion;
+    scenario.method.camera_tracker = cameras;
     Method {
         label: label.to_string(),
         scenario,
@@ -143,8 +163,8 @@ pub fn run(opts: &Options) -> crate::Result<Outcome> {
     let base = scenario()?;
     let people = world::targets(&base)?.len();
     let mut out = Outcome::new(NAME, level, opts, duration_s);
-    for (label, fusion) in METHODS {
-        let m = method_on(&base, label, fusion);
+    for (label, fusion, cameras) in METHODS {
+        let m = method_on(&base, label, fusion, cameras);
         let mut scores = Vec::new();
         for k in 0..out.runs {
             let seed = opts.seed.wrapping_add(u64::from(k));
@@ -153,7 +173,12 @@ pub fn run(opts: &Options) -> crate::Result<Outcome> {
         }
         out.rows.push(row(label, people, &scores));
     }
-    let guard = method_on(&Scenario::default_scenario(), GUARD, Fusion::DistributedEif);
+    let guard = method_on(
+        &Scenario::default_scenario(),
+        GUARD,
+        Fusion::DistributedEif,
+        CameraTracker::Segmentation,
+    );
     out.rows
         .push(runner::run_method(&guard, opts, level, duration_s)?.row);
     out.shape = goals(&out, people);
@@ -164,7 +189,7 @@ pub fn run(opts: &Options) -> crate::Result<Outcome> {
 /// Issue 16's goals, checked on the rows (they are goals: they may fail).
 fn goals(out: &Outcome, people: usize) -> Vec<Check> {
     let mut checks = Vec::new();
-    for (label, _) in METHODS {
+    for (label, _, _) in METHODS {
         let r = out.row(label);
         let (mota, idf1, ids) = (extra(r, "MOTA"), extra(r, "IDF1"), extra(r, "global ids"));
         checks.push(Check::new(
@@ -190,7 +215,7 @@ fn goals(out: &Outcome, people: usize) -> Vec<Check> {
 fn notes(people: usize, duration_s: f64) -> Vec<String> {
     vec![
         format!(
-            "Scenario: proto/scenarios/crowd.toml — the default room's 21 cameras (352x288, adaptive-background segmentation) and two heads, {people} people 1.6-1.8 m tall: two reds and two greens of similar colour, two crossing diagonals, two greens side by side 0.6 m apart through the cluster boundary, two who meet and stand together 3 s, one who stands still 10 s every lap, two tagged; {duration_s:.0} s per run."
+            "Scenario: proto/scenarios/crowd.toml — the default room's 21 cameras (352x288, adaptive-background segmentation; with particle cameras, paper 004's colour particle filters on its regions, each person sent as a floor position) and two heads, {people} people 1.6-1.8 m tall: two reds and two greens of similar colour, two crossing diagonals, two greens side by side 0.6 m apart through the cluster boundary, two who meet and stand together 3 s, one who stands still 10 s every lap, two tagged; {duration_s:.0} s per run."
         ),
         "Metrics: node-server's report (node_server::metrics) on frames one filter step apart after 2 s of warm-up, on the floor with a 1 m threshold; each a mean over the runs with the 95% half-width of that mean (Student's t over the runs). `global ids` counts every global id the server gave, `false tracks` the global tracks farther than 2 m on average from every person, `min coverage` the smallest share of frames any person was tracked in over all runs.".into(),
         "Guard: the default scenario (one robot) with distributed EIF at the same level, duration and seeds; its error column is the report's 3-D error of the robot's tracks.".into(),
