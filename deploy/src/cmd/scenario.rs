@@ -49,6 +49,11 @@ pub enum Action {
         size: String,
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// What the cameras make of their frames: `particle` (paper 004's colour particle
+        /// filters, each person sent as a floor position) or `segmentation` (regions sent as
+        /// pin-hole points).
+        #[arg(long, default_value = "particle", value_parser = ["particle", "segmentation"])]
+        camera_tracker: String,
     },
     /// Print a deployment replaying one trajectory of the BLE RSSI dataset: one radio-only node
     /// per sensor at its surveyed position, one head tracking from RSSI alone (the law fitted
@@ -136,7 +141,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
             people,
             size,
             seed,
+            camera_tracker,
         } => {
+            use proto::scenario::CameraTracker;
             use world::generate::{HallSpec, coverage, generate};
             let parse = |v: Option<&str>| v.and_then(|v| v.trim().parse::<f64>().ok());
             let mut it = size.split('x');
@@ -149,6 +156,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 people,
                 size: [w, d],
                 seed,
+                camera_tracker: if camera_tracker == "segmentation" {
+                    CameraTracker::Segmentation
+                } else {
+                    CameraTracker::Particle
+                },
                 ..HallSpec::default()
             };
             let (s, text) = generate(&spec)?;
