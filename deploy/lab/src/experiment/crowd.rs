@@ -219,7 +219,7 @@ fn notes(people: usize, duration_s: f64) -> Vec<String> {
         ),
         "Metrics: node-server's report (node_server::metrics) on frames one filter step apart after 2 s of warm-up, on the floor with a 1 m threshold; each a mean over the runs with the 95% half-width of that mean (Student's t over the runs). `global ids` counts every global id the server gave, `false tracks` the global tracks farther than 2 m on average from every person, `min coverage` the smallest share of frames any person was tracked in over all runs.".into(),
         "Guard: the default scenario (one robot) with distributed EIF at the same level, duration and seeds; its error column is the report's 3-D error of the robot's tracks.".into(),
-        "Where the errors come from (docs/multi-target.md): people whose regions merge in a view are one detection, which the camera gives to one nearby track while the others coast; a person who walks beside another for long is lost to that track, and the head's merge rules do not undo that.".into(),
+        "Where the errors come from (docs/multi-target.md): people whose regions merge in a view are one detection, which the camera gives to one nearby track while the others coast; a person who walks beside another for long is lost to that track, and the head's merge rules do not undo that. Particle cameras keep a filter per person through a merge, but place each person from one view: a hidden person's columns may end at a nearer one's feet, a metre off, the likely (not traced) source of their extra global ids.".into(),
     ]
 }
 
