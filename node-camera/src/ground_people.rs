@@ -3,13 +3,14 @@
 //! every person tracked becomes a ground-plane [`GroundPoint`] — the mean state's position
 //! (its box's lower edge where the frame's foreground puts it, [`crate::tracker::feet`]),
 //! covariance from the sample spread through the ray geometry, width, height, the
-//! maximum-likelihood state's floor position and confidence, and the colour histogram.
+//! maximum-likelihood state's floor position (its own box's) and confidence, and the colour
+//! histogram.
 //! Distributed fusion answers a prior with the one gated to it, quantised, in its
 //! `Contribution` (the head folds it in, [`contribution`]); the others (all of them, in
 //! centralized fusion) leave in one [`PeopleFrame`] per head step ([`PeopleSender`]): each
 //! person quantised ([`GroundPerson`]), its histogram only when new, changed or due for a
-//! refresh. A filter that lost its region at the frame's border (its person walked out) is
-//! not reported. On a [`proto::msg::SampleRequest`] the camera answers with the filters'
+//! refresh. A filter that lost its region at a border it was moving towards (its person
+//! walked out) is not reported. On a [`proto::msg::SampleRequest`] the camera answers with the filters'
 //! sample sets.
 //!
 //! The measurement-level simulation has no frames: its projected boxes are converted to the
@@ -100,7 +101,7 @@ impl GroundPeople {
         self.people.clear();
         let edges = feet::lower_edges(&estimates, regions, foreground.as_ref());
         for (person, edge) in estimates.iter().zip(edges) {
-            if left_the_view(person, frame) {
+            if walked_out_of_view(person, frame) {
                 continue;
             }
             if let Some(obs) = ground::observe(camera, person, edge, 1.0, self.corner_sigma_px, captured) {
@@ -193,16 +194,25 @@ fn to_point(local: u32, confidence: f32, obs: GroundObservation, ml: [f64; 2]) -
 
 /// Within this many pixels of the frame's border a box touches it.
 const BORDER_PX: f32 = 1.0;
+/// Slowest speed towards a border, pixels per frame, that counts as walking out through it.
+const OUTWARD_PX_PER_FRAME: f32 = 0.25;
 
-/// A filter that lost its region with its box at the frame's border: its person walked out of
-/// view. The filter lives on for `destroy-frames` (they may step back in), but nothing measures
-/// where it stands any more, and reported it would be a person at the border who is not there.
-/// A filter that lost its region inside the frame (a person hidden) is still reported.
-fn left_the_view(person: &PersonEstimate, frame: &Frame) -> bool {
-    let b = person.mean.bbox();
+/// A filter that lost its region with its box at a border it was moving towards: its person
+/// walked out of view. The filter lives on for `destroy-frames` (they may step back in), but
+/// nothing measures where it stands any more, and reported it would be a person at the border
+/// who is not there. A filter that lost its region inside the frame (a person hidden), or at a
+/// border it was not moving towards (someone standing at the edge of the view, faded into the
+/// background), is still reported.
+fn walked_out_of_view(person: &PersonEstimate, frame: &Frame) -> bool {
+    let m = &person.mean;
+    let b = m.bbox();
     let (w, h) = (frame.width as f32, frame.height as f32);
+    let v = OUTWARD_PX_PER_FRAME;
     person.unsupported_frames > 0
-        && (b.xmin <= BORDER_PX || b.ymin <= BORDER_PX || b.xmax >= w - BORDER_PX || b.ymax >= h - BORDER_PX)
+        && ((b.xmin <= BORDER_PX && m.vx < -v)
+            || (b.ymin <= BORDER_PX && m.vy < -v)
+            || (b.xmax >= w - BORDER_PX && m.vx > v)
+            || (b.ymax >= h - BORDER_PX && m.vy > v))
 }
 
 /// Where the maximum-likelihood state's box stands on the floor (its bottom centre).

@@ -3,7 +3,7 @@
 
 use anyhow::Result;
 use proto::models::{RssiModel, fit_log_distance};
-use proto::scenario::{DEFAULT_SCENARIO_TOML, Scenario};
+use proto::scenario::{CameraTracker, DEFAULT_SCENARIO_TOML, Scenario};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use world::radio::{SURVEY_READINGS_PER_PAIR, survey};
@@ -12,6 +12,24 @@ use world::radio::{SURVEY_READINGS_PER_PAIR, survey};
 pub struct Args {
     #[command(subcommand)]
     pub action: Action,
+}
+
+/// `--camera-tracker`: what a generated hall's cameras make of their frames.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TrackerArg {
+    /// Paper 004's colour particle filters, each person sent as a floor position.
+    Particle,
+    /// Segmented regions, each sent as a pin-hole point.
+    Segmentation,
+}
+
+impl From<TrackerArg> for CameraTracker {
+    fn from(t: TrackerArg) -> CameraTracker {
+        match t {
+            TrackerArg::Particle => CameraTracker::Particle,
+            TrackerArg::Segmentation => CameraTracker::Segmentation,
+        }
+    }
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -49,11 +67,9 @@ pub enum Action {
         size: String,
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// What the cameras make of their frames: `particle` (paper 004's colour particle
-        /// filters, each person sent as a floor position) or `segmentation` (regions sent as
-        /// pin-hole points).
-        #[arg(long, default_value = "particle", value_parser = ["particle", "segmentation"])]
-        camera_tracker: String,
+        /// What the cameras make of their frames.
+        #[arg(long, value_enum, default_value_t = TrackerArg::Particle)]
+        camera_tracker: TrackerArg,
     },
     /// Print a deployment replaying one trajectory of the BLE RSSI dataset: one radio-only node
     /// per sensor at its surveyed position, one head tracking from RSSI alone (the law fitted
@@ -143,7 +159,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
             seed,
             camera_tracker,
         } => {
-            use proto::scenario::CameraTracker;
             use world::generate::{HallSpec, coverage, generate};
             let parse = |v: Option<&str>| v.and_then(|v| v.trim().parse::<f64>().ok());
             let mut it = size.split('x');
@@ -156,11 +171,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 people,
                 size: [w, d],
                 seed,
-                camera_tracker: if camera_tracker == "segmentation" {
-                    CameraTracker::Segmentation
-                } else {
-                    CameraTracker::Particle
-                },
+                camera_tracker: camera_tracker.into(),
                 ..HallSpec::default()
             };
             let (s, text) = generate(&spec)?;

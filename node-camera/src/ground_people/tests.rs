@@ -276,22 +276,40 @@ fn a_frame_carries_every_person_quantised_and_leaves_out_impossible_ones() {
 }
 
 #[test]
-fn a_filter_that_lost_its_region_at_the_border_has_left_the_view() {
+fn a_filter_that_lost_its_region_at_a_border_it_moved_towards_walked_out() {
     let frame = Frame::new(352, 288, ClusterTime::ZERO);
-    let b = |xmin: f32, xmax: f32| PixelBox {
-        xmin,
-        ymin: 100.0,
-        xmax,
-        ymax: 200.0,
+    let at = |id: u32, xmin: f32, xmax: f32, ymax: f32, v: [f32; 2], region: Option<usize>| {
+        let mut p = PersonEstimate::at_box(
+            id,
+            PixelBox {
+                xmin,
+                ymin: 100.0,
+                xmax,
+                ymax,
+            },
+            region,
+        );
+        (p.mean.vx, p.mean.vy) = (v[0], v[1]);
+        p
     };
-    let edge = PersonEstimate::at_box(0, b(330.0, 352.0), None);
-    assert!(left_the_view(&edge, &frame), "no region, at the right border");
-    let left = PersonEstimate::at_box(1, b(-3.0, 20.0), None);
-    assert!(left_the_view(&left, &frame), "no region, over the left border");
-    // Still supported at the border: walking out, but measured.
-    let walking = PersonEstimate::at_box(2, b(330.0, 352.0), Some(0));
-    assert!(!left_the_view(&walking, &frame));
-    // No region inside the frame: hidden (behind a pillar), still reported.
-    let hidden = PersonEstimate::at_box(3, b(150.0, 180.0), None);
-    assert!(!left_the_view(&hidden, &frame));
+    let walked = [
+        at(0, 330.0, 352.0, 200.0, [2.0, 0.0], None),
+        at(1, -3.0, 20.0, 200.0, [-1.0, 0.5], None),
+        at(2, 150.0, 180.0, 288.0, [0.0, 1.5], None),
+    ];
+    for p in &walked {
+        assert!(walked_out_of_view(p, &frame), "{}: no region, moving out", p.id);
+    }
+    let stayed = [
+        // Still supported at the border: walking out, but measured.
+        at(3, 330.0, 352.0, 200.0, [2.0, 0.0], Some(0)),
+        // No region inside the frame: hidden (behind a pillar), still reported.
+        at(4, 150.0, 180.0, 200.0, [2.0, 0.0], None),
+        // No region at the bottom border, standing (faded into the background) or walking in.
+        at(5, 150.0, 180.0, 288.0, [0.0, 0.1], None),
+        at(6, 330.0, 352.0, 200.0, [-1.0, 0.0], None),
+    ];
+    for p in &stayed {
+        assert!(!walked_out_of_view(p, &frame), "{}", p.id);
+    }
 }

@@ -5,14 +5,13 @@
 //! colour likelihood does not pin the row: a box on the upper half of a uniformly coloured
 //! person matches as well as one over all of them, so the mean box's lower edge wanders over
 //! the body, and a few rows too high put the person a metre or more behind where they stand.
-//! The foreground measured in the same frame does pin it:
-//! - a region that supports this filter alone: the region's lower edge;
-//! - a region several filters share (people merged in this view): per column of the filter's
-//!   box inside the region, the lowest foreground pixel between the filter's top and the
-//!   region's bottom, and the median of those (a neighbour's legs under a few columns do not
-//!   move it);
-//! - no region (the person is hidden or gone), or no foreground mask: the filter's own box, as
-//!   the paper has it.
+//! The foreground measured in the same frame does pin it, in the region that supports the
+//! filter: per column of the filter's box inside the region, the lowest foreground pixel
+//! below the filter's top, and the median of those columns. The median keeps a neighbour's
+//! legs under a few columns, or a shadow or a newcomer merged into the region beside the
+//! person, from moving it. Without a mask, a region only this filter holds gives its own lower
+//! edge (a region several share says nothing of who stands lowest). With no region (the person
+//! is hidden or gone) the filter's own box stands, as the paper has it.
 //!
 //! Measured in `ocelli experiment paper004` (docs/paper004.md, "Where the feet are").
 
@@ -32,13 +31,16 @@ pub fn lower_edges(
         .map(|person| {
             let r = person.region?;
             let region = region_box(regions.get(r)?);
-            let sharing = people.iter().filter(|q| q.region == Some(r)).count();
-            if sharing == 1 {
-                return Some(region.ymax);
-            }
             let b = person.mean.bbox();
             let columns = (b.xmin.max(region.xmin), b.xmax.min(region.xmax));
-            foreground?.lowest_edge(columns, (b.ymin.max(region.ymin), region.ymax))
+            let rows = (b.ymin.max(region.ymin), region.ymax);
+            match foreground {
+                Some(fg) => fg.lowest_edge(columns, rows),
+                None => {
+                    let alone = people.iter().filter(|q| q.region == Some(r)).count() == 1;
+                    alone.then_some(region.ymax)
+                }
+            }
         })
         .map(|edge| edge.filter(|e| e.is_finite()))
         .collect()

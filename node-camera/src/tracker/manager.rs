@@ -91,11 +91,14 @@ impl<'a> Foreground<'a> {
     /// move it. `None` when no column has a foreground pixel there.
     pub fn lowest_edge(&self, columns: (f32, f32), rows: (f32, f32)) -> Option<f32> {
         let g = &self.grid;
+        if g.is_empty() {
+            return None;
+        }
         let s = g.step as f32;
         let x0 = (columns.0 / s).ceil().max(0.0) as usize;
-        let x1 = ((columns.1 / s).floor().max(0.0) as usize).min(g.width.saturating_sub(1));
+        let x1 = ((columns.1 / s).floor().max(0.0) as usize).min(g.width - 1);
         let y0 = (rows.0 / s).ceil().max(0.0) as usize;
-        let y1 = ((rows.1 / s).floor().max(0.0) as usize).min(g.height.saturating_sub(1));
+        let y1 = ((rows.1 / s).floor().max(0.0) as usize).min(g.height - 1);
         let mut lowest: Vec<usize> = (x0..=x1)
             .filter_map(|x| (y0..=y1).rev().find(|&y| self.mask[y * g.width + x] != 0))
             .collect();
@@ -104,8 +107,10 @@ impl<'a> Foreground<'a> {
         }
         let mid = lowest.len() / 2;
         let (_, &mut y, _) = lowest.select_nth_unstable(mid);
-        // A region's box ends half a pixel below its lowest pixel (`region_box`).
-        Some(y as f32 * s + 0.5)
+        // A grid pixel stands for the `step` frame rows from its own, as a region's box does
+        // (`RegionStats`), and a region's box ends half a pixel below its last row
+        // (`region_box`): the same edge either way.
+        Some(((y + 1) * g.step) as f32 - 0.5)
     }
 
     /// Share of the grid pixels under `b` (frame pixels) that are foreground; 0 for a box

@@ -634,7 +634,7 @@ pub fn bandwidth(crowd: &[CameraRun], stream: &[CameraRun], out: &mut Outcome) {
         format!("{s:.0} B/s per filter at {FPS} fps"),
     ));
     out.notes.push(format!(
-        "Bandwidth: the crowd's particle runs ({:.0} s of frames, {:.2} people in view and {:.2} reported per frame on average) and the stream's frames with five or more people in view ({:.0} s, {:.2} in view, {:.2} reported). Ground observations are the people frames the camera core sends (`node_camera::ground_people::PeopleSender`, protocol encoding with its envelope): one per head step ({} ms) with the newest frame's people, quantised, {:.0} bytes per person sent in the crowd and {:.0} in the stream's, the colour histogram with a person's first frame and then only when it changed (Bhattacharyya distance > {}, at most every {} s) or every {} s ({:.2} and {:.2} histograms/s); time stamps count from the run's start, with a deployment's (nanoseconds since the Unix epoch) the stream's are {:.0} B/s. `had every frame been sent` is the same message at every frame ({FPS} fps), not what the camera does. Per person is per person reported, for the sample sets per filter (a filter whose person walked out of view is not reported in its last frames). Sample sets are every filter's SampleSet envelope every frame (100 samples of 7 f32), which the camera sends only on request; raw is 8-bit RGB; JPEG is the `image` crate's baseline encoder at quality {} on every {FPS}th frame. Paper: about 15 kB/s per camera for 100 samples; raw VGA at 15 fps is 37 Mbit/s (8-bit Bayer).",
+        "Bandwidth: the crowd's particle runs ({:.0} s of frames, {:.2} people in view and {:.2} reported per frame on average) and the stream's frames with five or more people in view ({:.0} s, {:.2} in view, {:.2} reported). Ground observations are the people frames the camera core sends (`node_camera::ground_people::PeopleSender`, protocol encoding with its envelope): one per head step ({} ms) with the newest frame's people, quantised, {:.0} bytes per person sent in the crowd and {:.0} in the stream's, the colour histogram with a person's first frame and then only when it changed (Bhattacharyya distance > {}, at most every {} s) or every {} s ({:.2} and {:.2} histograms/s); time stamps count from the run's start, with a deployment's (nanoseconds since the Unix epoch) the stream's are {:.0} B/s. `had every frame been sent` is the same message at every frame ({FPS} fps), not what the camera does. Per person is per person reported, for the sample sets per filter ({:.2} filters per frame in the crowd: a filter whose person walked out of view is not reported in its last frames). Sample sets are every filter's SampleSet envelope every frame (100 samples of 7 f32), which the camera sends only on request; raw is 8-bit RGB; JPEG is the `image` crate's baseline encoder at quality {} on every {FPS}th frame. Paper: about 15 kB/s per camera for 100 samples; raw VGA at 15 fps is 37 Mbit/s (8-bit Bayer).",
         c.seconds,
         c.in_view,
         c.reported,
@@ -650,6 +650,7 @@ pub fn bandwidth(crowd: &[CameraRun], stream: &[CameraRun], out: &mut Outcome) {
         nan(c.histograms_per_s),
         nan(f.histograms_per_s),
         nan(f.wall_clock),
+        c.filters,
         camera::JPEG_QUALITY
     ));
 }
