@@ -10,8 +10,8 @@
 //! centralized fusion) leave in one [`PeopleFrame`] per head step ([`PeopleSender`]): each
 //! person quantised ([`GroundPerson`]), its histogram only when new, changed or due for a
 //! refresh. A filter that lost its region at a border it was moving towards (its person
-//! walked out) is not reported. On a [`proto::msg::SampleRequest`] the camera answers with the filters'
-//! sample sets.
+//! walked out) is not reported. On a [`proto::msg::SampleRequest`] the camera answers with
+//! the filters' sample sets.
 //!
 //! The measurement-level simulation has no frames: its projected boxes are converted to the
 //! ground plane directly ([`GroundPeople::from_boxes`]), with no spread and no histogram.
