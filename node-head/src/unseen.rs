@@ -199,11 +199,6 @@ mod tests {
     use super::*;
     use proto::observation::RssiReading;
 
-    const MODEL: RssiModel = RssiModel::LogDistance {
-        a: -22.0,
-        b: -45.0,
-        variance: 16.0,
-    };
     const ROOM: ([f64; 3], [f64; 3]) = ([0.0, 0.0, 0.0], [12.0, 8.0, 3.0]);
 
     fn nodes() -> Vec<Vector3<f64>> {
@@ -218,18 +213,20 @@ mod tests {
 
     #[test]
     fn the_fix_of_noiseless_readings_lies_on_the_tag() {
+        // The literature model (paper 002 eq. 2), as the crowd scenario's `rssi-default`.
+        let model = RssiModel::default();
         let tag = Vector3::new(8.0, 3.0, 0.9);
         let readings: Vec<(Vector3<f64>, f64)> = nodes()
             .into_iter()
-            .map(|n| (n, MODEL.predict((tag - n).norm())))
+            .map(|n| (n, model.predict((tag - n).norm())))
             .collect();
-        let (p, cov) = fix(ROOM, &[], &MODEL, 0.9, &readings).unwrap();
+        let (p, cov) = fix(ROOM, &[], &model, 0.9, &readings).unwrap();
         assert!((p - Vector2::new(8.0, 3.0)).norm() < 0.3, "fix {p:?}");
         assert!(cov[(0, 0)] >= FIX_FLOOR_VAR_M2 && cov[(1, 1)] >= FIX_FLOOR_VAR_M2);
         // σ about 1.5 m: six nodes at 4 dB place a tag no better.
         assert!(cov[(0, 0)] < 4.0 && cov[(1, 1)] < 4.0, "{cov:?}");
         // Two nodes are no fix.
-        assert!(fix(ROOM, &[], &MODEL, 0.9, &readings[..2]).is_none());
+        assert!(fix(ROOM, &[], &model, 0.9, &readings[..2]).is_none());
     }
 
     fn heard(slot: usize, tag: u64, dbm: f64, ms: i64) -> Heard {

@@ -14,6 +14,14 @@ fn first_prior(out: &[Outgoing]) -> Option<Prior> {
     })
 }
 
+/// The first track report among a head's outgoing messages.
+fn first_report(out: &[Outgoing]) -> Option<proto::msg::TrackReport> {
+    out.iter().find_map(|o| match &o.body {
+        Message::TrackReport(r) => Some(r.clone()),
+        _ => None,
+    })
+}
+
 /// Information that changes nothing (Ω_i = 0, ξ_i = 0), folded from a pin-hole point.
 fn zero_information() -> Option<proto::msg::Information> {
     Some(proto::msg::Information {
@@ -118,13 +126,7 @@ fn handover_starts_a_track_that_reports_its_global_id_and_leaves_again() {
     assert!(awake > 0);
     assert_eq!(priors, awake);
     let out = h.tick(ClusterTime::from_millis(281));
-    let report = out
-        .iter()
-        .find_map(|o| match &o.body {
-            Message::TrackReport(r) => Some(r.clone()),
-            _ => None,
-        })
-        .unwrap();
+    let report = first_report(&out).unwrap();
     assert_eq!(report.global, Some(TargetId(7)));
     assert_eq!(h.last_step().prediction_only, 1);
     assert!(!h.last_step().complete);
@@ -718,13 +720,7 @@ fn a_contribution_with_a_ground_person_is_folded_in_at_the_head() {
         }
         h.on_message(t1, env(node.0, Message::Answers(c)));
         let out = h.tick(ClusterTime::from_millis(281));
-        let report = out
-            .iter()
-            .find_map(|o| match &o.body {
-                Message::TrackReport(r) => Some(r.clone()),
-                _ => None,
-            })
-            .expect("a report");
+        let report = first_report(&out).expect("a report");
         (*h.tracks()[0].filter.mean(), report.contributors)
     };
     let (carried, who) = run(true);

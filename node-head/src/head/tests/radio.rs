@@ -193,13 +193,7 @@ fn an_unseen_tag_gets_a_radio_track_at_its_fix_with_unseen_tags_on() {
     // The server names it (a handover from no head, its own report's posterior): it takes the
     // global id, and no second track starts.
     let radio_local = h.tracks()[0].local;
-    let report = out
-        .iter()
-        .find_map(|o| match &o.body {
-            Message::TrackReport(r) => Some(r.clone()),
-            _ => None,
-        })
-        .unwrap();
+    let report = first_report(&out).unwrap();
     let naming = Message::Handover(Handover {
         global: TargetId(42),
         to_head: NodeId(2),
