@@ -2,9 +2,11 @@
 //! [`MultiTracker::step`] on synthetic frames ([`Scene::crowd`]: coloured people moving over a
 //! noisy background), with each person's true box as its foreground region and a foreground
 //! mask drawn from the same boxes. Drawing the frames is not timed; neither is the background
-//! model (`adaptive_background`, timed on its own).
+//! model (`adaptive_background`, timed on its own). The feet ([`crate::tracker::feet`]: each
+//! person's lower edge in the mask) are timed apart, on the step's people.
 
 use crate::region::Grid;
+use crate::tracker::feet;
 use crate::tracker::manager::{Foreground, MultiTracker, TrackerInput};
 use crate::tracker::params::ParticleParams;
 use crate::tracker::scene::Scene;
@@ -22,18 +24,10 @@ const WARMUP_FRAMES: u32 = 5;
 pub struct BenchResult {
     pub median_ms: f64,
     pub p90_ms: f64,
+    /// Median microseconds per frame of the people's lower edges ([`feet::lower_edges`]).
+    pub feet_median_us: f64,
     /// Filters running at the end (should equal the people drawn).
     pub filters: usize,
-}
-
-/// Median milliseconds per frame for `people` people × `particles` particles at
-/// `width × height`, over `frames` timed frames, with the paper's other parameters.
-pub fn bench(width: u32, height: u32, people: usize, particles: usize, frames: usize) -> f64 {
-    let params = ParticleParams {
-        particles: particles.max(1),
-        ..ParticleParams::default()
-    };
-    bench_with(&params, width, height, people, frames).median_ms
 }
 
 fn region(b: &PixelBox) -> Detection {
@@ -53,8 +47,9 @@ fn region(b: &PixelBox) -> Detection {
     }
 }
 
-/// [`bench`] with any parameters, timed by the wall clock; also the 90th percentile and the
-/// filters running.
+/// Median milliseconds per frame for `people` people with `params` at `width × height`, over
+/// `frames` timed frames, timed by the wall clock; also the 90th percentile, the feet's time
+/// and the filters running.
 #[allow(clippy::disallowed_methods)] // a bench reads the clock; the tracker it times does not
 pub fn bench_with(
     params: &ParticleParams,
@@ -85,12 +80,14 @@ pub fn bench_timed(
         return BenchResult {
             median_ms: f64::NAN,
             p90_ms: f64::NAN,
+            feet_median_us: f64::NAN,
             filters: 0,
         };
     };
     let mut frame = Frame::new(w, h, ClusterTime::ZERO);
     let mut mask = vec![0u8; grid.len()];
     let mut times = Vec::with_capacity(frames);
+    let mut feet_times = Vec::with_capacity(frames);
     for t in 0..WARMUP_FRAMES + frames.max(1) as u32 {
         scene.render(t, &mut frame);
         let boxes: Vec<PixelBox> = (0..people).map(|i| scene.box_at(i, t)).collect();
@@ -103,24 +100,31 @@ pub fn bench_timed(
                 mask[row + b.xmin as usize..=row + (b.xmax as usize).min(w as usize - 1)].fill(1);
             }
         }
+        let foreground = Foreground::new(&mask, grid).ok();
         let input = TrackerInput {
             frame: &frame,
             regions: &regions,
-            foreground: Foreground::new(&mask, grid).ok(),
+            foreground,
             with_samples: false,
         };
         let start = now_ms();
         let out = tracker.step(&input);
         let elapsed = now_ms() - start;
-        std::hint::black_box(out).ok();
+        let people = std::hint::black_box(out).unwrap_or_default();
+        let start = now_ms();
+        std::hint::black_box(feet::lower_edges(&people, &regions, foreground.as_ref()));
+        let feet_elapsed = now_ms() - start;
         if t >= WARMUP_FRAMES {
             times.push(elapsed);
+            feet_times.push(feet_elapsed);
         }
     }
     times.sort_by(f64::total_cmp);
+    feet_times.sort_by(f64::total_cmp);
     BenchResult {
         median_ms: times[times.len() / 2],
         p90_ms: times[(times.len() * 9 / 10).min(times.len() - 1)],
+        feet_median_us: feet_times[feet_times.len() / 2] * 1e3,
         filters: tracker.ids().len(),
     }
 }
@@ -138,6 +142,7 @@ mod tests {
         let r = bench_with(&params, 160, 120, 3, 3);
         assert_eq!(r.filters, 3);
         assert!(r.median_ms.is_finite() && r.median_ms >= 0.0 && r.p90_ms >= r.median_ms);
-        assert!(bench(64, 48, 0, 10, 2).is_finite());
+        assert!(r.feet_median_us.is_finite() && r.feet_median_us >= 0.0);
+        assert!(bench_with(&params, 64, 48, 0, 2).median_ms.is_finite());
     }
 }

@@ -1,10 +1,12 @@
 //! Paper 004's camera path for `ocelli bench camera`: milliseconds per frame of the colour
 //! particle filters (`node_camera::tracker::bench`: 1, 5 or 10 people × 100 particles at
-//! 320×240 and 640×480, drawing excluded) and the adaptive background model's frames per
+//! 320×240 and 640×480, drawing excluded; and the people's lower edges in the mask,
+//! `node_camera::tracker::feet`, in microseconds) and the adaptive background model's frames per
 //! second at 320×240 on the same synthetic crowd. Keys are added to the camera bench's JSON.
 
 use node_camera::adaptive_background::{AdaptiveBackground, AdaptiveBackgroundParams};
-use node_camera::tracker::bench::bench;
+use node_camera::tracker::bench::bench_with;
+use node_camera::tracker::params::ParticleParams;
 use node_camera::tracker::scene::Scene;
 use proto::ClusterTime;
 use proto::sensor::Frame;
@@ -16,13 +18,22 @@ const SIZES: [(u32, u32); 2] = [(320, 240), (640, 480)];
 const PEOPLE: [usize; 3] = [1, 5, 10];
 const PARTICLES: usize = 100;
 
-/// `pf_ms_per_frame_{W}x{H}_{N}x100` for every size and crowd (median over `frames` frames).
+/// `pf_ms_per_frame_{W}x{H}_{N}x100` and `feet_us_per_frame_{W}x{H}_{N}` for every size and
+/// crowd (medians over `frames` frames).
 pub fn particle_filter_keys(frames: usize) -> Map<String, Value> {
+    let params = ParticleParams {
+        particles: PARTICLES,
+        ..ParticleParams::default()
+    };
     let mut out = Map::new();
     for (w, h) in SIZES {
         for n in PEOPLE {
-            let ms = bench(w, h, n, PARTICLES, frames.max(5));
-            out.insert(format!("pf_ms_per_frame_{w}x{h}_{n}x{PARTICLES}"), json!(ms));
+            let r = bench_with(&params, w, h, n, frames.max(5));
+            out.insert(
+                format!("pf_ms_per_frame_{w}x{h}_{n}x{PARTICLES}"),
+                json!(r.median_ms),
+            );
+            out.insert(format!("feet_us_per_frame_{w}x{h}_{n}"), json!(r.feet_median_us));
         }
     }
     out
@@ -62,8 +73,9 @@ mod tests {
     #[test]
     fn every_particle_key_is_a_finite_time_and_the_background_runs() {
         let keys = particle_filter_keys(1);
-        assert_eq!(keys.len(), 6);
+        assert_eq!(keys.len(), 12);
         assert!(keys.contains_key("pf_ms_per_frame_640x480_10x100"));
+        assert!(keys.contains_key("feet_us_per_frame_640x480_10"));
         assert!(
             keys.values()
                 .all(|v| v.as_f64().is_some_and(|x| x.is_finite() && x >= 0.0))
