@@ -12,6 +12,7 @@ use crate::activation::Planner;
 use crate::association::Detection;
 use crate::config::{HeadConfig, NodeInfo};
 use crate::fusion::{self, Fusion};
+use crate::lifecycle::{Ending, ending_at_open};
 use crate::stats::{Counters, StepStats};
 use crate::step::{Offer, StepWindow};
 use crate::track::Track;
@@ -585,7 +586,7 @@ impl HeadNode {
         if let Some(i) = self.nearest_unnamed(&mean, &cov, naming) {
             let t = &mut self.tracks[i];
             t.global = Some(h.global);
-            t.confirmed = true;
+            t.confirm();
             return;
         }
         let local = self.alloc_local();
@@ -674,19 +675,22 @@ impl HeadNode {
         let bounds = self.cfg.bounds;
         let mut left = 0;
         self.tracks.retain(|t| {
-            let silent = now - t.last_seen > timeout;
-            if silent && t.radio == Some(crate::track::Radio::Search) {
-                debug!(target = %t.local, "radio search track timed out");
-            } else if silent {
-                info!(target = %t.local, "track silent too long; dropped");
-            }
             let p = t.position();
-            let outside = !crate::association::within(&p, bounds, OUTSIDE_MARGIN_M, 2);
-            if outside && !silent {
-                left += 1;
-                info!(target = %t.local, x = p[0], y = p[1], "track left the world; dropped");
+            let inside = crate::association::within(&p, bounds, OUTSIDE_MARGIN_M, 2);
+            match ending_at_open(now - t.last_seen, timeout, inside) {
+                None => return true,
+                Some(Ending::Silent) if t.radio == Some(crate::track::Radio::Search) => {
+                    debug!(target = %t.local, "radio search track timed out");
+                }
+                Some(Ending::Silent) => {
+                    info!(target = %t.local, state = ?t.state(), "track silent too long; dropped")
+                }
+                Some(_) => {
+                    left += 1;
+                    info!(target = %t.local, x = p[0], y = p[1], "track left the world; dropped");
+                }
             }
-            !(silent || outside)
+            false
         });
         self.counters.left_world += left;
         self.counters.deaths += (before - self.tracks.len()) as u64;

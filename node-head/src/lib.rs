@@ -8,7 +8,8 @@
 //! modules, each tested alone: [`eif`] (information form), [`ekf`] (covariance-form
 //! cross-check), [`init`] (triangulation), [`rssi_training`] (Algorithm 1), [`rssi_noise`]
 //! (RSSI weighed by its innovations), [`activation`] (Algorithm 2), [`association`] (several
-//! targets) and [`step`] (the distributed step's accounting).
+//! targets), [`lifecycle`] (a track's states and the rules between them) and [`step`] (the
+//! distributed step's accounting).
 
 pub mod activation;
 pub mod association;
@@ -19,6 +20,7 @@ pub mod fusion;
 pub mod grid;
 pub mod head;
 pub mod init;
+pub mod lifecycle;
 pub mod observe;
 pub mod process;
 pub mod rssi_noise;

@@ -12,6 +12,10 @@ pub struct StepStats {
     /// When the step opened (the time of its prior).
     pub time: ClusterTime,
     pub tracks: usize,
+    /// Of the tracks after the step, those still tentative and those coasting
+    /// (`crate::lifecycle`).
+    pub tentative: usize,
+    pub coasting: usize,
     /// Member nodes up and in `Active`.
     pub active_cameras: usize,
     /// Member nodes up and in `CameraOff`.

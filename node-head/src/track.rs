@@ -3,6 +3,7 @@
 
 use crate::association::Detection;
 use crate::eif::{Accumulator, Eif, FilterError};
+use crate::lifecycle::{ANCHOR_STEPS, Lifecycle, confirms};
 use crate::rssi_noise::RssiNoise;
 use crate::rssi_training::RssiTrainer;
 use nalgebra::{Matrix3, Matrix6, Vector3};
@@ -11,20 +12,6 @@ use proto::msg::Contributor;
 use proto::observation::Kinds;
 use proto::{ClusterTime, TargetId};
 
-/// Steps with camera information a born track needs before it is reported (one second at the
-/// default 200 ms step). Until then it is tentative: it is filtered and may be merged, but the
-/// server never hears of it, so a short-lived duplicate (a split region, the leftover of a
-/// segmentation ghost) never becomes a global id. Handed-over tracks are confirmed at once.
-pub const CONFIRM_STEPS: u32 = 5;
-/// How far (metres) a born track must move, from where it was after its first two camera steps
-/// (by then a new track has converged on its detections), to be confirmed. Motion segmentation
-/// (paper 004) only sees what moves, so a target that does not move is a ghost: the background
-/// where a target stood when a camera's model was started (or last woken). A track born on a
-/// ghost settles there and is never reported; a target that stands still from its birth is
-/// reported once it moves.
-pub const CONFIRM_DISTANCE_M: f64 = 0.25;
-/// Camera steps after which a born track's position is taken as its anchor.
-const ANCHOR_STEPS: u32 = 2;
 /// How far a track's appearance moves towards each colour histogram a camera sends of it.
 pub const APPEARANCE_RATE: f32 = 0.3;
 
@@ -63,8 +50,9 @@ pub struct Track {
     pub camera_steps: u32,
     /// Position after [`ANCHOR_STEPS`] camera steps (tentative tracks only).
     pub anchor: Option<Vector3<f64>>,
-    /// Reported to the server (see [`CONFIRM_STEPS`]).
-    pub confirmed: bool,
+    /// Where it is in its life (`crate::lifecycle`); set by [`Track::end_step`] and
+    /// [`Track::confirm`] only.
+    state: Lifecycle,
     /// The colour histogram the ground-plane observations fused into it carried, blended
     /// over time (empty until one came): its appearance for identity at the server.
     pub appearance: Vec<f32>,
@@ -125,7 +113,11 @@ impl Track {
             ml_prev: None,
             camera_steps: 0,
             anchor: None,
-            confirmed: global.is_some(),
+            state: if global.is_some() {
+                Lifecycle::Confirmed
+            } else {
+                Lifecycle::Tentative
+            },
             appearance: Vec::new(),
             radio: None,
         })
@@ -154,20 +146,35 @@ impl Track {
         Ok(())
     }
 
-    /// Count a step in which cameras measured it (`camera`); confirm it after
-    /// [`CONFIRM_STEPS`] of them once it moved [`CONFIRM_DISTANCE_M`] from its anchor.
-    pub fn end_step(&mut self, camera: bool) {
+    /// Close a step: count it if cameras measured the track (`camera`), take its anchor after
+    /// [`ANCHOR_STEPS`] of them, and move it along its life (`crate::lifecycle`): `measured`
+    /// says whether any measurement (camera or RSSI) was fused this step.
+    pub fn end_step(&mut self, camera: bool, measured: bool) {
         self.camera_steps += u32::from(camera);
-        if self.confirmed || !camera {
-            return;
-        }
-        if self.camera_steps == ANCHOR_STEPS {
+        if self.state == Lifecycle::Tentative && camera && self.camera_steps == ANCHOR_STEPS {
             self.anchor = Some(self.position());
         }
-        self.confirmed = self.camera_steps >= CONFIRM_STEPS
-            && self
-                .anchor
-                .is_some_and(|a| (self.position() - a).norm() >= CONFIRM_DISTANCE_M);
+        // Only a step with camera information can confirm (a tentative track takes no RSSI).
+        let confirms = camera && confirms(self.camera_steps, self.anchor, self.position());
+        self.state = self.state.after_step(measured, confirms);
+    }
+
+    /// Where the track is in its life.
+    pub fn state(&self) -> Lifecycle {
+        self.state
+    }
+
+    /// Reported to the server: confirmed or coasting.
+    pub fn confirmed(&self) -> bool {
+        self.state.reported()
+    }
+
+    /// Confirm the track now: the server named it (its target is known), or it is a radio
+    /// track (no camera can confirm it). A coasting track stays coasting.
+    pub fn confirm(&mut self) {
+        if self.state == Lifecycle::Tentative {
+            self.state = Lifecycle::Confirmed;
+        }
     }
 
     /// A radio track of a cluster with cameras (cameras never measure one: `Prior::radio`).
@@ -188,7 +195,7 @@ impl Track {
     /// level: a ghost global in 6 of the proposed method's first 20 runs, 1–1.4 m off for up
     /// to 2 s). Until it is confirmed a track stands on what cameras see.
     pub fn hear(&mut self, slot: usize, dbm: f64, age_s: f64) -> bool {
-        if !self.confirmed {
+        if !self.confirmed() {
             return false;
         }
         self.rssi.push((slot, dbm, age_s));
@@ -274,7 +281,7 @@ mod tests {
             t.rssi.is_empty() && !t.rssi_heard[1],
             "nothing queued or remembered"
         );
-        t.confirmed = true;
+        t.confirm();
         assert!(t.hear(1, -60.0, 0.0));
         assert_eq!(t.rssi, vec![(1, -60.0, 0.0)]);
         assert!(t.rssi_heard[1]);

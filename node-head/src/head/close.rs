@@ -5,6 +5,7 @@ use super::HeadNode;
 use crate::activation::{Candidate, Expected, Variant};
 use crate::association::{BIRTH_BOUNDS_MARGIN, Detection, births, gated_costs};
 use crate::config::BIRTH_REGION_MARGIN_M;
+use crate::lifecycle::Lifecycle;
 use crate::observe;
 use crate::rssi_training::distance_variance;
 use crate::stats::StepStats;
@@ -80,11 +81,15 @@ impl HeadNode {
         let live: Vec<_> = self.tracks.iter().map(|t| t.local).collect();
         self.fusion.retain(&live);
         stats.tracks = self.tracks.len();
+        for t in &self.tracks {
+            stats.tentative += usize::from(t.state() == Lifecycle::Tentative);
+            stats.coasting += usize::from(t.state() == Lifecycle::Coasting);
+        }
         // A radio track is reported once a tag was heard for it (see `radio_search`).
         let evidenced = |t: &crate::track::Track| {
             t.global.is_some() || t.camera_steps > 0 || t.rssi_heard.iter().any(|&h| h)
         };
-        for t in self.tracks.iter().filter(|t| t.confirmed && evidenced(t)) {
+        for t in self.tracks.iter().filter(|t| t.confirmed() && evidenced(t)) {
             if let Some(server) = self.cfg.server {
                 out.push(Outgoing::new(
                     server,
@@ -129,6 +134,7 @@ impl HeadNode {
         let fuse_rssi = self.uses_rssi() && self.fusion.fuses_rssi();
         // A radio-only cluster holds its tracks' height itself (`hold_height`).
         let radio_only = self.radio_only_cluster();
+        let opened = self.step_time;
         let track = &mut self.tracks[t];
         let mean_bar = *track.filter.mean();
         let dets = std::mem::take(&mut track.detections);
@@ -180,7 +186,10 @@ impl HeadNode {
             warn!(target = %track.local, error = %e, "update failed; prediction only");
         }
         let trained_from_cameras = track.aux_acc.count > 0;
-        track.end_step(trained_from_cameras || !dets.is_empty());
+        track.end_step(
+            trained_from_cameras || !dets.is_empty(),
+            track.last_seen >= opened,
+        );
         // Algorithm 1: pairs (distance from the camera-only filter, RSSI).
         if trained_from_cameras {
             // σ²_u is the paper's: from the auxiliary filter's covariance at the step. Taken at
@@ -276,7 +285,7 @@ impl HeadNode {
             while j < self.tracks.len() {
                 let (a, b) = (&self.tracks[i], &self.tracks[j]);
                 // Position and velocity: two targets crossing are near but move apart.
-                let same = if a.confirmed != b.confirmed {
+                let same = if a.confirmed() != b.confirmed() {
                     floor_distance2(a, b, [0, 1])
                 } else {
                     floor_distance2(a, b, [0, 1, 3, 4])
@@ -291,7 +300,7 @@ impl HeadNode {
                 if same && !two_tags() && !radio {
                     // Prefer the track the server knows, then a confirmed one, then the older
                     // (lower index).
-                    let rank = |t: &crate::track::Track| (t.global.is_some(), t.confirmed);
+                    let rank = |t: &crate::track::Track| (t.global.is_some(), t.confirmed());
                     let gone = if rank(b) > rank(a) { i } else { j };
                     let kept = if gone == i { j } else { i };
                     info!(kept = %self.tracks[kept].local, dropped = %self.tracks[gone].local, "duplicate tracks merged");

@@ -236,7 +236,7 @@ impl HeadNode {
         let local = self.alloc_local();
         match self.new_track(local, None, mean, cov, now) {
             Ok(mut t) => {
-                t.confirmed = true;
+                t.confirm();
                 t.radio = radio;
                 self.counters.births += 1;
                 self.tracks.push(t);

@@ -36,7 +36,7 @@ fn centralized_eif_equals_distributed_eif_on_the_same_detections() {
     }
     // Every step but the birth and the tentative ones (not reported) is compared.
     assert!(
-        compared >= 40 - 2 - node_head::track::CONFIRM_STEPS as usize,
+        compared >= 40 - 2 - node_head::lifecycle::CONFIRM_STEPS as usize,
         "{compared}"
     );
     assert!(c.head.last_step().applied > 0);

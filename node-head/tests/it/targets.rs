@@ -64,11 +64,59 @@ fn a_born_track_is_reported_only_once_confirmed() {
     }
     let (born, reported) = (first_track.unwrap(), first_report.unwrap());
     assert!(
-        reported >= born + node_head::track::CONFIRM_STEPS as usize,
+        reported >= born + node_head::lifecycle::CONFIRM_STEPS as usize,
         "born at step {born}, reported at {reported}"
     );
-    assert!(sim.head.tracks()[0].confirmed);
+    assert!(sim.head.tracks()[0].confirmed());
     assert!(error(&sim, sim.reports.last().unwrap(), 0) < 0.3);
+}
+
+/// The lifecycle through a real head: tentative until confirmed (never reported), confirmed
+/// while cameras see the target, coasting (still reported, on its prediction) while they do
+/// not, confirmed again when they see it once more, and deleted after the silence timeout.
+#[test]
+fn a_track_goes_tentative_confirmed_coasting_confirmed_deleted() {
+    use node_head::lifecycle::Lifecycle::{Coasting, Confirmed, Tentative};
+    let scenario = ring_scenario(8, "distributed-eif", "all-on", 0.0, ONE_TARGET);
+    let mut sim = Sim::new(&scenario, 45);
+    let mut seen = Vec::new();
+    for _ in 0..15 {
+        let reports = sim.step();
+        if let Some(t) = sim.head.tracks().first() {
+            // A tentative track is never reported; a confirmed one every step.
+            assert_eq!(reports.is_empty(), t.state() == Tentative, "{:?}", t.state());
+            seen.push(t.state());
+        }
+    }
+    assert_eq!(seen.first(), Some(&Tentative));
+    assert_eq!(seen.last(), Some(&Confirmed));
+    // Hidden from every camera for two steps: coasting, and still reported.
+    for c in sim.cams.iter_mut() {
+        c.working = false;
+    }
+    for _ in 0..2 {
+        let reports = sim.step();
+        assert_eq!(sim.head.tracks()[0].state(), Coasting);
+        assert_eq!(reports.len(), 1, "a coasting track is reported");
+    }
+    for c in sim.cams.iter_mut() {
+        c.working = true;
+    }
+    sim.step();
+    assert_eq!(sim.head.tracks()[0].state(), Confirmed, "seen again");
+    assert_eq!(sim.head.counters().deaths, 0);
+    // Hidden past the silence timeout (1 s = 5 steps): deleted, never unconfirmed on the way.
+    for c in sim.cams.iter_mut() {
+        c.working = false;
+    }
+    for _ in 0..8 {
+        sim.step();
+        if let Some(t) = sim.head.tracks().first() {
+            assert_eq!(t.state(), Coasting);
+        }
+    }
+    assert!(sim.head.tracks().is_empty());
+    assert_eq!(sim.head.counters().deaths, 1);
 }
 
 /// The server hands a target this head started (and never named to it) to another head: the

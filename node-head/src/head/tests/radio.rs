@@ -229,7 +229,7 @@ fn a_radio_track_whose_tag_a_camera_track_claims_is_dropped() {
     let mut t = h
         .new_track(local, None, radio_at, cov, ClusterTime::ZERO)
         .unwrap();
-    t.confirmed = true;
+    t.confirm();
     t.radio = Some(crate::track::Radio::Tag);
     h.tracks.push(t);
     h.tags.offer(
