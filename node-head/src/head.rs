@@ -616,7 +616,7 @@ impl HeadNode {
             self.tracks.remove(i);
         }
         if self.tracks.len() < before {
-            info!(global = %h.global, to = %h.to_head, "track handed to another head; dropped");
+            info!(global = %h.global, to = %h.to_head, ending = ?Ending::HandedOver, "track handed to another head; dropped");
         }
     }
 
@@ -683,11 +683,11 @@ impl HeadNode {
                     debug!(target = %t.local, "radio search track timed out");
                 }
                 Some(Ending::Silent) => {
-                    info!(target = %t.local, state = ?t.state(), "track silent too long; dropped")
+                    info!(target = %t.local, state = ?t.state(), ending = ?Ending::Silent, "track silent too long; dropped")
                 }
-                Some(_) => {
+                Some(ending) => {
                     left += 1;
-                    info!(target = %t.local, x = p[0], y = p[1], "track left the world; dropped");
+                    info!(target = %t.local, x = p[0], y = p[1], ?ending, "track left the world; dropped");
                 }
             }
             false
@@ -698,7 +698,10 @@ impl HeadNode {
         let mut failed = 0;
         self.tracks.retain_mut(|t| {
             let ok = t.begin_step(&motion, now).is_ok();
-            failed += u64::from(!ok);
+            if !ok {
+                failed += 1;
+                warn!(target = %t.local, ending = ?Ending::NumericFailure, "prediction failed numerically; track dropped");
+            }
             ok
         });
         self.counters.numeric_failures += failed;

@@ -5,7 +5,7 @@ use super::HeadNode;
 use crate::activation::{Candidate, Expected, Variant};
 use crate::association::{BIRTH_BOUNDS_MARGIN, Detection, births, gated_costs};
 use crate::config::BIRTH_REGION_MARGIN_M;
-use crate::lifecycle::Lifecycle;
+use crate::lifecycle::{Ending, Lifecycle};
 use crate::observe;
 use crate::rssi_training::distance_variance;
 use crate::stats::StepStats;
@@ -303,7 +303,7 @@ impl HeadNode {
                     let rank = |t: &crate::track::Track| (t.global.is_some(), t.confirmed());
                     let gone = if rank(b) > rank(a) { i } else { j };
                     let kept = if gone == i { j } else { i };
-                    info!(kept = %self.tracks[kept].local, dropped = %self.tracks[gone].local, "duplicate tracks merged");
+                    info!(kept = %self.tracks[kept].local, dropped = %self.tracks[gone].local, ending = ?Ending::Duplicate, "duplicate tracks merged");
                     self.counters.merges += 1;
                     self.tags.merged(self.tracks[gone].local, self.tracks[kept].local);
                     self.tracks.remove(gone);
