@@ -86,6 +86,9 @@ pub struct Counters {
     /// Sums over steps, for averages.
     pub sum_active_cameras: u64,
     pub sum_rssi_nodes: u64,
+    /// Tentative and coasting tracks summed over steps (`crate::lifecycle`).
+    pub sum_tentative: u64,
+    pub sum_coasting: u64,
     pub sum_power_mw: f64,
 }
 
@@ -95,6 +98,13 @@ impl Counters {
     }
     pub fn mean_rssi_nodes(&self) -> f64 {
         self.sum_rssi_nodes as f64 / self.steps.max(1) as f64
+    }
+    /// Tracks per step still tentative, and coasting.
+    pub fn mean_tentative(&self) -> f64 {
+        self.sum_tentative as f64 / self.steps.max(1) as f64
+    }
+    pub fn mean_coasting(&self) -> f64 {
+        self.sum_coasting as f64 / self.steps.max(1) as f64
     }
     pub fn mean_power_mw(&self) -> f64 {
         self.sum_power_mw / self.steps.max(1) as f64

@@ -64,6 +64,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
         "numeric_failures": c.numeric_failures,
         "mean_active_cameras": c.mean_active_cameras(),
         "mean_rssi_nodes": c.mean_rssi_nodes(),
+        "mean_tentative_tracks": c.mean_tentative(),
+        "mean_coasting_tracks": c.mean_coasting(),
         "mean_power_mw": c.mean_power_mw(),
         "sent": summary.run.sent,
         "send_failures": summary.run.send_failures,

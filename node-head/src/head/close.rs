@@ -121,6 +121,8 @@ impl HeadNode {
         c.steps += 1;
         c.sum_active_cameras += stats.active_cameras as u64;
         c.sum_rssi_nodes += stats.rssi_nodes as u64;
+        c.sum_tentative += stats.tentative as u64;
+        c.sum_coasting += stats.coasting as u64;
         c.sum_power_mw += stats.power_mw;
         self.last = stats;
         if self.keep_history {

@@ -98,6 +98,8 @@ fn a_track_goes_tentative_confirmed_coasting_confirmed_deleted() {
         let reports = sim.step();
         assert_eq!(sim.head.tracks()[0].state(), Coasting);
         assert_eq!(reports.len(), 1, "a coasting track is reported");
+        let stats = sim.head.last_step();
+        assert_eq!((stats.tentative, stats.coasting), (0, 1), "{stats:?}");
     }
     for c in sim.cams.iter_mut() {
         c.working = true;
@@ -117,6 +119,8 @@ fn a_track_goes_tentative_confirmed_coasting_confirmed_deleted() {
     }
     assert!(sim.head.tracks().is_empty());
     assert_eq!(sim.head.counters().deaths, 1);
+    let c = sim.head.counters();
+    assert!(c.sum_tentative >= 1 && c.sum_coasting >= 2 + 5, "{c:?}");
 }
 
 /// The server hands a target this head started (and never named to it) to another head: the
