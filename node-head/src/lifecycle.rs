@@ -3,14 +3,15 @@
 //! ```text
 //!   born from detections ─► Tentative ─(confirmation rule)─► Confirmed ◄─(measured)─┐
 //!   handed over, named by the server, a radio track ─────────► Confirmed ─(no measurement)─► Coasting
-//!   any state ─(an ending rule)─► deleted: dropped from the head at once
+//!   any state ─(an ending rule)─► deleted: dropped from the head
 //! ```
 //!
 //! - **Tentative**: born from detections, not yet shown to be a target. It is filtered, sent to
 //!   cameras as a prior and may be merged, but never reported (so a short-lived duplicate never
 //!   becomes a global id) and it takes no RSSI (a tag's readings say where the tag is, not that
 //!   this track is its target).
-//! - **Confirmed**: a target, measured in its last step (by a camera or its tag's RSSI): reported.
+//! - **Confirmed**: a target, measured in its last step (camera information or its tag's RSSI
+//!   fused): reported.
 //! - **Coasting**: confirmed, but its last step brought no measurement. Still reported, on its
 //!   prediction, and back to Confirmed by the next measurement; a short occlusion keeps its id.
 //! - **Deleted**: see [`Ending`]. Silence ends a track in any state after `track-timeout-ms`.
@@ -42,14 +43,17 @@ pub enum Lifecycle {
     Coasting,
 }
 
-/// Why a track was deleted. The head drops a track the moment one of these holds.
+/// Why a track was deleted. Silence and leaving the world are checked when a step opens
+/// ([`ending_at_open`]), a failed prediction then too; a duplicate is dropped when the step
+/// closes, a handed-over track when the server's handover arrives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Ending {
     /// No measurement for `track-timeout-ms`, in any state.
     Silent,
     /// Its estimate strayed outside the world's box (with a margin).
     LeftWorld,
-    /// Its filter failed numerically.
+    /// Its prediction failed numerically (a failed update at the close leaves the track on its
+    /// prediction instead).
     NumericFailure,
     /// Another track on the same target was kept (`merge_duplicates`).
     Duplicate,

@@ -12,8 +12,8 @@ pub struct StepStats {
     /// When the step opened (the time of its prior).
     pub time: ClusterTime,
     pub tracks: usize,
-    /// Of the tracks after the step, those still tentative and those coasting
-    /// (`crate::lifecycle`).
+    /// Of those tracks, the ones still tentative and the ones coasting (`crate::lifecycle`);
+    /// like `tracks`, counted before the step's births.
     pub tentative: usize,
     pub coasting: usize,
     /// Member nodes up and in `Active`.

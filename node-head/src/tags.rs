@@ -433,7 +433,7 @@ mod tests {
             let time = ClusterTime::from_millis(200 * i64::from(s));
             let heard = readings(book, tag, at, time);
             book.weigh(&heard, tracks, time, |_, _| MODEL, node);
-            changes.extend(book.decide(tracks, |t| t.confirmed()));
+            changes.extend(book.decide(tracks, |t| t.past_tentative()));
         }
         changes
     }

@@ -164,8 +164,8 @@ impl Track {
         self.state
     }
 
-    /// Reported to the server: confirmed or coasting.
-    pub fn confirmed(&self) -> bool {
+    /// Confirmed or coasting: reported to the server, takes RSSI, may hold a tag.
+    pub fn past_tentative(&self) -> bool {
         self.state.reported()
     }
 
@@ -195,7 +195,7 @@ impl Track {
     /// level: a ghost global in 6 of the proposed method's first 20 runs, 1–1.4 m off for up
     /// to 2 s). Until it is confirmed a track stands on what cameras see.
     pub fn hear(&mut self, slot: usize, dbm: f64, age_s: f64) -> bool {
-        if !self.confirmed() {
+        if !self.past_tentative() {
             return false;
         }
         self.rssi.push((slot, dbm, age_s));

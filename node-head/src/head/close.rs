@@ -89,7 +89,7 @@ impl HeadNode {
         let evidenced = |t: &crate::track::Track| {
             t.global.is_some() || t.camera_steps > 0 || t.rssi_heard.iter().any(|&h| h)
         };
-        for t in self.tracks.iter().filter(|t| t.confirmed() && evidenced(t)) {
+        for t in self.tracks.iter().filter(|t| t.past_tentative() && evidenced(t)) {
             if let Some(server) = self.cfg.server {
                 out.push(Outgoing::new(
                     server,
@@ -136,7 +136,6 @@ impl HeadNode {
         let fuse_rssi = self.uses_rssi() && self.fusion.fuses_rssi();
         // A radio-only cluster holds its tracks' height itself (`hold_height`).
         let radio_only = self.radio_only_cluster();
-        let opened = self.step_time;
         let track = &mut self.tracks[t];
         let mean_bar = *track.filter.mean();
         let dets = std::mem::take(&mut track.detections);
@@ -165,6 +164,7 @@ impl HeadNode {
         let aux_cov = track.aux.cov().fixed_view::<3, 3>(0, 0).into_owned();
         // RSSI, linearized here with the node's current model: Algorithm 1's choice first
         // re-run with what the cameras know of each node's distance now.
+        let mut rssi_fused = false;
         if fuse_rssi {
             let aux_pos = position(track.aux.mean());
             for (trainer, node) in track.trainers.iter_mut().zip(&self.cfg.nodes) {
@@ -173,6 +173,7 @@ impl HeadNode {
             let cov_bar = *track.filter.cov();
             for slot in observe::rssi(track, &self.cfg.nodes, &mean_bar, &cov_bar) {
                 rssi_nodes[slot] = true;
+                rssi_fused = true;
                 track.last_seen = now;
             }
         }
@@ -188,10 +189,8 @@ impl HeadNode {
             warn!(target = %track.local, error = %e, "update failed; prediction only");
         }
         let trained_from_cameras = track.aux_acc.count > 0;
-        track.end_step(
-            trained_from_cameras || !dets.is_empty(),
-            track.last_seen >= opened,
-        );
+        let camera = trained_from_cameras || !dets.is_empty();
+        track.end_step(camera, camera || rssi_fused);
         // Algorithm 1: pairs (distance from the camera-only filter, RSSI).
         if trained_from_cameras {
             // σ²_u is the paper's: from the auxiliary filter's covariance at the step. Taken at
@@ -287,7 +286,7 @@ impl HeadNode {
             while j < self.tracks.len() {
                 let (a, b) = (&self.tracks[i], &self.tracks[j]);
                 // Position and velocity: two targets crossing are near but move apart.
-                let same = if a.confirmed() != b.confirmed() {
+                let same = if a.past_tentative() != b.past_tentative() {
                     floor_distance2(a, b, [0, 1])
                 } else {
                     floor_distance2(a, b, [0, 1, 3, 4])
@@ -302,7 +301,7 @@ impl HeadNode {
                 if same && !two_tags() && !radio {
                     // Prefer the track the server knows, then a confirmed one, then the older
                     // (lower index).
-                    let rank = |t: &crate::track::Track| (t.global.is_some(), t.confirmed());
+                    let rank = |t: &crate::track::Track| (t.global.is_some(), t.past_tentative());
                     let gone = if rank(b) > rank(a) { i } else { j };
                     let kept = if gone == i { j } else { i };
                     info!(kept = %self.tracks[kept].local, dropped = %self.tracks[gone].local, ending = ?Ending::Duplicate, "duplicate tracks merged");

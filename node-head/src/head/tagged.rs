@@ -55,7 +55,7 @@ impl HeadNode {
         );
         let changes = self
             .tags
-            .decide(&self.tracks, |t| t.confirmed() && t.camera_steps > 0);
+            .decide(&self.tracks, |t| t.past_tentative() && t.camera_steps > 0);
         for c in changes {
             match c {
                 Change::Bound { tag, track } => info!(tag = %tag, target = %track, "tag bound to a track"),

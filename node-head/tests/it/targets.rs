@@ -67,7 +67,7 @@ fn a_born_track_is_reported_only_once_confirmed() {
         reported >= born + node_head::lifecycle::CONFIRM_STEPS as usize,
         "born at step {born}, reported at {reported}"
     );
-    assert!(sim.head.tracks()[0].confirmed());
+    assert!(sim.head.tracks()[0].past_tentative());
     assert!(error(&sim, sim.reports.last().unwrap(), 0) < 0.3);
 }
 
@@ -83,7 +83,7 @@ fn a_track_goes_tentative_confirmed_coasting_confirmed_deleted() {
     for _ in 0..15 {
         let reports = sim.step();
         if let Some(t) = sim.head.tracks().first() {
-            // A tentative track is never reported; a confirmed one every step.
+            // A tentative track is never reported; a confirmed or coasting one every step.
             assert_eq!(reports.is_empty(), t.state() == Tentative, "{:?}", t.state());
             seen.push(t.state());
         }
@@ -107,11 +107,16 @@ fn a_track_goes_tentative_confirmed_coasting_confirmed_deleted() {
     sim.step();
     assert_eq!(sim.head.tracks()[0].state(), Confirmed, "seen again");
     assert_eq!(sim.head.counters().deaths, 0);
-    // Hidden past the silence timeout (1 s = 5 steps): deleted, never unconfirmed on the way.
+    // Hidden past the silence timeout (1 s = 5 steps): coasting until then, never unconfirmed
+    // on the way, then deleted for its silence.
     for c in sim.cams.iter_mut() {
         c.working = false;
     }
-    for _ in 0..8 {
+    for _ in 0..4 {
+        sim.step();
+        assert_eq!(sim.head.tracks()[0].state(), Coasting);
+    }
+    for _ in 0..4 {
         sim.step();
         if let Some(t) = sim.head.tracks().first() {
             assert_eq!(t.state(), Coasting);
@@ -119,8 +124,12 @@ fn a_track_goes_tentative_confirmed_coasting_confirmed_deleted() {
     }
     assert!(sim.head.tracks().is_empty());
     assert_eq!(sim.head.counters().deaths, 1);
+    assert_eq!(sim.head.counters().left_world, 0, "ended by its silence");
     let c = sim.head.counters();
-    assert!(c.sum_tentative >= 1 && c.sum_coasting >= 2 + 5, "{c:?}");
+    let tentative_steps = seen.iter().filter(|s| **s == Tentative).count() as u64;
+    // A step's stats are taken before its births: the step that bore the track does not count it.
+    assert_eq!(c.sum_tentative + 1, tentative_steps, "{c:?}");
+    assert!(c.sum_coasting >= 2 + 4, "{c:?}");
 }
 
 /// The server hands a target this head started (and never named to it) to another head: the
