@@ -296,7 +296,7 @@ impl CameraNode {
     /// The answers to a step's priors (already among `self.priors`) from the newest frame: the
     /// priors are paired with its detections (or, with particle filters, its people) jointly,
     /// and only those given one are listed; the fresh tag readings go once.
-    fn answers(&self, now: ClusterTime, priors: &Priors) -> Answers {
+    fn answers(&mut self, now: ClusterTime, priors: &Priors) -> Answers {
         let captured = self.captured.filter(|&t| self.fresh(t, now));
         // The priors' means are for the step the head opened as it sent them; their arrival
         // here stands for that time on this node's own clock (the link's latency is small
@@ -317,10 +317,17 @@ impl CameraNode {
                 match &self.people {
                     Some(people) => {
                         let chosen = measure::joint_choices(&joint, people.latest(), gate, gate_distance2);
+                        // A person's colours go with the contribution as they would with a
+                        // people frame (first frame, then when changed): the head's track
+                        // takes them for identity at the server.
+                        let out = &self.people_out;
                         asked
                             .iter()
                             .zip(chosen)
-                            .filter_map(|(p, g)| crate::ground_people::contribution(p, g))
+                            .filter_map(|(p, g)| {
+                                let with = g.is_some_and(|g| out.histogram_due(c, g));
+                                crate::ground_people::contribution(p, g, with)
+                            })
                             .collect()
                     }
                     None => {
@@ -337,6 +344,13 @@ impl CameraNode {
                 }
             }
         };
+        if let Some(c) = captured {
+            for g in contributions.iter().filter_map(|k| k.ground.as_ref()) {
+                if let Some(h) = &g.histogram {
+                    self.people_out.sent(g.local, c, h);
+                }
+            }
+        }
         Answers {
             step: priors.tracks.first().map_or(0, |p| p.step),
             part: priors.part,

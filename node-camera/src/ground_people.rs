@@ -249,8 +249,14 @@ pub fn associate(priors: &[(&Prior, f64)], people: &[GroundPoint], gate_chi2: f6
 /// measured height gives are linear in the state, so the head computes from it the Ω_i, ξ_i
 /// [`models::ground_contribution_aged`] would give here, from a twentieth of the bytes); none
 /// when there is no person or it cannot be quantised.
-pub fn contribution(prior: &Prior, person: Option<&GroundPoint>) -> Option<Contribution> {
-    let person = person.and_then(|g| GroundPerson::quantise(g, None, false))?;
+pub fn contribution(
+    prior: &Prior,
+    person: Option<&GroundPoint>,
+    with_histogram: bool,
+) -> Option<Contribution> {
+    let person = person.and_then(|g| {
+        GroundPerson::quantise(g, None, with_histogram).or_else(|| GroundPerson::quantise(g, None, false))
+    })?;
     Some(Contribution {
         target: prior.target,
         info: None,
@@ -336,7 +342,7 @@ impl PeopleSender {
     ) -> PeopleFrame {
         let mut out = Vec::new();
         for (p, target) in people {
-            let with_histogram = !p.histogram.is_empty() && self.histogram_due(captured, p);
+            let with_histogram = self.histogram_due(captured, p);
             let person = GroundPerson::quantise(p, target, with_histogram)
                 .or_else(|| GroundPerson::quantise(p, target, false));
             let Some(person) = person else {
@@ -344,8 +350,7 @@ impl PeopleSender {
                 continue;
             };
             if let Some(h) = &person.histogram {
-                self.histograms
-                    .insert(p.local, (captured, dequantise_histogram(h)));
+                self.sent(p.local, captured, h);
             }
             out.push(person);
         }
@@ -357,7 +362,19 @@ impl PeopleSender {
         }
     }
 
-    fn histogram_due(&self, captured: ClusterTime, p: &GroundPoint) -> bool {
+    /// Whether person `p`'s histogram goes out with a message of the frame captured at
+    /// `captured` (the policy above; a person without one never).
+    pub fn histogram_due(&self, captured: ClusterTime, p: &GroundPoint) -> bool {
+        !p.histogram.is_empty() && self.histogram_changed_or_old(captured, p)
+    }
+
+    /// Person `local`'s histogram `h` (quantised) went out with a message of the frame
+    /// captured at `captured`: the next is due by the policy from now.
+    pub fn sent(&mut self, local: u32, captured: ClusterTime, h: &[u8]) {
+        self.histograms.insert(local, (captured, dequantise_histogram(h)));
+    }
+
+    fn histogram_changed_or_old(&self, captured: ClusterTime, p: &GroundPoint) -> bool {
         let Some((sent_at, sent)) = self.histograms.get(&p.local) else {
             return true;
         };

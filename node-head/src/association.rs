@@ -35,6 +35,9 @@ pub struct Detection {
     /// A ground-plane person's measured height, m: then `point` and `cov` are a floor position
     /// `[x, y]`, metres, and its covariance, not a normalized pin-hole point.
     pub ground: Option<f64>,
+    /// The person's colour histogram, when the camera sent it with this detection (paper
+    /// 004's particle cameras send it on a person's first frame, then when it changed).
+    pub appearance: Option<Vec<f32>>,
 }
 
 impl Detection {
@@ -240,6 +243,7 @@ mod tests {
             hint: None,
             captured: ClusterTime::ZERO,
             ground: None,
+            appearance: None,
         }
     }
 

@@ -512,6 +512,7 @@ impl HeadNode {
             hint: m.target,
             captured,
             ground: None,
+            appearance: None,
         });
     }
 
@@ -538,6 +539,10 @@ impl HeadNode {
                 hint: p.target,
                 captured: f.captured,
                 ground: Some(p.height_m()),
+                appearance: p
+                    .histogram
+                    .as_deref()
+                    .map(proto::observation::dequantise_histogram),
             });
         }
     }
@@ -554,6 +559,7 @@ impl HeadNode {
             hint: p.target,
             captured,
             ground: Some(p.height_m()),
+            appearance: None,
         }
     }
 

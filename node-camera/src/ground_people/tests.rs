@@ -81,7 +81,7 @@ fn a_prior_the_pairing_leaves_without_a_person_gets_nothing() {
 fn a_contribution_carries_the_gated_person_for_the_head_to_fold_in() {
     let p = prior(2.0, 2.0);
     let g = person(2.1, 2.0);
-    let c = contribution(&p, Some(&g)).expect("a contribution");
+    let c = contribution(&p, Some(&g), false).expect("a contribution");
     assert!(c.folded.is_empty() && c.info.is_none(), "nothing folded here");
     assert!(c.camera());
     let q = c.ground.as_ref().expect("the person");
@@ -101,11 +101,11 @@ fn a_contribution_carries_the_gated_person_for_the_head_to_fold_in() {
     assert!((o - oq).norm() <= 1e-2 * o.norm(), "{o} vs {oq}");
     assert!((x - xq).norm() <= 1e-2 * x.norm(), "{x} vs {xq}");
     assert!((back.height_m - g.height_m).abs() <= 0.005);
-    assert_eq!(contribution(&p, None), None, "nothing to send");
+    assert_eq!(contribution(&p, None, false), None, "nothing to send");
     // An impossible person is not sent either.
     let mut bad = g.clone();
     bad.position[0] = f64::NAN;
-    assert_eq!(contribution(&p, Some(&bad)), None);
+    assert_eq!(contribution(&p, Some(&bad), false), None);
 }
 
 #[test]
@@ -312,4 +312,45 @@ fn a_filter_that_lost_its_region_at_a_border_it_moved_towards_walked_out() {
     for p in &stayed {
         assert!(!walked_out_of_view(p, &frame), "{}", p.id);
     }
+}
+
+/// A distributed camera answers a prior with the person gated to it: the person's colours go
+/// with that contribution by the same policy as with a people frame (new, then changed or
+/// old), so the head's track has an appearance for the server's identity.
+#[test]
+fn a_contribution_carries_the_colours_by_the_people_frames_policy() {
+    let mut s = PeopleSender::new(200, 0.7);
+    let a = coloured(1, 20);
+    let p = prior(2.0, 3.0);
+    let answer = |s: &mut PeopleSender, ms: i64| {
+        let with = s.histogram_due(at_ms(ms), &a);
+        let c = contribution(&p, Some(&a), with).expect("a contribution");
+        let g = c.ground.expect("a ground person");
+        if let Some(h) = &g.histogram {
+            s.sent(g.local, at_ms(ms), h);
+        }
+        g.histogram.is_some()
+    };
+    assert!(answer(&mut s, 0), "new");
+    assert!(!answer(&mut s, 200), "sent already");
+    // A people frame that carries the person later counts as sent too, and the other way.
+    assert!(histograms_sent(&mut s, 400, std::slice::from_ref(&a)).is_empty());
+    assert!(answer(&mut s, 10_000), "refresh");
+    // Without a histogram (projected boxes) or not due: the person goes without one.
+    assert!(
+        contribution(&p, Some(&person(2.0, 3.0)), true)
+            .unwrap()
+            .ground
+            .unwrap()
+            .histogram
+            .is_none()
+    );
+    assert!(
+        contribution(&p, Some(&a), false)
+            .unwrap()
+            .ground
+            .unwrap()
+            .histogram
+            .is_none()
+    );
 }

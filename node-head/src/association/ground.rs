@@ -112,6 +112,7 @@ mod tests {
             hint: None,
             captured: ClusterTime::ZERO,
             ground: Some(1.8),
+            appearance: None,
         }
     }
 

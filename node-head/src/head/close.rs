@@ -149,6 +149,9 @@ impl HeadNode {
             });
             track.note(node.id, kinds);
             track.fused_frame(d.captured);
+            if let Some(h) = &d.appearance {
+                track.see_colours(h);
+            }
         }
         if !self.fusion.distributed() {
             stats.applied += dets.len() as u64;
@@ -230,7 +233,12 @@ impl HeadNode {
             }
             let local = self.alloc_local();
             match self.new_track(local, None, b.mean, b.cov, now) {
-                Ok(t) => {
+                Ok(mut t) => {
+                    // The colours a member camera sent with the person (a particle camera sends
+                    // them with a person's first frame, which is usually the birth's).
+                    for h in b.members.iter().filter_map(|&i| free.get(i)?.appearance.as_ref()) {
+                        t.see_colours(h);
+                    }
                     info!(target = %local, cameras = b.members.len(), x = b.mean[0], y = b.mean[1], z = b.mean[2], "new track");
                     self.counters.births += 1;
                     self.tracks.push(t);

@@ -366,6 +366,9 @@ fn centralized_fusion_takes_a_frame_at_its_capture_time() {
     assert_eq!(h.last_step().prediction_only, 0, "the measurement was fused");
     let after = h.tracks()[0].filter.mean();
     assert!((after[0] - 3.2).abs() < 0.01, "x {} (3.2 expected)", after[0]);
+    let appearance = &h.tracks()[0].appearance;
+    assert_eq!(appearance.len(), proto::observation::HISTOGRAM_BINS);
+    assert!(appearance[7] > 0.5 && appearance[8] < 0.1, "{appearance:?}");
 }
 
 /// A centralized measurement of `node` seeing `world`, captured at `captured`, 2 px noise.
@@ -612,9 +615,10 @@ fn people_frame(at: [f64; 2], target: Option<TargetId>, captured: ClusterTime) -
     }
 }
 
-/// Each person of a people frame is a floor detection with the frame's capture time and the
-/// measured height; the frame's tag readings go to the head's tag book; a
-/// centralized head fuses the person at its capture time.
+/// Each person of a people frame is a floor detection with the frame's capture time, the
+/// measured height and the colours the camera sent; the frame's tag readings go to the head's
+/// tag book; a centralized head fuses the person at its capture time, and its track takes the
+/// person's colours (its appearance for the server).
 #[test]
 fn a_people_frame_gives_one_floor_detection_per_person() {
     let (cfg, mut h, t1) = centralized_head_stepped_once();
@@ -622,6 +626,10 @@ fn a_people_frame_gives_one_floor_detection_per_person() {
     let local = h.tracks()[0].local;
     let captured = ClusterTime::from_millis(100);
     let mut f = people_frame([3.1, 4.0], Some(local), captured);
+    let mut colours = vec![0.0f32; proto::observation::HISTOGRAM_BINS];
+    colours[7] = 1.0;
+    colours[proto::observation::HISTOGRAM_HS_BINS + 2] = 1.0;
+    f.people[0].histogram = proto::observation::quantise_histogram(&colours);
     let mut far = people_frame([9.0, 1.0], None, captured).people.remove(0);
     far.local = 4;
     f.people.push(far);
@@ -640,6 +648,11 @@ fn a_people_frame_gives_one_floor_detection_per_person() {
         "the frame's tag reading, for the tag book"
     );
     assert_eq!(gated.ground, Some(1.6));
+    assert!(gated.appearance.is_some() && free.appearance.is_none());
+    assert!(
+        h.tracks()[0].appearance.is_empty(),
+        "none before the step fuses it"
+    );
     assert_eq!(gated.captured, captured);
     assert!((gated.point - Vector2::new(3.1, 4.0)).norm() < 1e-9);
     assert!((gated.cov[(0, 0)] - 0.01).abs() < 1e-9 && gated.cov[(0, 1)] == 0.0);

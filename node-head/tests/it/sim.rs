@@ -294,6 +294,7 @@ impl Sim {
                         hint: None,
                         captured: ClusterTime::ZERO,
                         ground: None,
+                        appearance: None,
                     };
                     if let Some(d2) = distance2(&self.cams[c].model, &det, &mean, &cov, ClusterTime::ZERO)
                         && d2 <= 13.8
