@@ -366,9 +366,6 @@ fn centralized_fusion_takes_a_frame_at_its_capture_time() {
     assert_eq!(h.last_step().prediction_only, 0, "the measurement was fused");
     let after = h.tracks()[0].filter.mean();
     assert!((after[0] - 3.2).abs() < 0.01, "x {} (3.2 expected)", after[0]);
-    let appearance = &h.tracks()[0].appearance;
-    assert_eq!(appearance.len(), proto::observation::HISTOGRAM_BINS);
-    assert!(appearance[7] > 0.5 && appearance[8] < 0.1, "{appearance:?}");
 }
 
 /// A centralized measurement of `node` seeing `world`, captured at `captured`, 2 px noise.
@@ -660,6 +657,9 @@ fn a_people_frame_gives_one_floor_detection_per_person() {
     assert_eq!(h.last_step().prediction_only, 0, "the person was fused");
     let after = h.tracks()[0].filter.mean();
     assert!((after[0] - 3.2).abs() < 0.01, "x {} (3.2 expected)", after[0]);
+    let appearance = &h.tracks()[0].appearance;
+    assert_eq!(appearance.len(), proto::observation::HISTOGRAM_BINS);
+    assert!(appearance[7] > 0.5 && appearance[8] < 0.1, "{appearance:?}");
 }
 
 /// A people frame stamped seconds from the head's time is refused and counted; one from a node
