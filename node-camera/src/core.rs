@@ -318,8 +318,8 @@ impl CameraNode {
                     Some(people) => {
                         let chosen = measure::joint_choices(&joint, people.latest(), gate, gate_distance2);
                         // A person's colours go with the contribution as they would with a
-                        // people frame (first frame, then when changed): the head's track
-                        // takes them for identity at the server.
+                        // people frame (new, changed or 10 s old: `PeopleSender`): the head's
+                        // track takes them for identity at the server.
                         let out = &self.people_out;
                         asked
                             .iter()

@@ -278,8 +278,11 @@ pub const HISTOGRAM_REFRESH_NS: i64 = 10_000_000_000;
 /// What of the people leaves the camera and when: one [`PeopleFrame`] per head step at most
 /// (the head fuses at its steps, and the distributed filter's contributions answer each step
 /// from the newest frame alone), each person quantised, and each person's histogram with the
-/// first frame that carries the person, then only when it changed by [`HISTOGRAM_CHANGE`]
-/// (at most every [`HISTOGRAM_MIN_PERIOD_NS`]) or is [`HISTOGRAM_REFRESH_NS`] old.
+/// first message that carries the person (a people frame or, in distributed fusion, a
+/// contribution), then only when it changed by [`HISTOGRAM_CHANGE`] (at most every
+/// [`HISTOGRAM_MIN_PERIOD_NS`]) or is [`HISTOGRAM_REFRESH_NS`] old. A histogram counts as sent
+/// when its message is built: one the head drops (a late answer, a region that starts no
+/// track) is sent again at the next change or refresh.
 #[derive(Debug)]
 pub struct PeopleSender {
     period_ns: i64,

@@ -36,7 +36,8 @@ pub struct Detection {
     /// `[x, y]`, metres, and its covariance, not a normalized pin-hole point.
     pub ground: Option<f64>,
     /// The person's colour histogram, when the camera sent it with this detection (paper
-    /// 004's particle cameras send it on a person's first frame, then when it changed).
+    /// 004's particle cameras send it with a person's first message, then when it changed or
+    /// every 10 s).
     pub appearance: Option<Vec<f32>>,
 }
 

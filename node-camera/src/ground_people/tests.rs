@@ -333,7 +333,8 @@ fn a_contribution_carries_the_colours_by_the_people_frames_policy() {
     };
     assert!(answer(&mut s, 0), "new");
     assert!(!answer(&mut s, 200), "sent already");
-    // A people frame that carries the person later counts as sent too, and the other way.
+    // The contribution counted as sent: a people frame that carries the person does not send
+    // the colours again.
     assert!(histograms_sent(&mut s, 400, std::slice::from_ref(&a)).is_empty());
     assert!(answer(&mut s, 10_000), "refresh");
     // Without a histogram (projected boxes) or not due: the person goes without one.

@@ -50,7 +50,13 @@ impl HeadNode {
                     self.tracks[t].last_seen = now;
                     self.tracks[t].detections.push(d);
                 }
-                Some(_) => {}
+                // The head's own association pairs it with the track: the colours the camera
+                // sent with it are that track's, though its position was the camera's to fold.
+                Some(t) => {
+                    if let Some(h) = &d.appearance {
+                        self.tracks[t].see_colours(h);
+                    }
+                }
                 // Distributed: detections reach the head only to start tracks, and one inside a
                 // live track's gate that the assignment left over (a camera's second frame in
                 // a step, or one sent before the track's first prior reached it) is that
@@ -234,8 +240,10 @@ impl HeadNode {
             let local = self.alloc_local();
             match self.new_track(local, None, b.mean, b.cov, now) {
                 Ok(mut t) => {
-                    // The colours a member camera sent with the person (a particle camera sends
-                    // them with a person's first frame, which is usually the birth's).
+                    // The colours a member camera sent with the person. A camera sends them with
+                    // the first message that carries the person; a birth needs two or three
+                    // cameras, so a camera's may have come a step before and been lost, and the
+                    // track then waits for the next change or the 10 s refresh.
                     for h in b.members.iter().filter_map(|&i| free.get(i)?.appearance.as_ref()) {
                         t.see_colours(h);
                     }
