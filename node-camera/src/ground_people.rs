@@ -248,21 +248,26 @@ pub fn associate(priors: &[(&Prior, f64)], people: &[GroundPoint], gate_chi2: f6
 /// the head to model (the floor position aged to the prior's time and the centre height its
 /// measured height gives are linear in the state, so the head computes from it the Ω_i, ξ_i
 /// [`models::ground_contribution_aged`] would give here, from a twentieth of the bytes); none
-/// when there is no person or it cannot be quantised.
+/// when there is no person or it cannot be quantised. Its histogram goes with it when
+/// `with_histogram` (the [`PeopleSender`]'s policy says it is due).
 pub fn contribution(
     prior: &Prior,
     person: Option<&GroundPoint>,
     with_histogram: bool,
 ) -> Option<Contribution> {
-    let person = person.and_then(|g| {
-        GroundPerson::quantise(g, None, with_histogram).or_else(|| GroundPerson::quantise(g, None, false))
-    })?;
+    let person = person.and_then(|g| quantised(g, None, with_histogram))?;
     Some(Contribution {
         target: prior.target,
         info: None,
         folded: Kinds::NONE,
         ground: Some(person),
     })
+}
+
+/// `g` quantised for the wire, gated to `target`, with its histogram when `with_histogram`
+/// and that quantises, else without it; `None` when the person itself cannot be quantised.
+fn quantised(g: &GroundPoint, target: Option<TargetId>, with_histogram: bool) -> Option<GroundPerson> {
+    GroundPerson::quantise(g, target, with_histogram).or_else(|| GroundPerson::quantise(g, target, false))
 }
 
 /// A person's histogram goes out again when it has drifted this far (Bhattacharyya distance,
@@ -346,8 +351,7 @@ impl PeopleSender {
         let mut out = Vec::new();
         for (p, target) in people {
             let with_histogram = self.histogram_due(captured, p);
-            let person = GroundPerson::quantise(p, target, with_histogram)
-                .or_else(|| GroundPerson::quantise(p, target, false));
+            let person = quantised(p, target, with_histogram);
             let Some(person) = person else {
                 self.unsendable += 1;
                 continue;
