@@ -31,6 +31,17 @@ pub fn overlap_of_smaller(a: &PixelBox, b: &PixelBox) -> f32 {
     }
 }
 
+/// The columns two boxes share over the narrower box's width, 0 when either has none: 1 for
+/// boxes stacked in one column span, whatever their heights.
+pub fn column_overlap(a: &PixelBox, b: &PixelBox) -> f32 {
+    let narrower = (a.xmax - a.xmin).min(b.xmax - b.xmin);
+    if narrower > 0.0 {
+        (a.xmax.min(b.xmax) - a.xmin.max(b.xmin)).max(0.0) / narrower
+    } else {
+        0.0
+    }
+}
+
 pub fn contains(b: &PixelBox, p: [f32; 2]) -> bool {
     (b.xmin..=b.xmax).contains(&p[0]) && (b.ymin..=b.ymax).contains(&p[1])
 }
@@ -62,5 +73,10 @@ mod tests {
         assert_eq!(iou(&b(1.0, 1.0, 1.0, 1.0), &b(1.0, 1.0, 1.0, 1.0)), 0.0);
         assert!(contains(&a, [10.0, 0.0]) && !contains(&a, [10.1, 5.0]));
         assert!(!is_finite(&b(0.0, f32::NAN, 1.0, 1.0)));
+        // Stacked: every column of the narrower box, no area in common.
+        assert_eq!(column_overlap(&a, &b(2.0, 20.0, 8.0, 30.0)), 1.0);
+        assert_eq!(column_overlap(&a, &b(5.0, 0.0, 25.0, 10.0)), 0.5);
+        assert_eq!(column_overlap(&a, &b(10.0, 0.0, 20.0, 10.0)), 0.0);
+        assert_eq!(column_overlap(&a, &b(3.0, 0.0, 3.0, 10.0)), 0.0);
     }
 }

@@ -2,11 +2,12 @@
 //! A foreground region (from the background model, `adaptive_background`) that no filter explains for
 //! `init-frames` frames starts a filter with its current appearance as target; a filter with no
 //! supporting region for `destroy-frames` frames is destroyed; of two filters that share a
-//! region for `duplicate-frames` frames with boxes alike (IoU) or one inside the other, one is
-//! eliminated: the smaller when nested (it sits on a part of the other's person), else the
-//! younger, unless the older's colours matched clearly worse (it drifted there). Each filter
-//! keeps its local id for life. The region assigned to a filter shapes its weights; the
-//! foreground share under its best box gates its adaptation.
+//! region for `duplicate-frames` frames with boxes alike (IoU), one inside the other or one
+//! above the other in its columns, one is eliminated: the smaller when nested or stacked (it
+//! sits on a part of the other's person), else the younger, unless the older's colours matched
+//! clearly worse (it drifted there). Each filter keeps its local id for life. The region
+//! assigned to a filter shapes its weights; the foreground share under its best box gates its
+//! adaptation.
 //!
 //! Per frame: the RGB frame, the regions and (optionally) the foreground mask in; per person
 //! out: id, mean state, maximum-likelihood state and confidence, box, sample spread, target
@@ -14,7 +15,7 @@
 
 use crate::adaptive_background::AdaptiveBackground;
 use crate::region::Grid;
-use crate::tracker::boxes::{area, contains, iou, is_finite, overlap_of_smaller};
+use crate::tracker::boxes::{area, column_overlap, contains, iou, is_finite, overlap_of_smaller};
 use crate::tracker::filter::{ParticleFilter, Sample, adaptation_rate};
 use crate::tracker::histogram::{BinImage, ColourHistogram};
 use crate::tracker::motion::State;
@@ -243,8 +244,8 @@ struct Shared {
     frames: u32,
     /// Sum over those frames of the older's colour similarity minus the younger's.
     older_lead: f32,
-    /// This frame, the smaller of the two when one box lies inside the other without the two
-    /// being alike (IoU below `duplicate-iou`).
+    /// This frame, the smaller of the two when one box lies inside the other or above or below
+    /// it in its columns without the two being alike (IoU below `duplicate-iou`).
     nested: Option<LocalId>,
 }
 
@@ -258,6 +259,14 @@ const DRIFTED_MARGIN: f32 = 0.05;
 /// nested (a filter on a part of the other's person) although their IoU is under
 /// `duplicate-iou`. Near 1: two people partly hiding each other overlap less than this.
 const NESTED_OVERLAP: f32 = 0.9;
+
+/// How much of the narrower of two filters' boxes' columns must lie inside the wider's for the
+/// pair to be stacked (one above the other on one person, a fragment of their legs or of
+/// their head and the wall above, in one region) and so nested too, whatever their overlap in
+/// area. Two people side by side, or one partly hiding the other, share fewer columns; one
+/// wholly behind another in one region (whom nesting already took) shares as many. Measured
+/// in the crowd (docs/paper004.md): 0.6 took people, 0.9 left fragments.
+const STACKED_COLUMNS: f32 = 0.8;
 
 /// The multi-person tracker of one camera.
 #[derive(Debug)]
@@ -461,7 +470,8 @@ impl MultiTracker {
     }
 
     /// Count how long each pair of filters with boxes alike (IoU at least `duplicate-iou`) or
-    /// nested (the smaller at least [`NESTED_OVERLAP`] inside the larger) has shared a region;
+    /// nested (the smaller at least [`NESTED_OVERLAP`] inside the larger, or stacked in its
+    /// columns: [`STACKED_COLUMNS`]) has shared a region;
     /// of a pair that has for `duplicate-frames` frames, eliminate the smaller of a nested
     /// pair (a filter on a fragment of the other's person, which a region split off for a few
     /// frames), else the younger — or the older, if its colours matched clearly worse over
@@ -475,9 +485,12 @@ impl MultiTracker {
                 let same = a.region.is_some() && a.region == b.region;
                 let (ab, bb) = (a.filter.mean().bbox(), b.filter.mean().bbox());
                 let alike = iou(&ab, &bb) >= p.duplicate_iou;
-                // A box (nearly) inside a larger one: the smaller lies on a part of the other's
-                // person (a fragment the region split off for a few frames).
-                let nested = !alike && overlap_of_smaller(&ab, &bb) >= NESTED_OVERLAP;
+                // A box (nearly) inside a larger one, or above or below it in its columns: the
+                // smaller lies on a part of the other's person (a fragment the region split off
+                // for a few frames).
+                let nested = !alike
+                    && (overlap_of_smaller(&ab, &bb) >= NESTED_OVERLAP
+                        || column_overlap(&ab, &bb) >= STACKED_COLUMNS);
                 if !same || !(alike || nested) {
                     continue;
                 }

@@ -75,14 +75,14 @@ pub struct ParticleParams {
     /// Frames without a supporting region after which a filter is destroyed (§3.2.1). Ours: 10.
     pub destroy_frames: u32,
     /// Frames two filters must share a region before one is eliminated — the younger, unless
-    /// the older matched clearly worse meanwhile, or the smaller when one box lies inside the
-    /// other (§3.2.1: "if the object does not split up again after a certain amount of time").
-    /// Ours: 10.
+    /// the older matched clearly worse meanwhile, or the smaller when one box lies inside (or
+    /// is stacked on) the other (§3.2.1: "if the object does not split up again after a
+    /// certain amount of time"). Ours: 10.
     pub duplicate_frames: u32,
     /// Two filters sharing a region count as duplicates only when their boxes overlap at
-    /// least this much (IoU), or one lies inside the other (a filter on a part of another's
-    /// person): two people inside one merged region keep their filters. 0 is the paper's
-    /// literal rule (any shared region). Ours: 0.4.
+    /// least this much (IoU), or one lies inside the other or above or below it in its columns
+    /// (a filter on a part of another's person): two people inside one merged region keep
+    /// their filters. 0 is the paper's literal rule (any shared region). Ours: 0.4.
     pub duplicate_iou: f32,
     /// A region supports (and explains) a filter when the filter's box centre lies inside it
     /// or their IoU is at least this. Ours: 0.2.

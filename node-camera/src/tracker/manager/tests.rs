@@ -188,16 +188,52 @@ fn a_filter_on_part_of_anothers_person_is_eliminated_whatever_its_age() {
 }
 
 #[test]
+fn a_filter_stacked_on_anothers_person_is_eliminated_whatever_its_age() {
+    // A filter on red's legs and the floor below them (a fragment), then one on all of red:
+    // their boxes share their columns but are not alike (IoU under the default 0.4) and
+    // neither lies inside the other, so only the stacking rule finds them. The smaller goes.
+    let s = scene(vec![red()]);
+    let params = ParticleParams {
+        duplicate_frames: 5,
+        ..ParticleParams::default()
+    };
+    let mut tracker = MultiTracker::new(params, 7).unwrap();
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    s.render(0, &mut frame);
+    let whole = s.box_at(0, 0);
+    let h = whole.ymax - whole.ymin;
+    let legs = PixelBox {
+        ymin: whole.ymin + 0.65 * h,
+        ymax: whole.ymax + 0.35 * h,
+        ..whole
+    };
+    assert!(overlap_of_smaller(&legs, &whole) < NESTED_OVERLAP && iou(&legs, &whole) < 0.4);
+    let fragment = tracker.start(&frame, &legs).unwrap();
+    let person = tracker.start(&frame, &whole).unwrap();
+    for t in 1..15u32 {
+        s.render(t, &mut frame);
+        tracker
+            .step(&input(&frame, &[detection(&s.box_at(0, t))]))
+            .unwrap();
+    }
+    assert_eq!(tracker.ids(), vec![person], "fragment {fragment} eliminated");
+    assert_eq!(tracker.counters().duplicates_eliminated, 1);
+}
+
+#[test]
 fn two_people_in_one_merged_region_keep_their_filters_unless_the_rule_is_literal() {
-    // Red and green walk side by side; the background model sees one region around both.
-    let mut a = red();
-    let mut b = green();
-    a.start = [40.0, 60.0];
-    b.start = [61.0, 62.0];
-    a.velocity = [1.0, 0.0];
-    b.velocity = [1.0, 0.0];
-    let s = scene(vec![a, b]);
-    let run = |duplicate_iou: f32| {
+    // Red and green walk side by side, green `gap` px to the right of red's left edge; the
+    // background model sees one region around both.
+    let run = |duplicate_iou: f32, gap: f32| {
+        let mut a = red();
+        let mut b = green();
+        a.start = [40.0, 60.0];
+        b.start = [40.0 + gap, 62.0];
+        a.velocity = [1.0, 0.0];
+        b.velocity = [1.0, 0.0];
+        let s = scene(vec![a, b]);
+        let (p, q) = (s.box_at(0, 0), s.box_at(1, 0));
+        assert!(column_overlap(&p, &q) < STACKED_COLUMNS);
         let params = ParticleParams {
             duplicate_iou,
             duplicate_frames: 10,
@@ -221,9 +257,18 @@ fn two_people_in_one_merged_region_keep_their_filters_unless_the_rule_is_literal
         }
         tracker.ids()
     };
-    assert_eq!(run(0.4), vec![0, 1], "their boxes do not overlap: two people");
     assert_eq!(
-        run(0.0),
+        run(0.4, 21.0),
+        vec![0, 1],
+        "their boxes do not overlap: two people"
+    );
+    assert_eq!(
+        run(0.4, 14.0),
+        vec![0, 1],
+        "green hides a third of red's columns: still two people"
+    );
+    assert_eq!(
+        run(0.0, 21.0),
         vec![0],
         "the paper's literal rule keeps one filter per region"
     );
