@@ -48,18 +48,18 @@ const WALL_AIM_M: f64 = 4.5;
 /// How far from its post a post camera looks (a steep view), metres.
 const POST_AIM_M: f64 = 2.5;
 
-/// The scenario's TOML text.
 /// The particle cameras' settings a generated hall overrides (docs/paper004.md, "Filters
-/// stacked on one person").
+/// stacked on one person are duplicates too").
 const PARTICLE_TOML: &str = r#"
 [method.particle]
-# Two filters sharing a region for this many frames are one person's (when their boxes are
-# alike, nested or stacked): 0.6 s at these cameras' 5 fps, about the 10 frames at 15 fps
-# paper 004's experiment uses. At 10 frames (2 s) a camera's second filter on a person lived
-# long enough to feed a second track of them.
+# Two filters sharing a region and passing the duplicate test in this many consecutive frames
+# are one person's: 0.6 s at these cameras' 5 fps, about the 10 frames at 15 fps paper 004's
+# experiment uses. At 10 frames (2 s) a camera's second filter on a person lived long enough
+# to feed a second track of them.
 duplicate-frames = 3
 "#;
 
+/// The scenario's TOML text.
 pub fn generate_toml(spec: &HallSpec) -> String {
     let [w, d] = spec.size;
     let heads = spec.heads.max(1);

@@ -31,8 +31,8 @@ pub fn overlap_of_smaller(a: &PixelBox, b: &PixelBox) -> f32 {
     }
 }
 
-/// The columns two boxes share over the narrower box's width, 0 when either has none: 1 for
-/// boxes stacked in one column span, whatever their heights.
+/// The columns two finite boxes share over the narrower box's width, 0 when either has none:
+/// 1 for boxes stacked in one column span, whatever their heights.
 pub fn column_overlap(a: &PixelBox, b: &PixelBox) -> f32 {
     let narrower = (a.xmax - a.xmin).min(b.xmax - b.xmin);
     if narrower > 0.0 {

@@ -244,8 +244,9 @@ struct Shared {
     frames: u32,
     /// Sum over those frames of the older's colour similarity minus the younger's.
     older_lead: f32,
-    /// This frame, the smaller of the two when one box lies inside the other or above or below
-    /// it in its columns without the two being alike (IoU below `duplicate-iou`).
+    /// This frame, the smaller of the two (the younger when their areas are equal) when one box
+    /// lies inside the other or above or below it in its columns without the two being alike
+    /// (IoU below `duplicate-iou`).
     nested: Option<LocalId>,
 }
 
@@ -263,9 +264,10 @@ const NESTED_OVERLAP: f32 = 0.9;
 /// How much of the narrower of two filters' boxes' columns must lie inside the wider's for the
 /// pair to be stacked (one above the other on one person, a fragment of their legs or of
 /// their head and the wall above, in one region) and so nested too, whatever their overlap in
-/// area. Two people side by side, or one partly hiding the other, share fewer columns; one
-/// wholly behind another in one region (whom nesting already took) shares as many. Measured
-/// in the crowd (docs/paper004.md): 0.6 took people, 0.9 left fragments.
+/// area or height. Two people side by side, or one partly hiding the other from the side,
+/// share fewer columns. A person right behind another in one region shares as many, and goes
+/// too (their box, higher in the image, was not nested): the price of taking the fragments,
+/// measured in docs/paper004.md, where 0.6 took more people and 0.9 left fragments.
 const STACKED_COLUMNS: f32 = 0.8;
 
 /// The multi-person tracker of one camera.

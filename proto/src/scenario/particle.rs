@@ -81,8 +81,9 @@ pub struct ParticleParams {
     pub duplicate_frames: u32,
     /// Two filters sharing a region count as duplicates only when their boxes overlap at
     /// least this much (IoU), or one lies inside the other or above or below it in its columns
-    /// (a filter on a part of another's person): two people inside one merged region keep
-    /// their filters. 0 is the paper's literal rule (any shared region). Ours: 0.4.
+    /// (a filter on a part of another's person): two people side by side inside one merged
+    /// region keep their filters (one right behind the other does not). 0 is the paper's
+    /// literal rule (any shared region). Ours: 0.4.
     pub duplicate_iou: f32,
     /// A region supports (and explains) a filter when the filter's box centre lies inside it
     /// or their IoU is at least this. Ours: 0.2.

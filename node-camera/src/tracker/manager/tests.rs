@@ -191,7 +191,8 @@ fn a_filter_on_part_of_anothers_person_is_eliminated_whatever_its_age() {
 fn a_filter_stacked_on_anothers_person_is_eliminated_whatever_its_age() {
     // A filter on red's legs and the floor below them (a fragment), then one on all of red:
     // their boxes share their columns but are not alike (IoU under the default 0.4) and
-    // neither lies inside the other, so only the stacking rule finds them. The smaller goes.
+    // neither lies inside the other, so only the stacking rule finds them: both live until the
+    // fifth frame, when the smaller goes (so they were stacked from the first).
     let s = scene(vec![red()]);
     let params = ParticleParams {
         duplicate_frames: 5,
@@ -215,6 +216,9 @@ fn a_filter_stacked_on_anothers_person_is_eliminated_whatever_its_age() {
         tracker
             .step(&input(&frame, &[detection(&s.box_at(0, t))]))
             .unwrap();
+        if t < 5 {
+            assert_eq!(tracker.ids(), vec![fragment, person], "frame {t}");
+        }
     }
     assert_eq!(tracker.ids(), vec![person], "fragment {fragment} eliminated");
     assert_eq!(tracker.counters().duplicates_eliminated, 1);
@@ -265,7 +269,7 @@ fn two_people_in_one_merged_region_keep_their_filters_unless_the_rule_is_literal
     assert_eq!(
         run(0.4, 14.0),
         vec![0, 1],
-        "green hides a third of red's columns: still two people"
+        "green hides a third of red's columns (below the stacking rule's share): still two people"
     );
     assert_eq!(
         run(0.0, 21.0),
