@@ -49,7 +49,7 @@ const WALL_AIM_M: f64 = 4.5;
 const POST_AIM_M: f64 = 2.5;
 
 /// The particle cameras' settings a generated hall overrides (docs/paper004.md, "Filters
-/// stacked on one person are duplicates too").
+/// stacked on one person are duplicates too" and "A filter's waits are time").
 const PARTICLE_TOML: &str = r#"
 [method.particle]
 # Two filters sharing a region and passing the duplicate test in this many consecutive frames
@@ -57,6 +57,9 @@ const PARTICLE_TOML: &str = r#"
 # experiment uses. At 10 frames (2 s) a camera's second filter on a person lived long enough
 # to feed a second track of them.
 duplicate-frames = 3
+# A filter no region supports in this many consecutive frames is destroyed: 0.6 s as well (at
+# 10 frames, a filter whose person had left it fed tracks for 2 s).
+destroy-frames = 3
 "#;
 
 /// The scenario's TOML text.
