@@ -58,7 +58,7 @@ const PARTICLE_TOML: &str = r#"
 # to feed a second track of them.
 duplicate-frames = 3
 # A filter no region supports in this many consecutive frames is destroyed: 0.6 s as well (at
-# 10 frames, a filter whose person had left it fed tracks for 2 s).
+# 10 frames, 2 s, these scenarios had far more false positives: docs/paper004.md).
 destroy-frames = 3
 "#;
 
