@@ -123,7 +123,7 @@ impl CameraNode {
         let segmenter = Segmenter::new(&cfg.segment);
         let record_all = cfg.record_all.then(|| RecordAll::new(&cfg));
         let people = (cfg.tracker == proto::scenario::CameraTracker::Particle)
-            .then(|| GroundPeople::new(&cfg.particle, u64::from(cfg.id.0)))
+            .then(|| GroundPeople::new(&cfg.particle, cfg.fps, u64::from(cfg.id.0)))
             .and_then(|r| {
                 // The scenario's check refuses bad parameters; a hand-made config falls back.
                 r.map_err(|e| warn!(node = %cfg.id, error = %e, "particle tracker refused; segmentation"))

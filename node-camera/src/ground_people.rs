@@ -50,13 +50,13 @@ pub struct GroundPeople {
 }
 
 impl GroundPeople {
-    /// Filters with `params`, their randomness seeded with `seed`.
+    /// Filters with `params` for a camera at `fps`, their randomness seeded with `seed`.
     ///
     /// # Errors
     /// A parameter out of range.
-    pub fn new(params: &ParticleParams, seed: u64) -> Result<GroundPeople, ParamsError> {
+    pub fn new(params: &ParticleParams, fps: f64, seed: u64) -> Result<GroundPeople, ParamsError> {
         Ok(GroundPeople {
-            tracker: MultiTracker::new(params.clone(), seed)?,
+            tracker: MultiTracker::new(params.clone(), fps, seed)?,
             corner_sigma_px: params.corner_sigma_px,
             people: Vec::new(),
             captured: None,

@@ -1,8 +1,8 @@
 //! The multi-person tracker of paper 004 §3.2.1–3.2.2: one colour particle filter per person.
 //! A foreground region (from the background model, `adaptive_background`) that no filter explains for
 //! `init-frames` frames starts a filter with its current appearance as target; a filter with no
-//! supporting region for `destroy-frames` frames is destroyed; of two filters that share a
-//! region for `duplicate-frames` frames with boxes alike (IoU), one inside the other or one
+//! supporting region for `destroy-s` seconds is destroyed; of two filters that share a region
+//! for `duplicate-s` seconds with boxes alike (IoU), one inside the other or one
 //! above the other in its columns, one is eliminated: the smaller when nested or stacked (it
 //! sits on a part of the other's person), else the younger, unless the older's colours matched
 //! clearly worse (it drifted there). Each filter keeps its local id for life. The region
@@ -274,6 +274,9 @@ const STACKED_COLUMNS: f32 = 0.8;
 #[derive(Debug)]
 pub struct MultiTracker {
     params: ParticleParams,
+    /// The destroy and duplicate waits in this camera's frames.
+    destroy_frames: u32,
+    duplicate_frames: u32,
     rng: ChaCha8Rng,
     image: BinImage,
     frame_size: Option<(u32, u32)>,
@@ -311,13 +314,16 @@ fn best_region(b: &PixelBox, regions: &[PixelBox], min_iou: f32) -> Option<usize
 }
 
 impl MultiTracker {
-    /// A tracker with no one tracked, its randomness seeded with `seed`.
+    /// A tracker with no one tracked for a camera at `fps` frames per second (its waits are
+    /// times: [`ParticleParams::destroy_frames_at`]), its randomness seeded with `seed`.
     ///
     /// # Errors
     /// A parameter out of range.
-    pub fn new(params: ParticleParams, seed: u64) -> Result<MultiTracker, ParamsError> {
+    pub fn new(params: ParticleParams, fps: f64, seed: u64) -> Result<MultiTracker, ParamsError> {
         params.validate()?;
         Ok(MultiTracker {
+            destroy_frames: params.destroy_frames_at(fps),
+            duplicate_frames: params.duplicate_frames_at(fps),
             params,
             rng: ChaCha8Rng::seed_from_u64(seed),
             image: BinImage::new(),
@@ -453,7 +459,7 @@ impl MultiTracker {
             person.filter.adapt(rate);
         }
         let before = self.people.len();
-        self.people.retain(|q| q.unsupported < p.destroy_frames);
+        self.people.retain(|q| q.unsupported < self.destroy_frames);
         self.counters.destroyed += (before - self.people.len()) as u64;
         self.eliminate_duplicates();
         let births = self.candidates_ready(input.regions, &regions);
@@ -512,7 +518,7 @@ impl MultiTracker {
             }
         }
         let mut doomed: Vec<LocalId> = Vec::new();
-        for s in shared.iter().filter(|s| s.frames >= p.duplicate_frames) {
+        for s in shared.iter().filter(|s| s.frames >= self.duplicate_frames) {
             if doomed.contains(&s.older) || doomed.contains(&s.younger) {
                 continue;
             }

@@ -4,6 +4,9 @@ use crate::tracker::scene::{Person as Drawn, Scene};
 use proto::ClusterTime;
 use proto::sensor::rgb_to_hsi;
 
+/// The frame rate the tests' trackers are told: the waits' defaults are 10 frames at it.
+const FPS: f64 = 15.0;
+
 fn red() -> Drawn {
     Drawn {
         shirt: [210, 40, 50],
@@ -71,14 +74,45 @@ fn input<'a>(frame: &'a Frame, regions: &'a [Detection]) -> TrackerInput<'a> {
     }
 }
 
+/// The default destroy wait is 2/3 s: 10 frames for a camera at 15 fps, 3 at 5 fps.
+#[test]
+fn the_destroy_wait_is_a_time_so_a_slower_camera_waits_fewer_frames() {
+    for (fps, frames) in [(15.0, 10), (5.0, 3)] {
+        let mut tracker = MultiTracker::new(ParticleParams::default(), fps, 1).unwrap();
+        let (both, only_red) = (scene(vec![red(), green()]), scene(vec![red()]));
+        let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+        let mut ids_at = Vec::new();
+        for t in 0..60u32 {
+            // Green walks in at frame 10 and out at frame 40.
+            let s = if (10..40).contains(&t) { &both } else { &only_red };
+            s.render(t, &mut frame);
+            let regions: Vec<Detection> = (0..s.people.len()).map(|i| detection(&s.box_at(i, t))).collect();
+            tracker.step(&input(&frame, &regions)).unwrap();
+            ids_at.push(tracker.ids());
+        }
+        let last_kept = 40 + frames - 2;
+        assert_eq!(
+            ids_at[last_kept],
+            vec![0, 1],
+            "{fps} fps: kept {} frames without a region",
+            frames - 1
+        );
+        assert_eq!(
+            ids_at[last_kept + 1],
+            vec![0],
+            "{fps} fps: destroyed on frame {frames} without one"
+        );
+    }
+}
+
 #[test]
 fn people_who_enter_get_a_filter_and_one_who_leaves_loses_it_after_n_frames() {
     let params = ParticleParams {
         init_frames: 2,
-        destroy_frames: 10,
+        destroy_frames: Some(10),
         ..ParticleParams::default()
     };
-    let mut tracker = MultiTracker::new(params, 1).unwrap();
+    let mut tracker = MultiTracker::new(params, FPS, 1).unwrap();
     let (both, only_red) = (scene(vec![red(), green()]), scene(vec![red()]));
     let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
     let mut ids_at = Vec::new();
@@ -129,10 +163,10 @@ fn people_who_enter_get_a_filter_and_one_who_leaves_loses_it_after_n_frames() {
 #[test]
 fn a_duplicate_filter_on_one_region_is_eliminated_and_the_older_id_stays() {
     let params = ParticleParams {
-        duplicate_frames: 10,
+        duplicate_frames: Some(10),
         ..ParticleParams::default()
     };
-    let mut tracker = MultiTracker::new(params, 2).unwrap();
+    let mut tracker = MultiTracker::new(params, FPS, 2).unwrap();
     let s = scene(vec![red()]);
     let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
     for t in 0..30u32 {
@@ -165,10 +199,10 @@ fn a_fragment_then_the_person(
 ) -> (LocalId, LocalId, Vec<Vec<LocalId>>) {
     let s = scene(vec![red()]);
     let params = ParticleParams {
-        duplicate_frames: 5,
+        duplicate_frames: Some(5),
         ..ParticleParams::default()
     };
-    let mut tracker = MultiTracker::new(params, 7).unwrap();
+    let mut tracker = MultiTracker::new(params, FPS, 7).unwrap();
     let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
     s.render(0, &mut frame);
     let whole = s.box_at(0, 0);
@@ -245,10 +279,10 @@ fn two_people_in_one_merged_region_keep_their_filters_unless_the_rule_is_literal
         assert!(column_overlap(&p, &q) < STACKED_COLUMNS);
         let params = ParticleParams {
             duplicate_iou,
-            duplicate_frames: 10,
+            duplicate_frames: Some(10),
             ..ParticleParams::default()
         };
-        let mut tracker = MultiTracker::new(params, 3).unwrap();
+        let mut tracker = MultiTracker::new(params, FPS, 3).unwrap();
         let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
         s.render(0, &mut frame);
         tracker.start(&frame, &s.box_at(0, 0)).unwrap();
@@ -288,7 +322,7 @@ fn with_the_background_model_it_tracks_two_people_and_reports_their_foreground()
     let s = scene(vec![red(), green()]);
     let empty = scene(vec![]);
     let mut seg = AdaptiveBackground::new(AdaptiveBackgroundParams::default());
-    let mut tracker = MultiTracker::new(ParticleParams::default(), 4).unwrap();
+    let mut tracker = MultiTracker::new(ParticleParams::default(), FPS, 4).unwrap();
     let (mut frame, mut regions) = (Frame::new(1, 1, ClusterTime::ZERO), Vec::new());
     empty.render(0, &mut frame);
     seg.process(&frame, &mut regions).unwrap();
@@ -328,7 +362,7 @@ fn with_the_background_model_it_tracks_two_people_and_reports_their_foreground()
 #[test]
 fn samples_only_on_request() {
     let s = scene(vec![red()]);
-    let mut tracker = MultiTracker::new(ParticleParams::default(), 5).unwrap();
+    let mut tracker = MultiTracker::new(ParticleParams::default(), FPS, 5).unwrap();
     let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
     for t in 0..3u32 {
         s.render(t, &mut frame);
@@ -354,8 +388,8 @@ fn samples_only_on_request() {
 fn bad_input_is_rejected_and_changes_nothing() {
     let s = scene(vec![red(), green()]);
     let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
-    let mut clean = MultiTracker::new(ParticleParams::default(), 6).unwrap();
-    let mut poked = MultiTracker::new(ParticleParams::default(), 6).unwrap();
+    let mut clean = MultiTracker::new(ParticleParams::default(), FPS, 6).unwrap();
+    let mut poked = MultiTracker::new(ParticleParams::default(), FPS, 6).unwrap();
     for t in 0..12u32 {
         s.render(t, &mut frame);
         let regions: Vec<Detection> = (0..2).map(|i| detection(&s.box_at(i, t))).collect();
@@ -439,7 +473,7 @@ fn max_people_refuses_and_counts_the_rest() {
         init_frames: 1,
         ..ParticleParams::default()
     };
-    let mut tracker = MultiTracker::new(params, 7).unwrap();
+    let mut tracker = MultiTracker::new(params, FPS, 7).unwrap();
     let s = scene(vec![red(), green()]);
     let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
     s.render(0, &mut frame);
@@ -455,12 +489,12 @@ fn max_people_refuses_and_counts_the_rest() {
         particles: 0,
         ..ParticleParams::default()
     };
-    assert_eq!(MultiTracker::new(bad, 0).unwrap_err().field, "particles");
+    assert_eq!(MultiTracker::new(bad, FPS, 0).unwrap_err().field, "particles");
 }
 
 #[test]
 fn reset_accepts_a_new_resolution_and_never_reuses_an_id() {
-    let mut tracker = MultiTracker::new(ParticleParams::default(), 8).unwrap();
+    let mut tracker = MultiTracker::new(ParticleParams::default(), FPS, 8).unwrap();
     let s = scene(vec![red()]);
     let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
     for t in 0..3u32 {
@@ -494,10 +528,10 @@ fn of_two_duplicates_the_one_that_drifted_onto_someone_else_gives_way() {
     // Filter 0 learned a green person; it sits on the red person's region, where filter 1
     // (red's own) also is. Filter 0 matches clearly worse there, so it goes, though older.
     let params = ParticleParams {
-        duplicate_frames: 8,
+        duplicate_frames: Some(8),
         ..ParticleParams::default()
     };
-    let mut tracker = MultiTracker::new(params, 9).unwrap();
+    let mut tracker = MultiTracker::new(params, FPS, 9).unwrap();
     let still = Drawn {
         velocity: [0.0, 0.0],
         ..red()

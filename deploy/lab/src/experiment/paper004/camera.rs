@@ -259,7 +259,7 @@ pub fn run(
     params.adaptive_background = params.adaptive_background.scaled_to_fps(setup.fps);
     let mut segmenter = Segmenter::new(&params);
     let mut people = match tracker {
-        Tracker::Particle(p) => Some(GroundPeople::new(p, seed)?),
+        Tracker::Particle(p) => Some(GroundPeople::new(p, setup.fps, seed)?),
         Tracker::Segmentation => None,
     };
     let mut recorder = people.as_ref().map(|_| ParticleRecorder::new(width, height));
