@@ -48,20 +48,6 @@ const WALL_AIM_M: f64 = 4.5;
 /// How far from its post a post camera looks (a steep view), metres.
 const POST_AIM_M: f64 = 2.5;
 
-/// The particle cameras' settings a generated hall overrides (docs/paper004.md, "Filters
-/// stacked on one person are duplicates too" and "A filter's waits are time").
-const PARTICLE_TOML: &str = r#"
-[method.particle]
-# Two filters sharing a region and passing the duplicate test in this many consecutive frames
-# are one person's: 0.6 s at these cameras' 5 fps, about the 10 frames at 15 fps paper 004's
-# experiment uses. At 10 frames (2 s) a camera's second filter on a person lived long enough
-# to feed a second track of them.
-duplicate-frames = 3
-# A filter no region supports in this many consecutive frames is destroyed: 0.6 s as well (at
-# 10 frames, 2 s, these scenarios had far more false positives: docs/paper004.md).
-destroy-frames = 3
-"#;
-
 /// The scenario's TOML text.
 pub fn generate_toml(spec: &HallSpec) -> String {
     let [w, d] = spec.size;
@@ -104,7 +90,7 @@ track-timeout-ms = 3000
 gate-chi2 = 13.8
 motion = {{ accel-psd = [0.25, 0.25, 0.01] }}
 rssi-default = {{ kind = "log-distance", a = -22.0, b = -45.0, variance = 16.0 }}
-{particle}
+
 [power]
 camera-mw = 650.0
 node-active-mw = 69.0
@@ -121,10 +107,6 @@ rssi = false
         tracker = match spec.camera_tracker {
             CameraTracker::Segmentation => "segmentation",
             CameraTracker::Particle => "particle",
-        },
-        particle = match spec.camera_tracker {
-            CameraTracker::Segmentation => "",
-            CameraTracker::Particle => PARTICLE_TOML,
         },
     );
     // Heads: the floor cut into `heads` strips along its longer side.
