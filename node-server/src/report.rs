@@ -16,8 +16,9 @@
 //!   `TrackReport.power_mw` × step time.
 //!   `power_mw_mean` is the sum over nodes of their mean power.
 //! - **Messages**: `sent` = frames nodes sent to the server (received + sequence gaps) plus
-//!   frames the server sent; `dropped` = sequence gaps into the server (link control frames
-//!   such as TCP heartbeats take no sequence number, so a gap is a lost frame) plus the
+//!   frames the server sent; `dropped` = sequence numbers that never reached the server (link
+//!   control frames such as TCP heartbeats take none, so a missing one is a lost frame; one
+//!   that arrives late is not: [`sequence`]) plus the
 //!   `dropped` counters nodes report (cameras: undeliverable messages; heads: failed sends); `late` = contributions past their deadline as the heads report them;
 //!   `rejected` = inputs the server refused.
 //! - **Multi-target metrics** (`mota`, `motp_m`, `idf1`, `id_switches`, `fragmentations`,
@@ -46,6 +47,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
 pub mod mot;
+mod sequence;
 
 /// A global track whose mean distance to every true target exceeds this is a false track, m.
 pub const ASSOCIATION_GATE_M: f64 = 2.0;
@@ -330,18 +332,12 @@ struct Tally {
 
 fn tally_records(loaded: &Loaded) -> Tally {
     let mut t = Tally::default();
-    let mut last_seq: BTreeMap<NodeId, u64> = BTreeMap::new();
+    let mut gaps = sequence::SequenceGaps::default();
     for s in &loaded.records {
         match &s.record {
             Record::Received(env) => {
                 t.messages.sent += 1;
-                if let Some(prev) = last_seq.insert(env.source, env.seq)
-                    && env.seq > prev
-                {
-                    let gap = env.seq - prev - 1;
-                    t.messages.sent += gap;
-                    t.messages.dropped += gap;
-                }
+                gaps.see(env.source, env.seq);
                 match &env.body {
                     Message::NodeStatus(st) => {
                         t.first_status.entry(env.source).or_insert_with(|| st.clone());
@@ -360,6 +356,9 @@ fn tally_records(loaded: &Loaded) -> Tally {
             _ => {}
         }
     }
+    let lost = gaps.lost();
+    t.messages.sent += lost;
+    t.messages.dropped += lost;
     t
 }
 
