@@ -69,6 +69,9 @@ pub struct RunSummary {
     pub peers_down: u64,
     /// Messages not delivered (dropped or failed), by kind.
     pub undelivered: BTreeMap<&'static str, u64>,
+    /// The same by recipient: a peer not up yet or gone (over iceoryx2 a frame for a node
+    /// whose inbox has no reader is dropped at once) shows here.
+    pub undelivered_to: BTreeMap<NodeId, u64>,
     pub transport: StatsSnapshot,
 }
 
@@ -227,17 +230,20 @@ where
                     summary.dropped += 1;
                     undelivered += 1;
                     *summary.undelivered.entry(kind).or_default() += 1;
+                    *summary.undelivered_to.entry(to).or_default() += 1;
                 }
                 Ok(Err(e)) => {
                     summary.send_failures += 1;
                     undelivered += 1;
                     *summary.undelivered.entry(kind).or_default() += 1;
+                    *summary.undelivered_to.entry(to).or_default() += 1;
                     debug!(node = %me, %to, error = %e, "not delivered");
                 }
                 Err(_) => {
                     summary.send_failures += 1;
                     undelivered += 1;
                     *summary.undelivered.entry(kind).or_default() += 1;
+                    *summary.undelivered_to.entry(to).or_default() += 1;
                     debug!(node = %me, %to, "send timed out");
                 }
             }
@@ -252,7 +258,15 @@ where
     };
     summary.transport = stats.snapshot();
     handle.shutdown().await;
-    info!(node = %me, sent = summary.sent, send_failures = summary.send_failures, "stopped");
+    info!(
+        node = %me,
+        sent = summary.sent,
+        send_failures = summary.send_failures,
+        dropped = summary.dropped,
+        undelivered = ?summary.undelivered,
+        undelivered_to = ?summary.undelivered_to,
+        "stopped"
+    );
     result.map(|()| summary)
 }
 
@@ -270,6 +284,25 @@ mod tests {
 
     /// Sends a status to node 2 on every tick, its `bytes_sent` left at 0 as a core leaves it.
     struct Reporter;
+
+    /// Sends a status to node 3, which no process is, on every tick.
+    struct ToNobody;
+
+    impl Node for ToNobody {
+        type Sensor = std::convert::Infallible;
+
+        fn id(&self) -> NodeId {
+            NodeId(1)
+        }
+
+        fn handle(&mut self, now: ClusterTime, input: Input<Self::Sensor>) -> Vec<Outgoing> {
+            let mut out = Reporter.handle(now, input);
+            for o in &mut out {
+                o.to = NodeId(3);
+            }
+            out
+        }
+    }
 
     impl Node for Reporter {
         type Sensor = std::convert::Infallible;
@@ -343,6 +376,38 @@ mod tests {
         for k in 1..seen.len() {
             assert_eq!(seen[k], sizes[..k].iter().sum::<u64>(), "{seen:?} {sizes:?}");
         }
+        receiver.shutdown().await;
+    }
+
+    /// What could not be delivered is counted by kind and by recipient, so a run's drops can
+    /// be told apart (a peer not up yet, one gone).
+    #[tokio::test]
+    async fn undelivered_messages_are_counted_by_kind_and_recipient() {
+        let hub = InProcessHub::new();
+        let (_ep, _inbox, _stats, receiver) = open(config(&hub, 2)).await.unwrap();
+        let shutdown = CancellationToken::new();
+        let cfg = ProcessConfig::new(config(&hub, 1), None, Duration::from_millis(5));
+        let stop = shutdown.clone();
+        let (mut node, mut hooks) = (ToNobody, NoHooks);
+        let sender = run(
+            &mut node,
+            cfg,
+            HostClock::follower(),
+            no_sensors(),
+            &mut hooks,
+            stop,
+        );
+        let cancel = async {
+            tokio::time::sleep(Duration::from_millis(100)).await;
+            shutdown.cancel();
+        };
+        let (summary, ()) = tokio::join!(sender, cancel);
+        let summary = summary.unwrap();
+        let n = summary.undelivered.get("node_status").copied().unwrap_or(0);
+        assert!(n > 0, "{summary:?}");
+        assert_eq!(summary.undelivered_to.get(&NodeId(3)), Some(&n), "{summary:?}");
+        assert_eq!(summary.undelivered_to.len(), 1);
+        assert_eq!(summary.sent, 0);
         receiver.shutdown().await;
     }
 }
