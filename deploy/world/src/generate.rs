@@ -48,6 +48,37 @@ const WALL_AIM_M: f64 = 4.5;
 /// How far from its post a post camera looks (a steep view), metres.
 const POST_AIM_M: f64 = 2.5;
 
+/// Least distance, metres, between two people's waypoints in the same slot of their loops.
+/// People start their loops at the same end of the hall at once; two whose first waypoints
+/// were drawn a few centimetres apart started inside each other and, at like speeds, walked
+/// most of the loop side by side (the first hall's people 9 and 10: 6 cm apart at the start,
+/// and 9 the least covered person in every run).
+pub const WAYPOINTS_APART_M: f64 = 1.0;
+
+/// Seed offset of the waypoint re-draws' stream.
+const REDRAW_STREAM: u64 = 0x5eed_a9a7;
+
+/// `v`, or when it lies within [`WAYPOINTS_APART_M`] of one of `taken`, a re-draw in
+/// `lo..hi` that does not (the farthest of 64 tries if none is clear: a hall too narrow for
+/// its people).
+fn apart(v: f64, taken: &[f64], lo: f64, hi: f64, rng: &mut ChaCha8Rng) -> f64 {
+    let clearance = |v: f64| taken.iter().map(|t| (t - v).abs()).fold(f64::INFINITY, f64::min);
+    if clearance(v) >= WAYPOINTS_APART_M {
+        return v;
+    }
+    let mut best = v;
+    for _ in 0..64 {
+        let c = rng.random_range(lo..hi.max(lo + 0.1));
+        if clearance(c) >= WAYPOINTS_APART_M {
+            return c;
+        }
+        if clearance(c) > clearance(best) {
+            best = c;
+        }
+    }
+    best
+}
+
 /// The scenario's TOML text.
 pub fn generate_toml(spec: &HallSpec) -> String {
     let [w, d] = spec.size;
@@ -154,25 +185,40 @@ camera.fps = 5.0
         );
     }
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
+    // Re-draws of a waypoint too near another person's come from their own stream, so that a
+    // conflict changes that waypoint alone and not everything drawn after it.
+    let mut redraw = ChaCha8Rng::seed_from_u64(spec.seed ^ REDRAW_STREAM);
+    // Per waypoint slot, the across-the-hall coordinates people drawn so far have there.
+    let mut taken: [Vec<f64>; 4] = Default::default();
     for p in 0..spec.people {
         // A loop from one end of the hall to the other and back by another way: it crosses
         // every cluster.
         let m = 1.0;
-        let y = |rng: &mut ChaCha8Rng| rng.random_range(m..(d - m).max(m + 0.1));
-        let x = |rng: &mut ChaCha8Rng| rng.random_range(m..(w - m).max(m + 0.1));
+        let across = if along_x { d } else { w };
+        let mut draw = |slot: usize, rng: &mut ChaCha8Rng| {
+            let v = apart(
+                rng.random_range(m..(across - m).max(m + 0.1)),
+                &taken[slot],
+                m,
+                across - m,
+                &mut redraw,
+            );
+            taken[slot].push(v);
+            v
+        };
         let pts: Vec<[f64; 2]> = if along_x {
             vec![
-                [m, y(&mut rng)],
-                [w / 2.0, y(&mut rng)],
-                [w - m, y(&mut rng)],
-                [w / 2.0, y(&mut rng)],
+                [m, draw(0, &mut rng)],
+                [w / 2.0, draw(1, &mut rng)],
+                [w - m, draw(2, &mut rng)],
+                [w / 2.0, draw(3, &mut rng)],
             ]
         } else {
             vec![
-                [x(&mut rng), m],
-                [x(&mut rng), d / 2.0],
-                [x(&mut rng), d - m],
-                [x(&mut rng), d / 2.0],
+                [draw(0, &mut rng), m],
+                [draw(1, &mut rng), d / 2.0],
+                [draw(2, &mut rng), d - m],
+                [draw(3, &mut rng), d / 2.0],
             ]
         };
         let speed = rng.random_range(0.6..1.3);
@@ -301,6 +347,27 @@ mod tests {
             assert!(!members.is_empty(), "head {h} has no camera");
         }
         assert_eq!(generate_toml(&spec), generate_toml(&spec));
+    }
+
+    #[test]
+    fn no_two_people_share_a_waypoint() {
+        let (s, _) = generate(&HallSpec::default()).unwrap();
+        let loops: Vec<Vec<[f64; 2]>> = crate::targets(&s)
+            .unwrap()
+            .into_iter()
+            .map(|t| match t.trajectory {
+                crate::Trajectory::Loop { waypoints, .. } => waypoints,
+                other => panic!("a generated person walks a loop: {other:?}"),
+            })
+            .collect();
+        for (i, a) in loops.iter().enumerate() {
+            for b in &loops[i + 1..] {
+                for (p, q) in a.iter().zip(b) {
+                    let gap = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt();
+                    assert!(gap >= WAYPOINTS_APART_M - 0.01, "{p:?} and {q:?}: {gap:.2} m");
+                }
+            }
+        }
     }
 
     #[test]
