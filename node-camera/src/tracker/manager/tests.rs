@@ -74,22 +74,34 @@ fn input<'a>(frame: &'a Frame, regions: &'a [Detection]) -> TrackerInput<'a> {
     }
 }
 
+/// Red walks through all `frames` frames; green walks in at frame 10 and out at frame 40. Per
+/// frame, `seen` gets the frame's index, the scene with both and the tracker's output; the
+/// ids tracked after each frame come back.
+fn green_walks_in_and_out(
+    tracker: &mut MultiTracker,
+    frames: u32,
+    mut seen: impl FnMut(u32, &Scene, &[PersonEstimate]),
+) -> Vec<Vec<LocalId>> {
+    let (both, only_red) = (scene(vec![red(), green()]), scene(vec![red()]));
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    let mut ids_at = Vec::new();
+    for t in 0..frames {
+        let s = if (10..40).contains(&t) { &both } else { &only_red };
+        s.render(t, &mut frame);
+        let regions: Vec<Detection> = (0..s.people.len()).map(|i| detection(&s.box_at(i, t))).collect();
+        let out = tracker.step(&input(&frame, &regions)).unwrap();
+        ids_at.push(tracker.ids());
+        seen(t, &both, &out);
+    }
+    ids_at
+}
+
 /// The default destroy wait is 2/3 s: 10 frames for a camera at 15 fps, 3 at 5 fps.
 #[test]
 fn the_destroy_wait_is_a_time_so_a_slower_camera_waits_fewer_frames() {
     for (fps, frames) in [(15.0, 10), (5.0, 3)] {
         let mut tracker = MultiTracker::new(ParticleParams::default(), fps, 1).unwrap();
-        let (both, only_red) = (scene(vec![red(), green()]), scene(vec![red()]));
-        let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
-        let mut ids_at = Vec::new();
-        for t in 0..60u32 {
-            // Green walks in at frame 10 and out at frame 40.
-            let s = if (10..40).contains(&t) { &both } else { &only_red };
-            s.render(t, &mut frame);
-            let regions: Vec<Detection> = (0..s.people.len()).map(|i| detection(&s.box_at(i, t))).collect();
-            tracker.step(&input(&frame, &regions)).unwrap();
-            ids_at.push(tracker.ids());
-        }
+        let ids_at = green_walks_in_and_out(&mut tracker, 60, |_, _, _| {});
         let last_kept = 40 + frames - 2;
         assert_eq!(
             ids_at[last_kept],
@@ -113,16 +125,7 @@ fn people_who_enter_get_a_filter_and_one_who_leaves_loses_it_after_n_frames() {
         ..ParticleParams::default()
     };
     let mut tracker = MultiTracker::new(params, FPS, 1).unwrap();
-    let (both, only_red) = (scene(vec![red(), green()]), scene(vec![red()]));
-    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
-    let mut ids_at = Vec::new();
-    for t in 0..70u32 {
-        // Green walks in at frame 10 and out at frame 40.
-        let s = if (10..40).contains(&t) { &both } else { &only_red };
-        s.render(t, &mut frame);
-        let regions: Vec<Detection> = (0..s.people.len()).map(|i| detection(&s.box_at(i, t))).collect();
-        let out = tracker.step(&input(&frame, &regions)).unwrap();
-        ids_at.push(tracker.ids());
+    let ids_at = green_walks_in_and_out(&mut tracker, 70, |t, both, out| {
         // Identities stay on their people.
         if let Some(e) = out.iter().find(|e| e.id == 0) {
             assert!(
@@ -137,7 +140,7 @@ fn people_who_enter_get_a_filter_and_one_who_leaves_loses_it_after_n_frames() {
                 "frame {t}: green's filter off"
             );
         }
-    }
+    });
     assert!(
         ids_at[0].is_empty(),
         "a region must be seen init-frames = 2 frames"
