@@ -198,7 +198,7 @@ const BORDER_PX: f32 = 1.0;
 const OUTWARD_PX_PER_FRAME: f32 = 0.25;
 
 /// A filter that lost its region with its box at a border it was moving towards: its person
-/// walked out of view. The filter lives on for `destroy-frames` (they may step back in), but
+/// walked out of view. The filter lives on for `destroy-s` (they may step back in), but
 /// nothing measures where it stands any more, and reported it would be a person at the border
 /// who is not there. A filter that lost its region inside the frame (a person hidden), or at a
 /// border it was not moving towards (someone standing at the edge of the view, faded into the

@@ -18,7 +18,7 @@
 //! - **Messages**: `sent` = frames nodes sent to the server (received + sequence gaps) plus
 //!   frames the server sent; `dropped` = sequence numbers that never reached the server (link
 //!   control frames such as TCP heartbeats take none, so a missing one is a lost frame; one
-//!   that arrives late is not: [`sequence`]) plus the
+//!   that arrives late is not: `report/sequence.rs`) plus the
 //!   `dropped` counters nodes report (cameras: undeliverable messages; heads: failed sends); `late` = contributions past their deadline as the heads report them;
 //!   `rejected` = inputs the server refused.
 //! - **Multi-target metrics** (`mota`, `motp_m`, `idf1`, `id_switches`, `fragmentations`,

@@ -48,7 +48,8 @@ const WALL_AIM_M: f64 = 4.5;
 /// How far from its post a post camera looks (a steep view), metres.
 const POST_AIM_M: f64 = 2.5;
 
-/// Least distance, metres, between two people's waypoints in the same slot of their loops.
+/// Least distance, metres, between two people's waypoints in the same slot of their loops, in a
+/// hall wide enough for its people ([`apart`]).
 /// People start their loops at the same end of the hall at once; two whose first waypoints
 /// were drawn a few centimetres apart started inside each other and, at like speeds, walked
 /// most of the loop side by side (the first hall's people 9 and 10: 6 cm apart at the start,
@@ -351,7 +352,17 @@ mod tests {
 
     #[test]
     fn no_two_people_share_a_waypoint() {
-        let (s, _) = generate(&HallSpec::default()).unwrap();
+        for seed in 1..=12 {
+            no_two_people_share_a_waypoint_with(seed);
+        }
+    }
+
+    fn no_two_people_share_a_waypoint_with(seed: u64) {
+        let (s, _) = generate(&HallSpec {
+            seed,
+            ..HallSpec::default()
+        })
+        .unwrap();
         let loops: Vec<Vec<[f64; 2]>> = crate::targets(&s)
             .unwrap()
             .into_iter()
@@ -364,7 +375,10 @@ mod tests {
             for b in &loops[i + 1..] {
                 for (p, q) in a.iter().zip(b) {
                     let gap = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt();
-                    assert!(gap >= WAYPOINTS_APART_M - 0.01, "{p:?} and {q:?}: {gap:.2} m");
+                    assert!(
+                        gap >= WAYPOINTS_APART_M - 0.01,
+                        "seed {seed}: {p:?} and {q:?}: {gap:.2} m"
+                    );
                 }
             }
         }

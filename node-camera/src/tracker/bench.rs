@@ -8,16 +8,16 @@
 use crate::region::Grid;
 use crate::tracker::feet;
 use crate::tracker::manager::{Foreground, MultiTracker, TrackerInput};
-
-/// The frame rate the benchmark's tracker is told (its waits only; frames come as fast as it
-/// runs).
-const BENCH_FPS: f64 = 15.0;
 use crate::tracker::params::ParticleParams;
 use crate::tracker::scene::Scene;
 use proto::ClusterTime;
 use proto::msg::PixelBox;
 use proto::sensor::Frame;
 use proto::sensor::{Detection, rgb_to_hsi};
+
+/// The frame rate the benchmark's tracker is told (its waits only; frames come as fast as it
+/// runs).
+const BENCH_FPS: f64 = 15.0;
 use std::time::Instant;
 
 /// Frames run before timing starts (filters start after `init-frames`).

@@ -480,7 +480,7 @@ impl MultiTracker {
     /// Count how long each pair of filters with boxes alike (IoU at least `duplicate-iou`) or
     /// nested (the smaller at least [`NESTED_OVERLAP`] inside the larger, or stacked in its
     /// columns: [`STACKED_COLUMNS`]) has shared a region;
-    /// of a pair that has for `duplicate-frames` frames, eliminate the smaller of a nested
+    /// of a pair that has for `duplicate-s` (in this camera's frames), eliminate the smaller of a nested
     /// pair (a filter on a fragment of the other's person, which a region split off for a few
     /// frames), else the younger — or the older, if its colours matched clearly worse over
     /// those frames (it drifted onto the other's person). A pair that splits starts over.

@@ -1,20 +1,26 @@
 //! Frames lost on the way to the server, from the senders' sequence numbers.
 //!
-//! A sender numbers every frame it puts on a link (+1 each), so a number that never arrives is a
-//! lost frame. Frames of one sender may arrive out of order: over iceoryx2 a node's heartbeats
-//! leave from the transport's own thread, its messages from the runtime's, and a heartbeat
-//! numbered before a status can land after it. Counting each jump forward as a loss took such
-//! a swap for two or more lost frames (a 60 s hall over iceoryx2 reported 8 of its 19 drops
-//! that way with nothing lost). So a number is lost only if it never arrives; a late one fills
-//! its gap. A number at or below the highest seen that fills no gap starts a new sequence (the
-//! sender restarted): what the old one still missed is lost.
+//! A sender numbers every frame it puts on a link (+1 each, from 0), so a number that never
+//! arrives is a lost frame. Frames of one sender may arrive out of order: over iceoryx2 a
+//! node's heartbeats leave from the transport's own thread, its messages from the runtime's,
+//! and a heartbeat numbered before a status can land after it. Counting each jump forward as a
+//! loss took every such swap for two or more lost frames. So a number is lost only if it never
+//! arrives; a late one fills its gap. A number more than [`REORDER_WINDOW`] below the highest
+//! seen starts a new sequence (the sender restarted): what the old one still missed is lost. A
+//! number within the window that fills no gap (a duplicate, or a swap of a sender's first
+//! frames) changes nothing.
 
 use proto::NodeId;
 use std::collections::{BTreeMap, BTreeSet};
 
-/// A jump forward this large is taken as lost at once, not remembered number by number (it
-/// bounds the memory a forged or corrupt sequence number can take).
-const MAX_REMEMBERED_GAP: u64 = 10_000;
+/// How far below the highest number seen a frame may arrive and still be a late frame of the
+/// same sequence, not the start of a new one.
+const REORDER_WINDOW: u64 = 64;
+
+/// Most numbers remembered as missing per sender: a jump forward beyond it, or gaps piling up
+/// past it, are counted as lost at once (the oldest first), so a forged or corrupt sequence
+/// number cannot take unbounded memory.
+const MAX_REMEMBERED: usize = 10_000;
 
 #[derive(Debug, Default)]
 struct Sender {
@@ -44,14 +50,18 @@ impl SequenceGaps {
         };
         if seq > s.highest {
             let gap = seq - s.highest - 1;
-            if gap > MAX_REMEMBERED_GAP {
-                self.lost += gap;
+            if gap > MAX_REMEMBERED as u64 {
+                self.lost = self.lost.saturating_add(gap);
             } else {
                 s.missing.extend(s.highest + 1..seq);
             }
             s.highest = seq;
-        } else if !s.missing.remove(&seq) {
-            self.lost += s.missing.len() as u64;
+            while s.missing.len() > MAX_REMEMBERED {
+                s.missing.pop_first();
+                self.lost = self.lost.saturating_add(1);
+            }
+        } else if !s.missing.remove(&seq) && seq.saturating_add(REORDER_WINDOW) < s.highest {
+            self.lost = self.lost.saturating_add(s.missing.len() as u64);
             s.missing.clear();
             s.highest = seq;
         }
@@ -59,7 +69,9 @@ impl SequenceGaps {
 
     /// Frames lost so far: given up on, and still missing.
     pub fn lost(&self) -> u64 {
-        self.lost + self.senders.values().map(|s| s.missing.len() as u64).sum::<u64>()
+        self.senders
+            .values()
+            .fold(self.lost, |n, s| n.saturating_add(s.missing.len() as u64))
     }
 }
 
@@ -98,25 +110,41 @@ mod tests {
     }
 
     #[test]
-    fn a_restarted_sender_starts_again_and_its_old_gaps_stay_lost() {
-        assert_eq!(
-            lost(&[(5, 1), (5, 2), (5, 1), (5, 2), (5, 3)]),
-            0,
-            "a restart at 1"
-        );
-        assert_eq!(
-            lost(&[(5, 1), (5, 4), (5, 0), (5, 1)]),
-            2,
-            "2 and 3 of the old run"
-        );
+    fn a_duplicate_or_a_swap_of_the_first_frames_loses_nothing() {
+        assert_eq!(lost(&[(5, 1), (5, 2), (5, 3), (5, 2), (5, 4)]), 0);
+        assert_eq!(lost(&[(5, 1), (5, 0), (5, 2), (5, 3)]), 0);
     }
 
     #[test]
-    fn a_huge_jump_is_counted_without_being_remembered() {
+    fn a_restarted_sender_starts_again_and_its_old_gaps_stay_lost() {
+        let run = |from: u64, to: u64| (from..=to).map(|s| (5, s)).collect::<Vec<_>>();
+        let restarted = [run(0, 100), run(0, 10)].concat();
+        assert_eq!(lost(&restarted), 0);
+        let mut with_gap = run(0, 100);
+        with_gap.retain(|&(_, s)| s != 50 && s != 51);
+        with_gap.extend(run(0, 10));
+        assert_eq!(lost(&with_gap), 2, "50 and 51 of the old run");
+        // The new run's own gaps count as well.
+        with_gap.extend([(5, 13)]);
+        assert_eq!(lost(&with_gap), 4);
+    }
+
+    #[test]
+    fn what_a_sender_misses_is_bounded_in_memory_and_in_count() {
         let mut g = SequenceGaps::default();
         g.see(NodeId(5), 1);
         g.see(NodeId(5), u64::MAX);
         assert_eq!(g.lost(), u64::MAX - 2);
         assert!(g.senders[&NodeId(5)].missing.is_empty());
+        g.see(NodeId(6), 0);
+        g.see(NodeId(6), u64::MAX);
+        assert_eq!(g.lost(), u64::MAX, "saturates");
+        // Jumps of the remembered size pile up no further than the bound.
+        let mut g = SequenceGaps::default();
+        for k in 0..5u64 {
+            g.see(NodeId(5), k * (MAX_REMEMBERED as u64 + 1));
+        }
+        assert_eq!(g.senders[&NodeId(5)].missing.len(), MAX_REMEMBERED);
+        assert_eq!(g.lost(), 4 * MAX_REMEMBERED as u64);
     }
 }
