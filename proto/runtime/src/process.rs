@@ -221,31 +221,31 @@ where
             let to = o.to;
             let kind = o.body.kind();
             let keep = H::KEEP_SENT.then(|| o.clone());
-            match tokio::time::timeout(cfg.send_timeout, endpoint.send(o, now)).await {
+            let delivered = match tokio::time::timeout(cfg.send_timeout, endpoint.send(o, now)).await {
                 Ok(Ok(Delivery::Queued)) => {
                     summary.sent += 1;
                     sent.extend(keep);
+                    true
                 }
                 Ok(Ok(Delivery::Dropped)) => {
                     summary.dropped += 1;
-                    undelivered += 1;
-                    *summary.undelivered.entry(kind).or_default() += 1;
-                    *summary.undelivered_to.entry(to).or_default() += 1;
+                    false
                 }
                 Ok(Err(e)) => {
                     summary.send_failures += 1;
-                    undelivered += 1;
-                    *summary.undelivered.entry(kind).or_default() += 1;
-                    *summary.undelivered_to.entry(to).or_default() += 1;
                     debug!(node = %me, %to, error = %e, "not delivered");
+                    false
                 }
                 Err(_) => {
                     summary.send_failures += 1;
-                    undelivered += 1;
-                    *summary.undelivered.entry(kind).or_default() += 1;
-                    *summary.undelivered_to.entry(to).or_default() += 1;
                     debug!(node = %me, %to, "send timed out");
+                    false
                 }
+            };
+            if !delivered {
+                undelivered += 1;
+                *summary.undelivered.entry(kind).or_default() += 1;
+                *summary.undelivered_to.entry(to).or_default() += 1;
             }
         }
         if undelivered > 0 {
