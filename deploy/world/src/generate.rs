@@ -59,17 +59,17 @@ pub const WAYPOINTS_APART_M: f64 = 1.0;
 /// Seed offset of the waypoint re-draws' stream.
 const REDRAW_STREAM: u64 = 0x5eed_a9a7;
 
-/// `v`, or when it lies within [`WAYPOINTS_APART_M`] of one of `taken`, a re-draw in
-/// `lo..hi` that does not (the farthest of 64 tries if none is clear: a hall too narrow for
-/// its people).
-fn apart(v: f64, taken: &[f64], lo: f64, hi: f64, rng: &mut ChaCha8Rng) -> f64 {
+/// `v`, or when it lies within [`WAYPOINTS_APART_M`] of one of `taken`, a re-draw in `range`
+/// that does not (the farthest of 64 tries if none is clear: a hall too narrow for its
+/// people).
+fn apart(v: f64, taken: &[f64], range: std::ops::Range<f64>, rng: &mut ChaCha8Rng) -> f64 {
     let clearance = |v: f64| taken.iter().map(|t| (t - v).abs()).fold(f64::INFINITY, f64::min);
     if clearance(v) >= WAYPOINTS_APART_M {
         return v;
     }
     let mut best = v;
     for _ in 0..64 {
-        let c = rng.random_range(lo..hi.max(lo + 0.1));
+        let c = rng.random_range(range.clone());
         if clearance(c) >= WAYPOINTS_APART_M {
             return c;
         }
@@ -196,12 +196,12 @@ camera.fps = 5.0
         // every cluster.
         let m = 1.0;
         let across = if along_x { d } else { w };
+        let range = m..(across - m).max(m + 0.1);
         let mut draw = |slot: usize, rng: &mut ChaCha8Rng| {
             let v = apart(
-                rng.random_range(m..(across - m).max(m + 0.1)),
+                rng.random_range(range.clone()),
                 &taken[slot],
-                m,
-                across - m,
+                range.clone(),
                 &mut redraw,
             );
             taken[slot].push(v);
