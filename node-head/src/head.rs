@@ -20,7 +20,7 @@ use nalgebra::{Matrix2, Matrix6, Vector2};
 use proto::models::{State, mat6_from_wire, mat6_to_wire, vec6_from_wire, vec6_to_wire};
 use proto::msg::{
     Answers, Contribution, Handover, MAX_PRIOR_PARTS, MAX_PRIORS, Measurement, NodeStatus, PeopleFrame,
-    Prior, Priors,
+    Prior, Priors, TagsHeard,
 };
 use proto::node::{Input, Node, Outgoing};
 use proto::observation::{GroundPerson, ObservationKind};
@@ -90,6 +90,7 @@ pub struct HeadNode {
 
 impl HeadNode {
     pub fn new(cfg: HeadConfig) -> Self {
+        let me = cfg.id;
         let nodes: Vec<NodeState> = cfg
             .nodes
             .iter()
@@ -127,7 +128,7 @@ impl HeadNode {
             step_time: ClusterTime::ZERO,
             next_step_at: None,
             detections: Vec::new(),
-            tags: crate::tags::TagBook::new(taken_memory_ns),
+            tags: crate::tags::TagBook::new(taken_memory_ns).for_head(me),
             unseen: crate::unseen::UnseenTags::default(),
             planner,
             expected: Vec::new(),
@@ -234,6 +235,11 @@ impl HeadNode {
                 bytes_sent: 0,
             }),
         ));
+        // The tags the cluster hears, for the server to name each one's home (`crate::tags`).
+        let tags = self.tags.loudest(now);
+        if !tags.is_empty() {
+            out.push(Outgoing::new(server, Message::TagsHeard(TagsHeard { tags })));
+        }
     }
 
     /// Handle one message. Messages from nodes not allowed to send them are counted and
@@ -269,6 +275,7 @@ impl HeadNode {
                 None => self.reject(now, src, "node_status"),
             },
             Message::Handover(h) if from_server => self.on_handover(now, h),
+            Message::TagHomes(h) if from_server => self.tags.set_homes(&h.homes, now),
             Message::Liveness(l) if from_server => out = self.node_liveness(now, l.node, l.up),
             Message::Assignment(a) if from_server => {
                 // The server assigns cameras to live heads only.
@@ -293,7 +300,7 @@ impl HeadNode {
                     }
                 }
             }
-            Message::Handover(_) | Message::Liveness(_) | Message::Assignment(_) => {
+            Message::Handover(_) | Message::Liveness(_) | Message::Assignment(_) | Message::TagHomes(_) => {
                 self.reject(now, src, env.body.kind());
             }
             _ => {}

@@ -16,11 +16,22 @@
 //!
 //! A radio-only cluster (no camera can start a track) binds a tag to its track at once: the
 //! track exists for the tag (`head/radio.rs`).
+//!
+//! Across clusters, a tag binds in one head only: its *home*, the cluster that hears it
+//! loudest among those where a track claims it. A far tag's readings are weak at every node of a cluster and fit what most of its
+//! tracks predict, so against "on no track" each of several heads found its best track a good
+//! fit and one tag was bound in four heads at once (docs/multi-target.md). Each head tells
+//! the server how loud its cluster hears each tag (the loudest member's readings, smoothed)
+//! and whether one of its tracks claims it ([`TagBook::loudest`]); the server names each
+//! tag's home and a head binds a tag whose home is another head to none of its tracks
+//! ([`TagBook::set_homes`]). Without word from the
+//! server for [`HOME_TTL_NS`] a head binds by its own evidence alone, as before.
 
 use crate::track::Track;
 use proto::models::{RssiModel, rssi_aged};
+use proto::msg::{TagHeard, TagHome};
 use proto::observation::RssiReading;
-use proto::{ClusterTime, TagId, TargetId};
+use proto::{ClusterTime, NodeId, TagId, TargetId};
 use std::collections::{BTreeMap, BTreeSet};
 
 /// Half-life of the binding evidence, seconds: long enough that a crossing (two people within
@@ -48,6 +59,24 @@ pub const MAX_READINGS_PER_STEP: usize = 4096;
 pub const TAKEN_MEMORY_NS: i64 = 10_000_000_000;
 /// How long a tag no node heard and no track holds is kept, ns.
 const FORGET_NS: i64 = 30_000_000_000;
+/// How long the server's word on a tag's home holds, ns: three of the heads' status periods
+/// (the server answers each), so one lost answer changes nothing and a server gone leaves the
+/// heads binding by their own evidence within seconds.
+pub const HOME_TTL_NS: i64 = 3_000_000_000;
+/// The window a node's readings of a tag count for its loudness, ns: a reading older than
+/// this says nothing about where the tag is now (people walk 1–2 m/s).
+pub const LOUD_WINDOW_NS: i64 = 4_000_000_000;
+/// Weight of a new reading in a node's smoothed loudness of a tag: one multipath fade or one
+/// lucky reading moves it by a quarter of its difference.
+const LOUD_SMOOTHING: f64 = 0.25;
+
+/// One node's smoothed readings of one tag.
+#[derive(Clone, Copy, Debug)]
+struct Loud {
+    dbm: f64,
+    /// Reception time of the newest reading in it.
+    at: ClusterTime,
+}
 
 /// A reading a member node sent: the node's slot in the head's table, and the reading.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -66,6 +95,10 @@ struct Tag {
     /// evidence says, until it is gone.
     own: bool,
     last_heard: ClusterTime,
+    /// Each member node's smoothed readings of the tag (by slot).
+    loud: BTreeMap<usize, Loud>,
+    /// The server's word on the tag's home: the head, and when it came.
+    home: Option<(NodeId, ClusterTime)>,
 }
 
 /// A binding made or undone, for the log.
@@ -84,6 +117,12 @@ pub enum Change {
         tag: TagId,
         track: TargetId,
     },
+    /// The server made another head the tag's home: unbound here.
+    Away {
+        tag: TagId,
+        track: TargetId,
+        home: NodeId,
+    },
 }
 
 /// The head's tags: the step's fresh readings, the evidence, the bindings.
@@ -100,6 +139,10 @@ pub struct TagBook {
     weighed_at: Option<ClusterTime>,
     /// Readings refused: the book was full of other tags, or the step of readings.
     pub refused: u64,
+    /// This head's id, and the tags whose home is another head (as of the last
+    /// [`TagBook::refresh_homes`]).
+    me: Option<NodeId>,
+    away: BTreeSet<TagId>,
 }
 
 impl Default for TagBook {
@@ -119,7 +162,15 @@ impl TagBook {
             tags: BTreeMap::new(),
             weighed_at: None,
             refused: 0,
+            me: None,
+            away: BTreeSet::new(),
         }
+    }
+
+    /// The book of head `me` (whose tags' homes the server names).
+    pub fn for_head(mut self, me: NodeId) -> Self {
+        self.me = Some(me);
+        self
     }
 
     /// Queue a reading for this step unless it was queued before (a node repeats its newest
@@ -146,11 +197,24 @@ impl TagBook {
                     bound: None,
                     own: false,
                     last_heard: now,
+                    loud: BTreeMap::new(),
+                    home: None,
                 },
             );
         }
         if let Some(t) = self.tags.get_mut(&reading.tag) {
             t.last_heard = now;
+            let fresh = Loud {
+                dbm: reading.dbm,
+                at: reading.time,
+            };
+            let l = t.loud.entry(slot).or_insert(fresh);
+            if reading.time - l.at > LOUD_WINDOW_NS {
+                *l = fresh;
+            } else if reading.time > l.at {
+                l.dbm += LOUD_SMOOTHING * (reading.dbm - l.dbm);
+                l.at = reading.time;
+            }
         }
         self.taken.insert(key);
         self.fresh.push(Heard { slot, reading });
@@ -164,6 +228,65 @@ impl TagBook {
         self.tags
             .retain(|_, t| t.bound.is_some() || now - t.last_heard < FORGET_NS);
         std::mem::take(&mut self.fresh)
+    }
+
+    /// How loud the cluster hears each tag at `now`: the loudest node's smoothed readings
+    /// among those heard in the last [`LOUD_WINDOW_NS`], and the track that claims it (holds
+    /// it, or has the strongest evidence, at least [`BIND_LLR`]), in increasing tag order (what
+    /// the head tells the server).
+    pub fn loudest(&self, now: ClusterTime) -> Vec<TagHeard> {
+        self.tags
+            .iter()
+            .filter_map(|(&tag, t)| {
+                let dbm = t
+                    .loud
+                    .values()
+                    .filter(|l| now - l.at <= LOUD_WINDOW_NS)
+                    .map(|l| l.dbm)
+                    .reduce(f64::max)?;
+                let best = t
+                    .evidence
+                    .iter()
+                    .filter(|&(_, &e)| e >= BIND_LLR)
+                    .max_by(|a, b| a.1.total_cmp(b.1))
+                    .map(|(&k, _)| k);
+                Some(TagHeard {
+                    tag,
+                    dbm: dbm as f32,
+                    track: t.bound.or(best),
+                })
+            })
+            .collect()
+    }
+
+    /// The server's word on tags' homes, at `now` (tags the book does not know are ignored:
+    /// it asked about none of them).
+    pub fn set_homes(&mut self, homes: &[TagHome], now: ClusterTime) {
+        for h in homes {
+            if let Some(t) = self.tags.get_mut(&h.tag) {
+                t.home = Some((h.head, now));
+            }
+        }
+    }
+
+    /// Which tags' home is another head at `now`: the server said so in the last
+    /// [`HOME_TTL_NS`]. [`TagBook::decide`] binds none of them and unbinds those bound.
+    pub fn refresh_homes(&mut self, now: ClusterTime) {
+        let me = self.me;
+        self.away = self
+            .tags
+            .iter()
+            .filter(|(_, t)| {
+                t.home
+                    .is_some_and(|(head, at)| Some(head) != me && now - at < HOME_TTL_NS)
+            })
+            .map(|(&g, _)| g)
+            .collect();
+    }
+
+    /// Whether `tag`'s home is another head (as of the last [`TagBook::refresh_homes`]).
+    pub fn away(&self, tag: TagId) -> bool {
+        self.away.contains(&tag)
     }
 
     /// The readings queued for this step.
@@ -241,7 +364,7 @@ impl TagBook {
         let mut out: Vec<TagId> = heard
             .iter()
             .map(|h| h.reading.tag)
-            .filter(|&g| self.tags.get(&g).is_some_and(|t| t.bound.is_none()))
+            .filter(|&g| !self.away(g) && self.tags.get(&g).is_some_and(|t| t.bound.is_none()))
             .collect();
         out.sort_unstable();
         out.dedup();
@@ -287,11 +410,20 @@ impl TagBook {
 
     /// Bind, move and unbind tags by the evidence (see the module's rules); `bindable(track)`:
     /// whether a track may take a tag (confirmed, measured by cameras). A track given its tag
-    /// for good ([`TagBook::bind`]: a radio track) keeps it whatever the evidence says.
+    /// for good ([`TagBook::bind`]: a radio track) keeps it whatever the evidence says, unless
+    /// the tag's home is another head: such a tag is bound to no track here.
     pub fn decide(&mut self, tracks: &[Track], bindable: impl Fn(&Track) -> bool) -> Vec<Change> {
         let mut changes = Vec::new();
         let ids: Vec<TagId> = self.tags.keys().copied().collect();
         for id in ids {
+            if self.away.contains(&id) {
+                let tag = self.tags.get_mut(&id).expect("a key of the map");
+                if let (Some(track), Some((home, _))) = (tag.bound.take(), tag.home) {
+                    tag.own = false;
+                    changes.push(Change::Away { tag: id, track, home });
+                }
+                continue;
+            }
             let holders: Vec<TargetId> = self
                 .tags
                 .iter()
@@ -454,6 +586,108 @@ mod tests {
         assert_eq!(book.tag_of(TargetId(2)), Some(tag));
         assert_eq!(book.tag_of(TargetId(1)), None);
         assert!(book.evidence(tag, TargetId(2)) - book.evidence(tag, TargetId(1)) >= BIND_LLR);
+    }
+
+    /// Steps of 0.2 s from `from_s` to `to_s` seconds in which `tag` is heard at `at`, the
+    /// server's word on homes taken as the head takes it; returns every change.
+    fn run_between(
+        book: &mut TagBook,
+        tracks: &[Track],
+        tag: TagId,
+        at: Vector3<f64>,
+        from_s: f64,
+        to_s: f64,
+    ) -> Vec<Change> {
+        let mut changes = Vec::new();
+        let mut t = from_s;
+        while t < to_s {
+            let time = ClusterTime::from_millis((t * 1000.0).round() as i64);
+            let heard = readings(book, tag, at, time);
+            book.weigh(&heard, tracks, time, |_, _| MODEL, node);
+            book.refresh_homes(time);
+            changes.extend(book.decide(tracks, |t| t.past_tentative()));
+            t += 0.2;
+        }
+        changes
+    }
+
+    #[test]
+    fn a_tag_whose_home_is_another_head_binds_here_to_no_track() {
+        let tracks = [track(1, 7.0, 6.0)];
+        let tag = TagId(0xaa);
+        let at = Vector3::new(7.0, 6.0, 1.0);
+        let mut book = TagBook::default().for_head(NodeId(3));
+        run_between(&mut book, &tracks, tag, at, 0.0, 2.0);
+        assert_eq!(book.track_of(tag), Some(TargetId(1)));
+        // The server names head 4 the tag's home: the binding goes, and none is made while
+        // the word holds, however strong the evidence.
+        let home = [TagHome { tag, head: NodeId(4) }];
+        book.set_homes(&home, ClusterTime::from_millis(2000));
+        let changes = run_between(&mut book, &tracks, tag, at, 2.0, 4.0);
+        assert_eq!(
+            changes,
+            vec![Change::Away {
+                tag,
+                track: TargetId(1),
+                home: NodeId(4)
+            }]
+        );
+        assert!(book.away(tag));
+        assert_eq!(book.track_of(tag), None);
+        assert!(
+            book.evidence(tag, TargetId(1)) >= BIND_LLR,
+            "the evidence is still weighed"
+        );
+        // Its own word does not bar it; nor does a word older than HOME_TTL_NS.
+        book.set_homes(
+            &[TagHome { tag, head: NodeId(3) }],
+            ClusterTime::from_millis(4000),
+        );
+        run_between(&mut book, &tracks, tag, at, 4.0, 4.4);
+        assert_eq!(book.track_of(tag), Some(TargetId(1)));
+        book.set_homes(&home, ClusterTime::from_millis(4400));
+        run_between(&mut book, &tracks, tag, at, 4.4, 5.0);
+        assert_eq!(book.track_of(tag), None);
+        let after = 4.4 + HOME_TTL_NS as f64 / 1e9;
+        run_between(&mut book, &tracks, tag, at, 5.0, after + 0.4);
+        assert!(!book.away(tag), "the server's word lapsed");
+        assert_eq!(book.track_of(tag), Some(TargetId(1)));
+    }
+
+    #[test]
+    fn the_cluster_hears_a_tag_as_loud_as_its_loudest_node_lately() {
+        let mut book = TagBook::default();
+        let tag = TagId(5);
+        let at = Vector3::new(1.0, 1.0, 1.0);
+        for s in 0..5 {
+            readings(&mut book, tag, at, ClusterTime::from_millis(200 * s));
+        }
+        let heard = book.loudest(ClusterTime::from_millis(800));
+        let nearest = MODEL.predict((at - node(0)).norm()) as f32;
+        assert_eq!(heard.len(), 1);
+        assert_eq!(heard[0].tag, tag);
+        assert!(
+            (heard[0].dbm - nearest).abs() < 1e-3,
+            "{} vs {nearest}",
+            heard[0].dbm
+        );
+        // One loud reading moves the smoothed loudness by a quarter of the difference.
+        book.offer(
+            0,
+            RssiReading {
+                tag,
+                dbm: f64::from(nearest) + 20.0,
+                time: ClusterTime::from_millis(1000),
+            },
+            ClusterTime::from_millis(1000),
+        );
+        let heard = book.loudest(ClusterTime::from_millis(1000));
+        assert!((heard[0].dbm - (nearest + 5.0)).abs() < 1e-3, "{}", heard[0].dbm);
+        // Nothing heard in the window: the cluster does not hear it.
+        assert!(
+            book.loudest(ClusterTime::from_millis(1000) + LOUD_WINDOW_NS + 1)
+                .is_empty()
+        );
     }
 
     #[test]

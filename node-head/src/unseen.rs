@@ -108,13 +108,16 @@ impl UnseenTags {
         !self.searching.is_empty()
     }
 
-    /// Tags that waited [`UNSEEN_WAIT_S`] and that no track's evidence claims, with the mean
+    /// Tags that waited [`UNSEEN_WAIT_S`], that no track's evidence claims and whose home is
+    /// not another head, with the mean
     /// reading of each node that heard them in the window: (tag, [(slot, mean dBm)]).
     pub fn due(&self, book: &TagBook, now: ClusterTime) -> Vec<(TagId, Vec<(usize, f64)>)> {
         self.waiting
             .iter()
             .filter(|(tag, w)| {
-                now.secs_since(w.since) >= UNSEEN_WAIT_S && book.strongest_claim(**tag) < -UNSEEN_LLR
+                now.secs_since(w.since) >= UNSEEN_WAIT_S
+                    && book.strongest_claim(**tag) < -UNSEEN_LLR
+                    && !book.away(**tag)
             })
             .map(|(tag, w)| {
                 let mut per_node: BTreeMap<usize, (f64, u32)> = BTreeMap::new();

@@ -25,7 +25,7 @@ use crate::membership::Membership;
 use crate::record::{MeasuredFrame, Record, Stamped};
 use crate::tracks::{GlobalTrack, TrackParams, Tracks};
 use proto::log_limit::LogLimiter;
-use proto::msg::{Assignment, Handover, HelloAck, Liveness, Message, NodeStatus, SyncBeacon};
+use proto::msg::{Assignment, Handover, HelloAck, Liveness, Message, NodeStatus, SyncBeacon, TagHomes};
 use proto::node::{Input, Node, Outgoing};
 use proto::scenario::Scenario;
 use proto::{ClusterTime, Envelope, NodeId, PROTOCOL_VERSION, Role, TargetId};
@@ -91,6 +91,8 @@ pub struct Counters {
     pub beacons: u64,
     /// Messages its runtime could not deliver.
     pub undelivered: u64,
+    /// Times a tag's home moved from one head to another (`tag_homes`).
+    pub tag_home_moves: u64,
 }
 
 /// The server core.
@@ -109,6 +111,8 @@ pub struct ServerNode {
     log: LogLimiter,
     /// The visualization nodes' feed.
     viewers: viewers::ViewFeed,
+    /// Which head binds each radio tag.
+    tag_homes: crate::tag_homes::TagHomes,
 }
 
 /// What restoring from a recording found.
@@ -140,6 +144,7 @@ impl ServerNode {
             counters: Counters::default(),
             log: LogLimiter::default(),
             viewers: viewers::ViewFeed::default(),
+            tag_homes: crate::tag_homes::TagHomes::default(),
         }
     }
 
@@ -326,6 +331,20 @@ impl ServerNode {
             Message::Heartbeat => {}
             Message::NodeStatus(s) => {
                 self.status.insert(src, s);
+            }
+            Message::TagsHeard(t) if role == Role::Head => {
+                let tracks = &self.tracks;
+                let (homes, moved) = self.tag_homes.heard(now, src, &t.tags, |head, local| {
+                    let g = tracks.global_of(head, local)?;
+                    Some((g, tracks.global(g)?.owner))
+                });
+                self.counters.tag_home_moves = self.tag_homes.moves;
+                for m in moved.iter().filter(|m| m.from.is_some()) {
+                    tracing::info!(tag = %m.tag, from = ?m.from, to = %m.to, "a tag's home moved to the cluster that hears it louder");
+                }
+                if !homes.is_empty() {
+                    out.push(Outgoing::new(src, Message::TagHomes(TagHomes { homes })));
+                }
             }
             Message::TrackReport(r) if role == Role::Head => {
                 self.viewers.reported(src, &r);

@@ -176,6 +176,58 @@ fn unexpected_messages_are_rejected_without_state_change() {
     assert_eq!(s.counters().rejected, 3);
 }
 
+/// Heads say how loud they hear each tag and are answered with each tag's home: the louder
+/// cluster, for both of them; a camera's word on tags is rejected and names no home. A
+/// restore from the recording rebuilds the homes.
+#[test]
+fn each_tag_is_homed_in_the_cluster_that_hears_it_loudest() {
+    use proto::TagId;
+    use proto::msg::{TagHeard, TagHome, TagsHeard};
+    let mut s = started();
+    let heard = |head: NodeId, tags: &[(u64, f32)]| {
+        env(
+            head,
+            Message::TagsHeard(TagsHeard {
+                tags: tags
+                    .iter()
+                    .map(|&(t, dbm)| TagHeard {
+                        tag: TagId(t),
+                        dbm,
+                        track: Some(TargetId(1)),
+                    })
+                    .collect(),
+            }),
+        )
+    };
+    let homes = |out: &[Outgoing], to: NodeId| -> Vec<TagHome> {
+        out.iter()
+            .filter(|o| o.to == to)
+            .find_map(|o| match &o.body {
+                Message::TagHomes(h) => Some(h.homes.clone()),
+                _ => None,
+            })
+            .unwrap_or_default()
+    };
+    let home = |tag: u64, head: NodeId| TagHome {
+        tag: TagId(tag),
+        head,
+    };
+    let out = s.on_message(ms(100), heard(H2, &[(7, -78.0), (8, -60.0)]));
+    assert_eq!(homes(&out, H2), vec![home(7, H2), home(8, H2)]);
+    let out = s.on_message(ms(200), heard(H3, &[(7, -55.0)]));
+    assert_eq!(homes(&out, H3), vec![home(7, H3)]);
+    let out = s.on_message(ms(1100), heard(H2, &[(7, -77.0), (8, -61.0)]));
+    assert_eq!(homes(&out, H2), vec![home(7, H3), home(8, H2)]);
+    assert_eq!(s.counters().tag_home_moves, 1);
+    let rejected = s.counters().rejected;
+    let out = s.on_message(ms(1200), heard(CAM, &[(7, -30.0)]));
+    assert!(homes(&out, CAM).is_empty());
+    assert_eq!(s.counters().rejected, rejected + 1);
+    let (mut restored, _) = ServerNode::restore(s.config().clone(), &s.take_records());
+    let out = restored.on_message(ms(1300), heard(H2, &[(7, -77.0)]));
+    assert_eq!(homes(&out, H2), vec![home(7, H3)]);
+}
+
 /// A camera's logging-run frame is recorded as `Record::Measured` and changes nothing else
 /// (not even who is a member); from a head it is an input, rejected and recorded as received.
 #[test]

@@ -22,6 +22,7 @@ pub mod recording;
 pub mod report;
 #[cfg(test)]
 mod report_tests;
+pub mod tag_homes;
 pub mod tail;
 #[cfg(test)]
 pub(crate) mod testkit;

@@ -42,10 +42,11 @@ pub use recorder::Recorder;
 /// File magic.
 pub const MAGIC: [u8; 8] = *b"OCELLIRC";
 /// Format version of the recording file. Records hold wire envelopes, so it moves with
-/// `proto::PROTOCOL_VERSION`: format N was recorded with protocol N (6: priors say whether a
+/// `proto::PROTOCOL_VERSION`: format N was recorded with protocol N (7: heads tell the server the
+/// tags they hear and are told each tag's home; 6: priors say whether a
 /// track is a radio track; 5: nodes answer a step's priors in one message; 4: track reports
 /// carry their frames' capture time, cameras send people frames).
-pub const FORMAT_VERSION: u16 = 6;
+pub const FORMAT_VERSION: u16 = 7;
 /// Largest record payload accepted; a length beyond it is corruption, not an allocation.
 pub const MAX_RECORD_BYTES: u32 = 16 * 1024 * 1024;
 /// Permissions of a new recording: not world-readable (further narrowed by the umask).

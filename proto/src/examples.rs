@@ -44,7 +44,7 @@ fn env(body: Message) -> Envelope {
 }
 
 /// The number of f64 and f32 slots of each sample, by tag (what the poison test must find).
-pub const FLOAT_SLOTS: [(usize, usize); 20] = [
+pub const FLOAT_SLOTS: [(usize, usize); 22] = [
     (0, 0),   // hello
     (0, 0),   // hello_ack
     (0, 0),   // heartbeat
@@ -65,6 +65,8 @@ pub const FLOAT_SLOTS: [(usize, usize); 20] = [
     (0, 0),   // view_subscribe
     (12, 0),  // view_update: mean 6 + cov_pos 6
     (1, 0),   // people_frame: rssi 1 (the people are integers)
+    (0, 2),   // tags_heard: two tags' dBm
+    (0, 0),   // tag_homes
 ];
 
 /// One observation of each kind, in wire-tag order.
@@ -347,6 +349,32 @@ pub fn messages() -> Vec<Envelope> {
                     confidence: 140,
                     ml_offset_cm: [-12, 0],
                     histogram: Some(histogram()),
+                },
+            ],
+        })),
+        env(Message::TagsHeard(TagsHeard {
+            tags: vec![
+                TagHeard {
+                    tag: TagId(0x0200_0000_0003),
+                    dbm: -58.5,
+                    track: Some(TargetId(5)),
+                },
+                TagHeard {
+                    tag: TagId(0x0200_0000_0004),
+                    dbm: -77.25,
+                    track: None,
+                },
+            ],
+        })),
+        env(Message::TagHomes(TagHomes {
+            homes: vec![
+                TagHome {
+                    tag: TagId(0x0200_0000_0003),
+                    head: NodeId(3),
+                },
+                TagHome {
+                    tag: TagId(0x0200_0000_0004),
+                    head: NodeId(4),
                 },
             ],
         })),

@@ -38,7 +38,7 @@ pub use wire::{WireError, decode, encode};
 
 /// Version of the wire protocol. Carried in every frame header and in the handshake; a
 /// mismatch is rejected before the body is decoded.
-pub const PROTOCOL_VERSION: u16 = 6;
+pub const PROTOCOL_VERSION: u16 = 7;
 
 /// Largest encoded frame any transport accepts, in bytes.
 pub const MAX_FRAME_BYTES: usize = 16 * 1024;

@@ -4,7 +4,7 @@
 //! new variants at the end and bump [`crate::PROTOCOL_VERSION`] on any other change; the golden
 //! byte vectors in `wire`'s tests pin the current layout.
 
-use crate::ids::{NodeId, Role, TargetId};
+use crate::ids::{NodeId, Role, TagId, TargetId};
 pub use crate::observation::{GroundPerson, Kinds, Observation, ObservationKind, RssiReading};
 use crate::time::ClusterTime;
 pub use crate::view::{ViewSubscribe, ViewUpdate};
@@ -346,6 +346,31 @@ impl GridPosterior {
     }
 }
 
+/// How loud a head's cluster hears one tag, and whether one of its tracks explains it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TagHeard {
+    pub tag: TagId,
+    /// The loudest node's readings of the tag over the last few seconds, smoothed, dBm.
+    pub dbm: f32,
+    /// The head's track that holds the tag or has the evidence to (whether or not the tag's
+    /// home lets it bind here), if any: the one that *claims* it.
+    pub track: Option<TargetId>,
+}
+
+/// head → server, with its status (every second while it hears tags): the tags its cluster
+/// hears, how loud and whether a track claims them, each tag once, in increasing order, at
+/// most [`MAX_TAGS_HEARD`]. The server makes each tag's home the cluster that hears it
+/// loudest among those with a track that claims it, or the head that owns that track's
+/// global ([`TagHomes`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TagsHeard {
+    pub tags: Vec<TagHeard>,
+}
+
+/// Most tags one [`TagsHeard`] or [`TagHomes`] names (a head keeps evidence of at most this
+/// many tags).
+pub const MAX_TAGS_HEARD: usize = 256;
+
 // ---------------------------------------------------------------- server → nodes
 
 /// Which head a camera belongs to.
@@ -364,6 +389,21 @@ pub struct Handover {
     pub time: ClusterTime,
     pub mean: Vec6,
     pub cov: Mat6,
+}
+
+/// One tag's home: the head whose cluster hears it loudest (among those claiming it), the
+/// only one that binds it to a track.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TagHome {
+    pub tag: TagId,
+    pub head: NodeId,
+}
+
+/// server → head, in answer to its [`TagsHeard`]: the homes of the tags it named, each once,
+/// in increasing order. A head binds a tag whose home is another head to none of its tracks.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TagHomes {
+    pub homes: Vec<TagHome>,
 }
 
 /// Time-sync beacon (FTSP): the leader's cluster time when it sent the beacon.
@@ -493,6 +533,10 @@ pub enum Message {
     ViewUpdate(ViewUpdate),
     /// camera → head: a frame's ground-plane people (paper 004's cameras).
     PeopleFrame(PeopleFrame),
+    /// head → server: the tags its cluster hears, and how loud.
+    TagsHeard(TagsHeard),
+    /// server → head: which head binds each of those tags.
+    TagHomes(TagHomes),
 }
 
 impl Message {
@@ -519,13 +563,16 @@ impl Message {
             Message::ViewSubscribe(_) => "view_subscribe",
             Message::ViewUpdate(_) => "view_update",
             Message::PeopleFrame(_) => "people_frame",
+            Message::TagsHeard(_) => "tags_heard",
+            Message::TagHomes(_) => "tag_homes",
         }
     }
 
     /// Whether a transport may drop this message when a queue is full. Measurements and
     /// reports are superseded by the next step (a logging run's dropped frames are counted
     /// by the camera), and so are a viewer's subscription (renewed every second) and its
-    /// updates; control messages never are.
+    /// updates, and a head's tags and their homes (both sent every second); control messages
+    /// never are.
     pub fn droppable(&self) -> bool {
         matches!(
             self,
@@ -540,6 +587,8 @@ impl Message {
                 | Message::ViewSubscribe(_)
                 | Message::ViewUpdate(_)
                 | Message::PeopleFrame(_)
+                | Message::TagsHeard(_)
+                | Message::TagHomes(_)
         )
     }
 }

@@ -253,8 +253,32 @@ impl Validate for Message {
             Message::ViewSubscribe(_) => Ok(()),
             Message::ViewUpdate(u) => check_view_update(u),
             Message::PeopleFrame(f) => check_people_frame(f),
+            Message::TagsHeard(t) => {
+                at_most("tags_heard.tags", t.tags.len(), MAX_TAGS_HEARD)?;
+                increasing("tags_heard.tags", t.tags.iter().map(|h| h.tag))?;
+                t.tags
+                    .iter()
+                    .try_for_each(|h| check_dbm("tags_heard.tags", f64::from(h.dbm)))
+            }
+            Message::TagHomes(t) => {
+                at_most("tag_homes.homes", t.homes.len(), MAX_TAGS_HEARD)?;
+                increasing("tag_homes.homes", t.homes.iter().map(|h| h.tag))
+            }
         }
     }
+}
+
+/// Tags named each once, in increasing order (a set: a second entry of one tag would be two
+/// answers to one question).
+fn increasing(field: &'static str, tags: impl Iterator<Item = crate::TagId>) -> Result<(), ValidationError> {
+    let mut last = None;
+    for t in tags {
+        if last.is_some_and(|l| l >= t) {
+            return Err(err(field, format!("tag {t} is out of order or named twice")));
+        }
+        last = Some(t);
+    }
+    Ok(())
 }
 
 fn at_most(field: &'static str, len: usize, max: usize) -> Result<(), ValidationError> {

@@ -81,7 +81,7 @@ pub fn decode(frame: &[u8]) -> Result<Envelope, WireError> {
 
 /// Kind names of [`crate::Message`] by wire tag (variant index). A test pins it to
 /// [`crate::Message::kind`].
-pub const MESSAGE_KINDS: [&str; 20] = [
+pub const MESSAGE_KINDS: [&str; 22] = [
     "hello",
     "hello_ack",
     "heartbeat",
@@ -102,6 +102,8 @@ pub const MESSAGE_KINDS: [&str; 20] = [
     "view_subscribe",
     "view_update",
     "people_frame",
+    "tags_heard",
+    "tag_homes",
 ];
 
 /// Turn a postcard failure into an error that names the message kind and the problem

@@ -53,6 +53,7 @@ impl HeadNode {
             |t, slot| t.rssi_noise.weighed(&t.trainers[slot].model()),
             |slot| nodes[slot].position,
         );
+        self.tags.refresh_homes(now);
         let changes = self
             .tags
             .decide(&self.tracks, |t| t.past_tentative() && t.camera_steps > 0);
@@ -63,6 +64,9 @@ impl HeadNode {
                     info!(tag = %tag, from = %from, to = %to, "tag moved to the track that explains it")
                 }
                 Change::Unbound { tag, track } => info!(tag = %tag, target = %track, "tag unbound"),
+                Change::Away { tag, track, home } => {
+                    info!(tag = %tag, target = %track, home = %home, "tag unbound: another cluster hears it louder")
+                }
             }
         }
         self.drop_superseded_radio_tracks();

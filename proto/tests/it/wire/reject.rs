@@ -1,9 +1,9 @@
 //! Every way a frame can be wrong gets its own error variant, and the message names the problem.
 
 use proto::examples::{FLOAT_SLOTS, messages as samples};
-use proto::ids::{NodeId, TargetId};
+use proto::ids::{NodeId, TagId, TargetId};
 use proto::msg::*;
-use proto::validate::PSD_TOLERANCE;
+use proto::validate::{PSD_TOLERANCE, Validate};
 use proto::{
     Envelope, MAX_CONTRIBUTORS, MAX_FRAME_BYTES, MAX_MEASURED_DETECTIONS, Message, PROTOCOL_VERSION,
     WireError, decode, encode,
@@ -235,6 +235,7 @@ fn sample_f64s(m: &Message) -> Vec<f64> {
 
 fn sample_f32s(m: &Message) -> Vec<f32> {
     match m {
+        Message::TagsHeard(t) => t.tags.iter().map(|h| h.dbm).collect(),
         Message::Measurement(x) => x.observations.iter().flat_map(observation_f32s).collect(),
         Message::MeasuredFrame(f) => f
             .detections
@@ -799,4 +800,50 @@ fn the_largest_priors_and_answers_fit_in_a_frame() {
         let frame = encode(&env).unwrap();
         assert!(frame.len() <= MAX_FRAME_BYTES, "{} bytes", frame.len());
     }
+}
+
+/// A head's tags and the server's homes: a list past its bound, a tag out of order or twice,
+/// an impossible loudness are rejected naming the field.
+#[test]
+fn tag_lists_are_sets_of_plausible_readings() {
+    let heard = |tags: &[(u64, f32)]| {
+        Message::TagsHeard(TagsHeard {
+            tags: tags
+                .iter()
+                .map(|&(t, dbm)| TagHeard {
+                    tag: TagId(t),
+                    dbm,
+                    track: Some(TargetId(1)),
+                })
+                .collect(),
+        })
+    };
+    let homes = |tags: &[u64]| {
+        Message::TagHomes(TagHomes {
+            homes: tags
+                .iter()
+                .map(|&t| TagHome {
+                    tag: TagId(t),
+                    head: NodeId(3),
+                })
+                .collect(),
+        })
+    };
+    let field = |m: Message| m.validate().err().map(|e| (e.field, e.problem));
+    assert_eq!(field(heard(&[(1, -60.0), (2, -70.0)])), None);
+    assert_eq!(field(homes(&[1, 2])), None);
+    let (f, p) = field(heard(&[(2, -60.0), (1, -70.0)])).unwrap();
+    assert_eq!(f, "tags_heard.tags");
+    assert!(p.contains("out of order or named twice"), "{p}");
+    let (f, _) = field(heard(&[(1, -60.0), (1, -70.0)])).unwrap();
+    assert_eq!(f, "tags_heard.tags");
+    let (f, p) = field(heard(&[(1, 35.0)])).unwrap();
+    assert_eq!(f, "tags_heard.tags");
+    assert!(p.contains("outside"), "{p}");
+    let (f, _) = field(homes(&[5, 5])).unwrap();
+    assert_eq!(f, "tag_homes.homes");
+    let many: Vec<(u64, f32)> = (0..=MAX_TAGS_HEARD as u64).map(|t| (t, -60.0)).collect();
+    let (f, p) = field(heard(&many)).unwrap();
+    assert_eq!(f, "tags_heard.tags");
+    assert!(p.contains("exceed the maximum of 256"), "{p}");
 }

@@ -462,6 +462,34 @@ fn message() -> impl Strategy<Value = Message> {
         any::<u32>().prop_map(|period_ms| Message::ViewSubscribe(ViewSubscribe { period_ms })),
         view_update(),
         people_frame(),
+        prop::collection::btree_map(
+            any::<u64>(),
+            (-200.0..30.0f32, prop::option::of(any::<u32>())),
+            0..=MAX_TAGS_HEARD
+        )
+        .prop_map(|tags| {
+            Message::TagsHeard(TagsHeard {
+                tags: tags
+                    .into_iter()
+                    .map(|(t, (dbm, track))| TagHeard {
+                        tag: TagId(t),
+                        dbm,
+                        track: track.map(TargetId),
+                    })
+                    .collect(),
+            })
+        }),
+        prop::collection::btree_map(any::<u64>(), any::<u32>(), 0..=MAX_TAGS_HEARD).prop_map(|homes| {
+            Message::TagHomes(TagHomes {
+                homes: homes
+                    .into_iter()
+                    .map(|(t, h)| TagHome {
+                        tag: TagId(t),
+                        head: NodeId(h),
+                    })
+                    .collect(),
+            })
+        }),
     ]
 }
 
