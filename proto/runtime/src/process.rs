@@ -156,6 +156,9 @@ where
     let (endpoint, mut inbox, stats, handle) = open(cfg.transport.clone()).await?;
     info!(node = %me, "running");
     let mut summary = RunSummary::default();
+    // What could not be delivered is counted per message; the log says when, rate-limited (a
+    // peer that stopped reading must not flood it).
+    let mut undelivered_log = proto::log_limit::LogLimiter::default();
     let mut tick = tokio::time::interval(cfg.tick);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let mut sensors_open = true;
@@ -210,6 +213,12 @@ where
             },
         };
         let now = clock.now();
+        if matches!(input, Input::Tick) {
+            // A flurry's tail: how many more were not delivered since its first line.
+            for (_, more) in undelivered_log.overdue(now.0) {
+                warn!(node = %me, more, "more messages not delivered since the last such line");
+            }
+        }
         let out = node.handle(now, input);
         sent.clear();
         let mut undelivered = 0;
@@ -221,31 +230,32 @@ where
             let to = o.to;
             let kind = o.body.kind();
             let keep = H::KEEP_SENT.then(|| o.clone());
-            let delivered = match tokio::time::timeout(cfg.send_timeout, endpoint.send(o, now)).await {
+            let failed = match tokio::time::timeout(cfg.send_timeout, endpoint.send(o, now)).await {
                 Ok(Ok(Delivery::Queued)) => {
                     summary.sent += 1;
                     sent.extend(keep);
-                    true
+                    None
                 }
                 Ok(Ok(Delivery::Dropped)) => {
                     summary.dropped += 1;
-                    false
+                    Some("dropped: the recipient's queue was full or nobody reads it".to_string())
                 }
                 Ok(Err(e)) => {
                     summary.send_failures += 1;
-                    debug!(node = %me, %to, error = %e, "not delivered");
-                    false
+                    Some(format!("send failed: {e}"))
                 }
                 Err(_) => {
                     summary.send_failures += 1;
-                    debug!(node = %me, %to, "send timed out");
-                    false
+                    Some("send timed out".to_string())
                 }
             };
-            if !delivered {
+            if let Some(why) = failed {
                 undelivered += 1;
                 *summary.undelivered.entry(kind).or_default() += 1;
                 *summary.undelivered_to.entry(to).or_default() += 1;
+                if let Some(more) = undelivered_log.admit(now.0, "undelivered") {
+                    warn!(node = %me, %to, kind, more, "{why}; not delivered");
+                }
             }
         }
         if undelivered > 0 {
