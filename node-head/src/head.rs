@@ -91,6 +91,7 @@ pub struct HeadNode {
 impl HeadNode {
     pub fn new(cfg: HeadConfig) -> Self {
         let me = cfg.id;
+        let radio_floor = cfg.nodes.iter().map(|n| [n.position.x, n.position.y]).collect();
         let nodes: Vec<NodeState> = cfg
             .nodes
             .iter()
@@ -128,7 +129,7 @@ impl HeadNode {
             step_time: ClusterTime::ZERO,
             next_step_at: None,
             detections: Vec::new(),
-            tags: crate::tags::TagBook::new(taken_memory_ns).for_head(me),
+            tags: crate::tags::TagBook::new(taken_memory_ns).for_head(me, radio_floor),
             unseen: crate::unseen::UnseenTags::default(),
             planner,
             expected: Vec::new(),
@@ -235,8 +236,14 @@ impl HeadNode {
                 bytes_sent: 0,
             }),
         ));
-        // The tags the cluster hears, for the server to name each one's home (`crate::tags`).
-        let tags = self.tags.loudest(now);
+        self.tell_tags(now, out);
+    }
+
+    /// Tell the server the tags the cluster hears, for it to name each one's home
+    /// (`crate::tags`): with every status, and at once when a claim changed.
+    pub(super) fn tell_tags(&mut self, now: ClusterTime, out: &mut Vec<Outgoing>) {
+        let Some(server) = self.cfg.server else { return };
+        let tags = self.tags.tell(now);
         if !tags.is_empty() {
             out.push(Outgoing::new(server, Message::TagsHeard(TagsHeard { tags })));
         }

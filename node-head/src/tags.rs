@@ -23,8 +23,10 @@
 //! fit and one tag was bound in four heads at once (docs/multi-target.md). Each head tells
 //! the server how loud its cluster hears each tag (the loudest member's readings, smoothed)
 //! and whether one of its tracks claims it ([`TagBook::loudest`]); the server names each
-//! tag's home and a head binds a tag whose home is another head to none of its tracks
-//! ([`TagBook::set_homes`]). Without word from the
+//! tag's home, and a head fuses the readings of a tag whose home is another head into none
+//! of its tracks ([`TagBook::set_homes`], [`TagBook::fused_tag_of`]). Bindings themselves
+//! still follow the evidence, so a head whose track holds the tag keeps claiming it and takes
+//! its readings again as soon as the home comes back (a track handed back to its first head). Without word from the
 //! server for [`HOME_TTL_NS`] a head binds by its own evidence alone, as before.
 
 use crate::track::Track;
@@ -97,8 +99,9 @@ struct Tag {
     last_heard: ClusterTime,
     /// Each member node's smoothed readings of the tag (by slot).
     loud: BTreeMap<usize, Loud>,
-    /// The server's word on the tag's home: the head, and when it came.
-    home: Option<(NodeId, ClusterTime)>,
+    /// The server's word on the tag's home: the head, the person its track is, and when the
+    /// word came.
+    home: Option<(NodeId, Option<TargetId>, ClusterTime)>,
 }
 
 /// A binding made or undone, for the log.
@@ -117,7 +120,8 @@ pub enum Change {
         tag: TagId,
         track: TargetId,
     },
-    /// The server made another head the tag's home: unbound here.
+    /// The server made another head the tag's home: its track here takes none of its
+    /// readings (the binding stays, by evidence's rules).
     Away {
         tag: TagId,
         track: TargetId,
@@ -143,6 +147,11 @@ pub struct TagBook {
     /// [`TagBook::refresh_homes`]).
     me: Option<NodeId>,
     away: BTreeSet<TagId>,
+    /// The claims last told the server (tag → claiming track).
+    told: BTreeMap<TagId, TargetId>,
+    /// Each node slot's radio position on the floor, `[x, y]` (what the server is told a tag
+    /// is near).
+    positions: Vec<[f64; 2]>,
 }
 
 impl Default for TagBook {
@@ -164,12 +173,16 @@ impl TagBook {
             refused: 0,
             me: None,
             away: BTreeSet::new(),
+            told: BTreeMap::new(),
+            positions: Vec::new(),
         }
     }
 
-    /// The book of head `me` (whose tags' homes the server names).
-    pub fn for_head(mut self, me: NodeId) -> Self {
+    /// The book of head `me` (whose tags' homes the server names), whose node slots' radios
+    /// are at `positions` (`[x, y]` on the floor).
+    pub fn for_head(mut self, me: NodeId, positions: Vec<[f64; 2]>) -> Self {
         self.me = Some(me);
+        self.positions = positions;
         self
     }
 
@@ -238,12 +251,16 @@ impl TagBook {
         self.tags
             .iter()
             .filter_map(|(&tag, t)| {
-                let dbm = t
+                let (slot, dbm) = t
                     .loud
-                    .values()
-                    .filter(|l| now - l.at <= LOUD_WINDOW_NS)
-                    .map(|l| l.dbm)
-                    .reduce(f64::max)?;
+                    .iter()
+                    .filter(|(_, l)| now - l.at <= LOUD_WINDOW_NS)
+                    .map(|(&slot, l)| (slot, l.dbm))
+                    .reduce(|a, b| if b.1 > a.1 { b } else { a })?;
+                let near = self
+                    .positions
+                    .get(slot)
+                    .map_or([f32::NAN; 2], |p| [p[0] as f32, p[1] as f32]);
                 let best = t
                     .evidence
                     .iter()
@@ -253,10 +270,30 @@ impl TagBook {
                 Some(TagHeard {
                     tag,
                     dbm: dbm as f32,
+                    near,
                     track: t.bound.or(best),
                 })
             })
             .collect()
+    }
+
+    /// What to tell the server at `now` ([`TagBook::loudest`]), noted as told.
+    pub fn tell(&mut self, now: ClusterTime) -> Vec<TagHeard> {
+        let heard = self.loudest(now);
+        self.told = heard.iter().filter_map(|h| Some((h.tag, h.track?))).collect();
+        heard
+    }
+
+    /// Whether a claim changed since the server was last told (a track took a tag, or let it
+    /// go): worth telling at once, not at the next status, since a home the server no longer
+    /// gives this head holds its track's readings back until it hears.
+    pub fn claims_changed(&self, now: ClusterTime) -> bool {
+        let claims: BTreeMap<TagId, TargetId> = self
+            .loudest(now)
+            .iter()
+            .filter_map(|h| Some((h.tag, h.track?)))
+            .collect();
+        claims != self.told
     }
 
     /// The server's word on tags' homes, at `now` (tags the book does not know are ignored:
@@ -264,24 +301,54 @@ impl TagBook {
     pub fn set_homes(&mut self, homes: &[TagHome], now: ClusterTime) {
         for h in homes {
             if let Some(t) = self.tags.get_mut(&h.tag) {
-                t.home = Some((h.head, now));
+                t.home = Some((h.head, h.global, now));
             }
         }
     }
 
     /// Which tags' home is another head at `now`: the server said so in the last
-    /// [`HOME_TTL_NS`]. [`TagBook::decide`] binds none of them and unbinds those bound.
-    pub fn refresh_homes(&mut self, now: ClusterTime) {
+    /// [`HOME_TTL_NS`]. Their readings go into no track here ([`TagBook::fused_tag_of`]);
+    /// a binding stays as evidence keeps it, so the track takes them again the moment the
+    /// home comes back. Returns the bound tags that have just gone away.
+    pub fn refresh_homes(&mut self, now: ClusterTime) -> Vec<Change> {
         let me = self.me;
-        self.away = self
+        let away: BTreeSet<TagId> = self
             .tags
             .iter()
             .filter(|(_, t)| {
                 t.home
-                    .is_some_and(|(head, at)| Some(head) != me && now - at < HOME_TTL_NS)
+                    .is_some_and(|(head, _, at)| Some(head) != me && now - at < HOME_TTL_NS)
             })
             .map(|(&g, _)| g)
             .collect();
+        let changes = away
+            .difference(&self.away)
+            .filter_map(|g| {
+                let t = &self.tags[g];
+                Some(Change::Away {
+                    tag: *g,
+                    track: t.bound?,
+                    home: t.home?.0,
+                })
+            })
+            .collect();
+        self.away = away;
+        changes
+    }
+
+    /// The tag whose readings track `local` (of person `global`, once the server named one)
+    /// takes: the one bound to it, unless that tag's home is another head and the home's
+    /// track is not that same person.
+    pub fn fused_tag_of(&self, local: TargetId, global: Option<TargetId>) -> Option<TagId> {
+        self.tag_of(local).filter(|&g| {
+            !self.away(g)
+                || global.is_some()
+                    && self
+                        .tags
+                        .get(&g)
+                        .and_then(|t| t.home)
+                        .is_some_and(|(_, person, _)| person == global)
+        })
     }
 
     /// Whether `tag`'s home is another head (as of the last [`TagBook::refresh_homes`]).
@@ -410,20 +477,11 @@ impl TagBook {
 
     /// Bind, move and unbind tags by the evidence (see the module's rules); `bindable(track)`:
     /// whether a track may take a tag (confirmed, measured by cameras). A track given its tag
-    /// for good ([`TagBook::bind`]: a radio track) keeps it whatever the evidence says, unless
-    /// the tag's home is another head: such a tag is bound to no track here.
+    /// for good ([`TagBook::bind`]: a radio track) keeps it whatever the evidence says.
     pub fn decide(&mut self, tracks: &[Track], bindable: impl Fn(&Track) -> bool) -> Vec<Change> {
         let mut changes = Vec::new();
         let ids: Vec<TagId> = self.tags.keys().copied().collect();
         for id in ids {
-            if self.away.contains(&id) {
-                let tag = self.tags.get_mut(&id).expect("a key of the map");
-                if let (Some(track), Some((home, _))) = (tag.bound.take(), tag.home) {
-                    tag.own = false;
-                    changes.push(Change::Away { tag: id, track, home });
-                }
-                continue;
-            }
             let holders: Vec<TargetId> = self
                 .tags
                 .iter()
@@ -604,7 +662,7 @@ mod tests {
             let time = ClusterTime::from_millis((t * 1000.0).round() as i64);
             let heard = readings(book, tag, at, time);
             book.weigh(&heard, tracks, time, |_, _| MODEL, node);
-            book.refresh_homes(time);
+            changes.extend(book.refresh_homes(time));
             changes.extend(book.decide(tracks, |t| t.past_tentative()));
             t += 0.2;
         }
@@ -612,16 +670,21 @@ mod tests {
     }
 
     #[test]
-    fn a_tag_whose_home_is_another_head_binds_here_to_no_track() {
+    fn a_tag_whose_home_is_another_head_feeds_no_track_here_until_it_comes_back() {
         let tracks = [track(1, 7.0, 6.0)];
         let tag = TagId(0xaa);
         let at = Vector3::new(7.0, 6.0, 1.0);
-        let mut book = TagBook::default().for_head(NodeId(3));
+        let mut book =
+            TagBook::default().for_head(NodeId(3), (0..4).map(|s| [node(s).x, node(s).y]).collect());
         run_between(&mut book, &tracks, tag, at, 0.0, 2.0);
-        assert_eq!(book.track_of(tag), Some(TargetId(1)));
-        // The server names head 4 the tag's home: the binding goes, and none is made while
-        // the word holds, however strong the evidence.
-        let home = [TagHome { tag, head: NodeId(4) }];
+        assert_eq!(book.fused_tag_of(TargetId(1), None), Some(tag));
+        // The server names head 4 the tag's home: the track takes none of its readings while
+        // the word holds; the binding stays (by the evidence), so the track still claims it.
+        let home = [TagHome {
+            tag,
+            head: NodeId(4),
+            global: None,
+        }];
         book.set_homes(&home, ClusterTime::from_millis(2000));
         let changes = run_between(&mut book, &tracks, tag, at, 2.0, 4.0);
         assert_eq!(
@@ -633,30 +696,75 @@ mod tests {
             }]
         );
         assert!(book.away(tag));
-        assert_eq!(book.track_of(tag), None);
-        assert!(
-            book.evidence(tag, TargetId(1)) >= BIND_LLR,
-            "the evidence is still weighed"
+        assert_eq!(book.fused_tag_of(TargetId(1), None), None);
+        assert_eq!(book.track_of(tag), Some(TargetId(1)));
+        assert_eq!(
+            book.loudest(ClusterTime::from_millis(4000))[0].track,
+            Some(TargetId(1))
         );
-        // Its own word does not bar it; nor does a word older than HOME_TTL_NS.
+        // Its own word does not hold it back; nor does a word older than HOME_TTL_NS.
         book.set_homes(
-            &[TagHome { tag, head: NodeId(3) }],
+            &[TagHome {
+                tag,
+                head: NodeId(3),
+                global: None,
+            }],
             ClusterTime::from_millis(4000),
         );
         run_between(&mut book, &tracks, tag, at, 4.0, 4.4);
-        assert_eq!(book.track_of(tag), Some(TargetId(1)));
+        assert_eq!(book.fused_tag_of(TargetId(1), None), Some(tag));
         book.set_homes(&home, ClusterTime::from_millis(4400));
         run_between(&mut book, &tracks, tag, at, 4.4, 5.0);
-        assert_eq!(book.track_of(tag), None);
+        assert_eq!(book.fused_tag_of(TargetId(1), None), None);
         let after = 4.4 + HOME_TTL_NS as f64 / 1e9;
         run_between(&mut book, &tracks, tag, at, 5.0, after + 0.4);
         assert!(!book.away(tag), "the server's word lapsed");
-        assert_eq!(book.track_of(tag), Some(TargetId(1)));
+        assert_eq!(book.fused_tag_of(TargetId(1), None), Some(tag));
+    }
+
+    #[test]
+    fn a_track_of_the_homes_person_takes_an_away_tag() {
+        let tracks = [track(1, 7.0, 6.0)];
+        let tag = TagId(0xaa);
+        let mut book =
+            TagBook::default().for_head(NodeId(3), (0..4).map(|s| [node(s).x, node(s).y]).collect());
+        run_between(&mut book, &tracks, tag, Vector3::new(7.0, 6.0, 1.0), 0.0, 2.0);
+        let home = TagHome {
+            tag,
+            head: NodeId(4),
+            global: Some(TargetId(100)),
+        };
+        book.set_homes(&[home], ClusterTime::from_millis(2000));
+        book.refresh_homes(ClusterTime::from_millis(2000));
+        assert!(book.away(tag));
+        assert_eq!(book.fused_tag_of(TargetId(1), Some(TargetId(100))), Some(tag));
+        assert_eq!(book.fused_tag_of(TargetId(1), Some(TargetId(101))), None);
+        assert_eq!(book.fused_tag_of(TargetId(1), None), None);
+    }
+
+    #[test]
+    fn an_away_tag_gets_no_radio_track() {
+        let mut book =
+            TagBook::default().for_head(NodeId(3), (0..4).map(|s| [node(s).x, node(s).y]).collect());
+        let tag = TagId(0xbb);
+        let heard = readings(&mut book, tag, Vector3::new(5.0, 5.0, 1.0), ClusterTime::ZERO);
+        assert_eq!(book.unbound_in(&heard), vec![tag]);
+        book.set_homes(
+            &[TagHome {
+                tag,
+                head: NodeId(4),
+                global: None,
+            }],
+            ClusterTime::ZERO,
+        );
+        book.refresh_homes(ClusterTime::ZERO);
+        assert!(book.unbound_in(&heard).is_empty());
     }
 
     #[test]
     fn the_cluster_hears_a_tag_as_loud_as_its_loudest_node_lately() {
-        let mut book = TagBook::default();
+        let mut book =
+            TagBook::default().for_head(NodeId(3), (0..4).map(|s| [node(s).x, node(s).y]).collect());
         let tag = TagId(5);
         let at = Vector3::new(1.0, 1.0, 1.0);
         for s in 0..5 {

@@ -333,11 +333,7 @@ impl ServerNode {
                 self.status.insert(src, s);
             }
             Message::TagsHeard(t) if role == Role::Head => {
-                let tracks = &self.tracks;
-                let (homes, moved) = self.tag_homes.heard(now, src, &t.tags, |head, local| {
-                    let g = tracks.global_of(head, local)?;
-                    Some((g, tracks.global(g)?.owner))
-                });
+                let (homes, moved) = self.tag_homes.heard(now, src, &t.tags, &self.tracks);
                 self.counters.tag_home_moves = self.tag_homes.moves;
                 for m in moved.iter().filter(|m| m.from.is_some()) {
                     tracing::info!(tag = %m.tag, from = ?m.from, to = %m.to, "a tag's home moved to the cluster that hears it louder");

@@ -193,6 +193,7 @@ fn each_tag_is_homed_in_the_cluster_that_hears_it_loudest() {
                     .map(|&(t, dbm)| TagHeard {
                         tag: TagId(t),
                         dbm,
+                        near: [1.0, 1.0],
                         track: Some(TargetId(1)),
                     })
                     .collect(),
@@ -208,9 +209,11 @@ fn each_tag_is_homed_in_the_cluster_that_hears_it_loudest() {
             })
             .unwrap_or_default()
     };
+    // (The tracks these tags claim have no global: the server named none.)
     let home = |tag: u64, head: NodeId| TagHome {
         tag: TagId(tag),
         head,
+        global: None,
     };
     let out = s.on_message(ms(100), heard(H2, &[(7, -78.0), (8, -60.0)]));
     assert_eq!(homes(&out, H2), vec![home(7, H2), home(8, H2)]);

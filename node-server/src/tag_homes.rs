@@ -1,21 +1,23 @@
-//! Each radio tag's *home*: the cluster that hears it loudest, the only head that binds it to a
-//! track (`node_head::tags`). A head weighs a tag's readings against its own tracks only, and a
-//! far tag's weak readings fit many tracks about as well as the one it is on, so without a rule
+//! Each radio tag's *home*: the cluster whose track the tag's readings go into
+//! (`node_head::tags`). A head weighs a tag's readings against its own tracks only, and a far
+//! tag's weak readings fit many tracks about as well as the one it is on, so without a rule
 //! across clusters one tag was bound in four heads at once (docs/multi-target.md). The server
-//! sees every cluster: each head tells it, every second, how loud its loudest node hears each
-//! tag (`TagsHeard`), and the answer names each of those tags' home (`TagHomes`).
+//! sees every cluster: each head tells it, every second and whenever a claim changes, how
+//! loud its loudest node hears each tag, where that node is, and which of its tracks claims
+//! the tag (holds it, or has the evidence to) (`TagsHeard`); the answer names each of those
+//! tags' home and the person (global) its track is (`TagHomes`).
 //!
-//! Loudness is the rule because it needs no model shared across heads: RSSI falls with
-//! distance, so the loudest node is near the tag, and nodes belong to the cluster around them.
-//! Only clusters where a track claims the tag (holds it, or has the evidence to) compete while
-//! any does: a person tracked just inside one cluster may be heard loudest by a node just
-//! across the boundary, whose head has no track of them. And when the loudest claimer's track
-//! is a person whose global another claimer owns (two heads tracking one person near their
-//! boundary), the owner is home: the owner's track is the one the server reports, so it is the
-//! one the readings must sharpen. A home moves only when another cluster hears the tag
-//! [`HOME_MARGIN_DB`] louder, so a person on a boundary does not flip their tag between two
-//! heads at every fade; a home whose head stopped hearing the tag for [`HEARD_STALE_NS`] goes
-//! to the loudest of the others.
+//! The rule needs no radio model shared across heads: RSSI falls with distance, so the
+//! loudest node any head hears the tag at is near it, and the home is the cluster whose
+//! claiming track is nearest that node. Heads whose claiming track is the one the server
+//! reports for its person (the head owns the track's global) compete first, then any that
+//! claims: a head's fresh duplicate without a global must not take the tag from the track
+//! that is reported. While no head claims the tag the loudest cluster is home. A home moves
+//! only for a track [`HOME_MARGIN_M`] nearer (or, without positions, a cluster
+//! [`HOME_MARGIN_DB`] louder), so a person on a boundary does not flip their tag between two
+//! heads at every fade; a home whose head stopped naming the tag for [`HEARD_STALE_NS`] goes
+//! to the best of the others. One person's tracks in two clusters may both take the person's
+//! tag (the answer names the person); what must not happen is one tag in two people's tracks.
 
 use proto::msg::{TagHeard, TagHome};
 use proto::{ClusterTime, NodeId, TagId, TargetId};
@@ -24,8 +26,11 @@ use std::collections::BTreeMap;
 /// How long a head's word on a tag counts, ns: three of the heads' status periods (a head
 /// that stopped hearing the tag stops naming it).
 pub const HEARD_STALE_NS: i64 = 3_000_000_000;
-/// How much louder another cluster must hear a tag to become its home, dB.
+/// How much louder another cluster must hear a tag to become its home (when no track's
+/// distance is known), dB.
 pub const HOME_MARGIN_DB: f32 = 3.0;
+/// How much nearer to the tag another cluster's claiming track must be to become its home, m.
+pub const HOME_MARGIN_M: f64 = 1.0;
 /// Most tags the server keeps homes of; further ones get none (counted) until some go quiet.
 pub const MAX_TAGS: usize = 1024;
 
@@ -38,19 +43,23 @@ struct Tag {
     heard: BTreeMap<NodeId, Word>,
 }
 
+/// What the server knows of the heads' tracks that the rule asks.
+pub trait Tracked {
+    /// The global id of head `head`'s track `local`, and the head that owns that global.
+    fn global_of(&self, head: NodeId, local: TargetId) -> Option<(TargetId, NodeId)>;
+    /// Where that track was last reported, `[x, y]` metres.
+    fn position_of(&self, head: NodeId, local: TargetId) -> Option<[f64; 2]>;
+}
+
 /// One head's word on one tag.
 #[derive(Clone, Copy, Debug)]
 struct Word {
     dbm: f32,
+    /// Where the head's loudest node is.
+    near: [f32; 2],
     /// The head's track that claims the tag.
     track: Option<TargetId>,
     at: ClusterTime,
-}
-
-impl Word {
-    fn claimed(&self) -> bool {
-        self.track.is_some()
-    }
 }
 
 /// A tag's home moved (or was first named).
@@ -80,8 +89,9 @@ impl TagHomes {
         now: ClusterTime,
         head: NodeId,
         tags: &[TagHeard],
-        global_of: impl Fn(NodeId, TargetId) -> Option<(TargetId, NodeId)>,
+        tracks: &impl Tracked,
     ) -> (Vec<TagHome>, Vec<Moved>) {
+        let global_of = |k: NodeId, t: TargetId| tracks.global_of(k, t);
         for t in self.tags.values_mut() {
             t.heard.retain(|_, w| now - w.at < HEARD_STALE_NS);
         }
@@ -98,37 +108,70 @@ impl TagHomes {
                 head,
                 Word {
                     dbm: h.dbm,
+                    near: h.near,
                     track: h.track,
                     at: now,
                 },
             );
-            // Those that claim it compete, or all when none does.
-            let any_claims = tag.heard.values().any(Word::claimed);
-            let competes = |w: &Word| w.claimed() || !any_claims;
-            // The loudest of them (the lower id on a tie, so the answer never depends on order).
-            let (&loudest, loudest_word) = tag
+            // Who competes: the heads whose claiming track is the one the server reports for
+            // its person (the head owns the track's global), else those that claim it, else all.
+            let standing = |k: NodeId, w: &Word| match w.track {
+                Some(t) if global_of(k, t).is_some_and(|(_, owner)| owner == k) => 2,
+                Some(_) => 1,
+                None => 0,
+            };
+            let best = tag
                 .heard
                 .iter()
-                .filter(|(_, w)| competes(w))
-                .max_by(|a, b| a.1.dbm.total_cmp(&b.1.dbm).then(b.0.cmp(a.0)))
-                .expect("the head just noted competes, or one that claims");
-            let current = tag
-                .home
-                .and_then(|k| tag.heard.get(&k).filter(|w| competes(w)).map(|w| (k, w.dbm)));
-            let louder = match current {
-                Some((k, dbm)) if loudest_word.dbm < dbm + HOME_MARGIN_DB => k,
-                _ => loudest,
+                .map(|(&k, w)| standing(k, w))
+                .max()
+                .expect("the head just noted");
+            let competes = |k: NodeId, w: &Word| standing(k, w) == best;
+            // How far each competitor is from the tag: a claiming track's distance to the
+            // loudest node any head hears it at; a head without a claiming track (or a track of
+            // unknown position) ranks by its loudness alone, behind every known distance.
+            let near = tag
+                .heard
+                .values()
+                .max_by(|a, b| a.dbm.total_cmp(&b.dbm))
+                .expect("the head just noted")
+                .near;
+            let far = |k: NodeId, w: &Word| -> (f64, f32) {
+                let at = w.track.and_then(|t| tracks.position_of(k, t));
+                match at {
+                    Some(p) => ((p[0] - f64::from(near[0])).hypot(p[1] - f64::from(near[1])), 0.0),
+                    None => (f64::INFINITY, -w.dbm),
+                }
             };
-            // The owner of the person the chosen head's track is, if its own track is them too.
-            let global = |k: NodeId| {
+            // The nearest of them (then the loudest, then the lower id, so the answer never
+            // depends on order).
+            let (&best_head, best_word) = tag
+                .heard
+                .iter()
+                .filter(|&(&k, w)| competes(k, w))
+                .min_by(|a, b| {
+                    let (da, la) = far(*a.0, a.1);
+                    let (db, lb) = far(*b.0, b.1);
+                    da.total_cmp(&db).then(la.total_cmp(&lb)).then(a.0.cmp(b.0))
+                })
+                .expect("the best standing is someone's");
+            let (best_d, best_l) = far(best_head, best_word);
+            let current = tag.home.and_then(|k| {
                 tag.heard
                     .get(&k)
-                    .and_then(|w| w.track)
-                    .and_then(|t| global_of(k, t))
-            };
-            let home = match global(louder) {
-                Some((g, owner)) if owner != louder && global(owner).is_some_and(|(g2, _)| g2 == g) => owner,
-                _ => louder,
+                    .filter(|w| competes(k, w))
+                    .map(|w| (k, far(k, w)))
+            });
+            // The home stays unless another is clearly better: nearer by the margin, or (among
+            // unknown distances) louder by the margin.
+            let home = match current {
+                Some((k, (d, _))) if d.is_finite() && best_d > d - HOME_MARGIN_M => k,
+                Some((k, (d, l)))
+                    if d.is_infinite() && best_d.is_infinite() && -best_l < -l + HOME_MARGIN_DB =>
+                {
+                    k
+                }
+                _ => best_head,
             };
             if tag.home != Some(home) {
                 if tag.home.is_some() {
@@ -141,9 +184,18 @@ impl TagHomes {
                 });
                 tag.home = Some(home);
             }
+            // The person the home's track is: another head's track of them may take the
+            // readings too (a track handed back to its first head takes them at once).
+            let global = tag
+                .heard
+                .get(&home)
+                .and_then(|w| w.track)
+                .and_then(|t| global_of(home, t))
+                .map(|(g, _)| g);
             homes.push(TagHome {
                 tag: h.tag,
                 head: home,
+                global,
             });
         }
         (homes, moved)
@@ -161,10 +213,23 @@ mod tests {
 
     const S: i64 = 1_000_000_000;
 
-    /// No track has a global yet.
-    fn none(_: NodeId, _: TargetId) -> Option<(TargetId, NodeId)> {
-        None
+    /// The server's tracks as the tests need them: (head, local) → (global, owner, position).
+    #[derive(Default)]
+    struct Book(BTreeMap<(u32, u32), (u32, u32, [f64; 2])>);
+
+    impl Tracked for Book {
+        fn global_of(&self, head: NodeId, local: TargetId) -> Option<(TargetId, NodeId)> {
+            let &(g, owner, _) = self.0.get(&(head.0, local.0))?;
+            Some((TargetId(g), NodeId(owner)))
+        }
+        fn position_of(&self, head: NodeId, local: TargetId) -> Option<[f64; 2]> {
+            self.0.get(&(head.0, local.0)).map(|e| e.2)
+        }
     }
+
+    /// No track has a global yet.
+    #[allow(non_upper_case_globals)]
+    const none: &Book = &Book(BTreeMap::new());
 
     /// Words on tags that a track claims.
     fn heard(tags: &[(u64, f32)]) -> Vec<TagHeard> {
@@ -172,6 +237,7 @@ mod tests {
             .map(|&(t, dbm)| TagHeard {
                 tag: TagId(t),
                 dbm,
+                near: [0.0, 0.0],
                 track: Some(TargetId(1)),
             })
             .collect()
@@ -181,6 +247,7 @@ mod tests {
         vec![TagHeard {
             tag: TagId(tag),
             dbm,
+            near: [0.0, 0.0],
             track: None,
         }]
     }
@@ -236,29 +303,52 @@ mod tests {
         assert_eq!(home_of(&homes, 7), NodeId(4));
     }
 
+    fn word(dbm: f32, near: [f32; 2], track: u32) -> Vec<TagHeard> {
+        vec![TagHeard {
+            tag: TagId(7),
+            dbm,
+            near,
+            track: Some(TargetId(track)),
+        }]
+    }
+
     #[test]
-    fn when_two_clusters_track_one_person_the_owner_of_their_global_is_home() {
+    fn the_cluster_whose_track_is_nearest_the_loudest_node_is_home() {
+        // Two people: head 3's track 1 (global 100) at (2, 2), head 4's track 9 (global 200)
+        // at (20, 5); both claim the tag.
+        let book = Book(BTreeMap::from([
+            ((3, 1), (100, 3, [2.0, 2.0])),
+            ((4, 9), (200, 4, [20.0, 5.0])),
+        ]));
         let mut h = TagHomes::default();
-        // Head 3's track 1 and head 4's track 2 are both global 100, which head 3 owns; head
-        // 4 hears the tag louder.
-        let global_of = |head: NodeId, local: TargetId| match (head.0, local.0) {
-            (3, 1) | (4, 2) => Some((TargetId(100), NodeId(3))),
-            (4, 9) => Some((TargetId(200), NodeId(4))),
-            _ => None,
-        };
-        let word = |dbm: f32, track: u32| {
-            vec![TagHeard {
-                tag: TagId(7),
-                dbm,
-                track: Some(TargetId(track)),
-            }]
-        };
-        h.heard(ClusterTime(0), NodeId(3), &word(-70.0, 1), global_of);
-        let (homes, _) = h.heard(ClusterTime(0), NodeId(4), &word(-55.0, 2), global_of);
+        h.heard(ClusterTime(0), NodeId(3), &word(-55.0, [3.0, 2.0], 1), &book);
+        let (homes, _) = h.heard(ClusterTime(0), NodeId(4), &word(-70.0, [18.0, 5.0], 9), &book);
         assert_eq!(home_of(&homes, 7), NodeId(3));
-        // Head 4's claiming track is someone else (global 200): the louder cluster is home.
-        let (homes, _) = h.heard(ClusterTime(S), NodeId(4), &word(-55.0, 9), global_of);
+        assert_eq!(homes[0].global, Some(TargetId(100)));
+        // The tag walked to head 4's person: head 4's node hears it loudest now.
+        h.heard(ClusterTime(S), NodeId(3), &word(-75.0, [3.0, 2.0], 1), &book);
+        let (homes, _) = h.heard(ClusterTime(S), NodeId(4), &word(-50.0, [19.0, 5.0], 9), &book);
         assert_eq!(home_of(&homes, 7), NodeId(4));
+        assert_eq!(homes[0].global, Some(TargetId(200)));
+        assert_eq!(h.moves, 1);
+    }
+
+    #[test]
+    fn a_cluster_whose_claiming_track_is_reported_is_home_and_names_its_person() {
+        // One person, global 100, owned by head 3 (track 1); head 4 tracks them too (track 2,
+        // nearer the loudest node) and has a fresh track 5 the server has no global for.
+        let book = Book(BTreeMap::from([
+            ((3, 1), (100, 3, [5.0, 5.0])),
+            ((4, 2), (100, 3, [5.3, 5.0])),
+        ]));
+        let mut h = TagHomes::default();
+        h.heard(ClusterTime(0), NodeId(3), &word(-70.0, [4.0, 5.0], 1), &book);
+        let (homes, _) = h.heard(ClusterTime(0), NodeId(4), &word(-55.0, [6.0, 5.0], 2), &book);
+        assert_eq!(home_of(&homes, 7), NodeId(3));
+        // … and the answer names the person, so head 4's track of them may take it too.
+        assert_eq!(homes[0].global, Some(TargetId(100)));
+        let (homes, _) = h.heard(ClusterTime(S), NodeId(4), &word(-55.0, [6.0, 5.0], 5), &book);
+        assert_eq!(home_of(&homes, 7), NodeId(3));
     }
 
     #[test]
@@ -300,6 +390,7 @@ mod tests {
             .map(|t| TagHeard {
                 tag: TagId(t),
                 dbm: -70.0,
+                near: [0.0, 0.0],
                 track: Some(TargetId(1)),
             })
             .collect();

@@ -379,3 +379,15 @@ impl LocalTrack {
         }
     }
 }
+
+impl crate::tag_homes::Tracked for Tracks {
+    fn global_of(&self, head: NodeId, local: TargetId) -> Option<(TargetId, NodeId)> {
+        let g = Tracks::global_of(self, head, local)?;
+        Some((g, self.global(g)?.owner))
+    }
+
+    fn position_of(&self, head: NodeId, local: TargetId) -> Option<[f64; 2]> {
+        let mean = self.locals.get(&(head, local))?.posterior.1;
+        Some([mean[0], mean[1]])
+    }
+}

@@ -65,7 +65,7 @@ pub const FLOAT_SLOTS: [(usize, usize); 22] = [
     (0, 0),   // view_subscribe
     (12, 0),  // view_update: mean 6 + cov_pos 6
     (1, 0),   // people_frame: rssi 1 (the people are integers)
-    (0, 2),   // tags_heard: two tags' dBm
+    (0, 6),   // tags_heard: two tags' dBm and near
     (0, 0),   // tag_homes
 ];
 
@@ -357,11 +357,13 @@ pub fn messages() -> Vec<Envelope> {
                 TagHeard {
                     tag: TagId(0x0200_0000_0003),
                     dbm: -58.5,
+                    near: [3.25, 1.5],
                     track: Some(TargetId(5)),
                 },
                 TagHeard {
                     tag: TagId(0x0200_0000_0004),
                     dbm: -77.25,
+                    near: [11.0, 7.75],
                     track: None,
                 },
             ],
@@ -371,10 +373,12 @@ pub fn messages() -> Vec<Envelope> {
                 TagHome {
                     tag: TagId(0x0200_0000_0003),
                     head: NodeId(3),
+                    global: Some(TargetId(1005)),
                 },
                 TagHome {
                     tag: TagId(0x0200_0000_0004),
                     head: NodeId(4),
+                    global: None,
                 },
             ],
         })),

@@ -352,6 +352,8 @@ pub struct TagHeard {
     pub tag: TagId,
     /// The loudest node's readings of the tag over the last few seconds, smoothed, dBm.
     pub dbm: f32,
+    /// Where that node's radio is on the floor, `[x, y]` metres: near the tag.
+    pub near: [f32; 2],
     /// The head's track that holds the tag or has the evidence to (whether or not the tag's
     /// home lets it bind here), if any: the one that *claims* it.
     pub track: Option<TargetId>,
@@ -392,15 +394,18 @@ pub struct Handover {
 }
 
 /// One tag's home: the head whose cluster hears it loudest (among those claiming it), the
-/// only one that binds it to a track.
+/// one whose track takes its readings, and the person (global id) that track is, if known:
+/// another head's track of that same person may take them too.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TagHome {
     pub tag: TagId,
     pub head: NodeId,
+    pub global: Option<TargetId>,
 }
 
 /// server → head, in answer to its [`TagsHeard`]: the homes of the tags it named, each once,
-/// in increasing order. A head binds a tag whose home is another head to none of its tracks.
+/// in increasing order. A head fuses the readings of a tag whose home is another head into
+/// none of its tracks, but one of the home's person.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TagHomes {
     pub homes: Vec<TagHome>,

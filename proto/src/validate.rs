@@ -256,9 +256,10 @@ impl Validate for Message {
             Message::TagsHeard(t) => {
                 at_most("tags_heard.tags", t.tags.len(), MAX_TAGS_HEARD)?;
                 increasing("tags_heard.tags", t.tags.iter().map(|h| h.tag))?;
-                t.tags
-                    .iter()
-                    .try_for_each(|h| check_dbm("tags_heard.tags", f64::from(h.dbm)))
+                t.tags.iter().try_for_each(|h| {
+                    check_dbm("tags_heard.tags", f64::from(h.dbm))?;
+                    finite32("tags_heard.tags", &h.near)
+                })
             }
             Message::TagHomes(t) => {
                 at_most("tag_homes.homes", t.homes.len(), MAX_TAGS_HEARD)?;

@@ -78,6 +78,9 @@ impl HeadNode {
         let mut rssi_nodes = vec![false; self.nodes.len()];
         self.hand_sensed_to_fusion();
         self.hand_readings_to_tracks(now);
+        if self.tags.claims_changed(now) {
+            self.tell_tags(now, out);
+        }
         for t in 0..self.tracks.len() {
             self.hold_height(t);
             self.fuse_track(t, now, &mut stats, &mut rssi_nodes);

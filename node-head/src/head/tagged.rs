@@ -53,10 +53,11 @@ impl HeadNode {
             |t, slot| t.rssi_noise.weighed(&t.trainers[slot].model()),
             |slot| nodes[slot].position,
         );
-        self.tags.refresh_homes(now);
-        let changes = self
-            .tags
-            .decide(&self.tracks, |t| t.past_tentative() && t.camera_steps > 0);
+        let mut changes = self.tags.refresh_homes(now);
+        changes.extend(
+            self.tags
+                .decide(&self.tracks, |t| t.past_tentative() && t.camera_steps > 0),
+        );
         for c in changes {
             match c {
                 Change::Bound { tag, track } => info!(tag = %tag, target = %track, "tag bound to a track"),
@@ -65,7 +66,7 @@ impl HeadNode {
                 }
                 Change::Unbound { tag, track } => info!(tag = %tag, target = %track, "tag unbound"),
                 Change::Away { tag, track, home } => {
-                    info!(tag = %tag, target = %track, home = %home, "tag unbound: another cluster hears it louder")
+                    info!(tag = %tag, target = %track, home = %home, "tag's readings held back: another cluster is its home")
                 }
             }
         }
@@ -73,7 +74,7 @@ impl HeadNode {
         self.radio_tracks_for(&heard, now);
         self.unseen_tag_tracks(&heard, now);
         for t in &mut self.tracks {
-            let Some(tag) = self.tags.tag_of(t.local) else {
+            let Some(tag) = self.tags.fused_tag_of(t.local, t.global) else {
                 continue;
             };
             for h in heard.iter().filter(|h| h.reading.tag == tag) {

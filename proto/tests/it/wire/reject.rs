@@ -235,7 +235,11 @@ fn sample_f64s(m: &Message) -> Vec<f64> {
 
 fn sample_f32s(m: &Message) -> Vec<f32> {
     match m {
-        Message::TagsHeard(t) => t.tags.iter().map(|h| h.dbm).collect(),
+        Message::TagsHeard(t) => t
+            .tags
+            .iter()
+            .flat_map(|h| [h.dbm, h.near[0], h.near[1]])
+            .collect(),
         Message::Measurement(x) => x.observations.iter().flat_map(observation_f32s).collect(),
         Message::MeasuredFrame(f) => f
             .detections
@@ -813,6 +817,7 @@ fn tag_lists_are_sets_of_plausible_readings() {
                 .map(|&(t, dbm)| TagHeard {
                     tag: TagId(t),
                     dbm,
+                    near: [1.0, 2.0],
                     track: Some(TargetId(1)),
                 })
                 .collect(),
@@ -825,6 +830,7 @@ fn tag_lists_are_sets_of_plausible_readings() {
                 .map(|&t| TagHome {
                     tag: TagId(t),
                     head: NodeId(3),
+                    global: None,
                 })
                 .collect(),
         })

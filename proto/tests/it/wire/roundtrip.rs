@@ -464,28 +464,40 @@ fn message() -> impl Strategy<Value = Message> {
         people_frame(),
         prop::collection::btree_map(
             any::<u64>(),
-            (-200.0..30.0f32, prop::option::of(any::<u32>())),
+            (
+                -200.0..30.0f32,
+                prop::option::of(any::<u32>()),
+                finite32(),
+                finite32()
+            ),
             0..=MAX_TAGS_HEARD
         )
         .prop_map(|tags| {
             Message::TagsHeard(TagsHeard {
                 tags: tags
                     .into_iter()
-                    .map(|(t, (dbm, track))| TagHeard {
+                    .map(|(t, (dbm, track, x, y))| TagHeard {
                         tag: TagId(t),
                         dbm,
+                        near: [x, y],
                         track: track.map(TargetId),
                     })
                     .collect(),
             })
         }),
-        prop::collection::btree_map(any::<u64>(), any::<u32>(), 0..=MAX_TAGS_HEARD).prop_map(|homes| {
+        prop::collection::btree_map(
+            any::<u64>(),
+            (any::<u32>(), prop::option::of(any::<u32>())),
+            0..=MAX_TAGS_HEARD
+        )
+        .prop_map(|homes| {
             Message::TagHomes(TagHomes {
                 homes: homes
                     .into_iter()
-                    .map(|(t, h)| TagHome {
+                    .map(|(t, (h, g))| TagHome {
                         tag: TagId(t),
                         head: NodeId(h),
+                        global: g.map(TargetId),
                     })
                     .collect(),
             })

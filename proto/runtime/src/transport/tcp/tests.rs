@@ -192,7 +192,10 @@ async fn garbage_and_oversized_frames_are_counted_and_the_link_stays_up() {
     conn.send(Bytes::from(vec![0u8; MAX_FRAME_BYTES + 1]))
         .await
         .unwrap();
-    conn.send(Bytes::from_static(&[7, 0])).await.unwrap();
+    // A frame of a protocol version this build does not speak.
+    conn.send(Bytes::from(vec![PROTOCOL_VERSION as u8 + 1, 0]))
+        .await
+        .unwrap();
     let spoofed = Envelope {
         source: NodeId(6),
         seq: 1,
