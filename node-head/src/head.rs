@@ -37,6 +37,9 @@ pub const MAX_DETECTIONS_PER_STEP: usize = 4096;
 pub const OUTSIDE_MARGIN_M: f64 = 1.0;
 /// How often a head tells the server its sync estimate and failures in a `NodeStatus`, ms.
 pub const STATUS_PERIOD_MS: i64 = 1000;
+/// Shortest time between two of a head's words on its tags, ns (a claim that changes at
+/// every step must not flood the server and its recording).
+pub const TELL_TAGS_MIN_NS: i64 = 500_000_000;
 
 #[derive(Clone, Debug)]
 struct NodeState {
@@ -84,6 +87,9 @@ pub struct HeadNode {
     /// not synchronized) and what its runtime could not deliver.
     started: Option<ClusterTime>,
     last_status: Option<ClusterTime>,
+    /// When the server was last told the tags (a changed claim is told at once, but at most
+    /// every [`TELL_TAGS_MIN_NS`]).
+    told_tags_at: Option<ClusterTime>,
     sync: (i64, i64),
     undelivered: u64,
 }
@@ -140,6 +146,7 @@ impl HeadNode {
             keep_history: false,
             started: None,
             last_status: None,
+            told_tags_at: None,
             sync: (0, -1),
             undelivered: 0,
         }
@@ -243,8 +250,8 @@ impl HeadNode {
     /// (`crate::tags`): with every status, and at once when a claim changed.
     pub(super) fn tell_tags(&mut self, now: ClusterTime, out: &mut Vec<Outgoing>) {
         let Some(server) = self.cfg.server else { return };
-        let tags = self.tags.tell(now);
-        if !tags.is_empty() {
+        if let Some(tags) = self.tags.tell(now) {
+            self.told_tags_at = Some(now);
             out.push(Outgoing::new(server, Message::TagsHeard(TagsHeard { tags })));
         }
     }

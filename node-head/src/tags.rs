@@ -17,17 +17,17 @@
 //! A radio-only cluster (no camera can start a track) binds a tag to its track at once: the
 //! track exists for the tag (`head/radio.rs`).
 //!
-//! Across clusters, a tag binds in one head only: its *home*, the cluster that hears it
-//! loudest among those where a track claims it. A far tag's readings are weak at every node of a cluster and fit what most of its
-//! tracks predict, so against "on no track" each of several heads found its best track a good
-//! fit and one tag was bound in four heads at once (docs/multi-target.md). Each head tells
-//! the server how loud its cluster hears each tag (the loudest member's readings, smoothed)
-//! and whether one of its tracks claims it ([`TagBook::loudest`]); the server names each
-//! tag's home, and a head fuses the readings of a tag whose home is another head into none
-//! of its tracks ([`TagBook::set_homes`], [`TagBook::fused_tag_of`]). Bindings themselves
-//! still follow the evidence, so a head whose track holds the tag keeps claiming it and takes
-//! its readings again as soon as the home comes back (a track handed back to its first head). Without word from the
-//! server for [`HOME_TTL_NS`] a head binds by its own evidence alone, as before.
+//! Across clusters, a tag's readings go into the tracks of one person only: at the tag's
+//! *home*, named by the server. A far tag's readings are weak at every node of a cluster and
+//! fit what most of its tracks predict, so against "on no track" each of several heads found
+//! its best track a good fit and one tag was bound in four heads at once (docs/multi-target.md).
+//! Each head tells the server how loud its cluster hears each tag, where its loudest node is,
+//! and which track the tag is bound to ([`TagBook::tell`]); the server names each tag's home
+//! (`node_server::tag_homes` has the rule) and says whether this head's bound track is the
+//! home's person. A track takes the readings of its tag only at home or when shared
+//! ([`TagBook::fused_tag_of`]); bindings themselves follow the evidence as before, so a track
+//! takes its tag's readings again the moment the home comes back. Without word from the
+//! server for [`HOME_TTL_NS`] a head fuses by its own bindings alone.
 
 use crate::track::Track;
 use proto::models::{RssiModel, rssi_aged};
@@ -70,7 +70,7 @@ pub const HOME_TTL_NS: i64 = 3_000_000_000;
 pub const LOUD_WINDOW_NS: i64 = 4_000_000_000;
 /// Weight of a new reading in a node's smoothed loudness of a tag: one multipath fade or one
 /// lucky reading moves it by a quarter of its difference.
-const LOUD_SMOOTHING: f64 = 0.25;
+pub const LOUD_SMOOTHING: f64 = 0.25;
 
 /// One node's smoothed readings of one tag.
 #[derive(Clone, Copy, Debug)]
@@ -99,9 +99,9 @@ struct Tag {
     last_heard: ClusterTime,
     /// Each member node's smoothed readings of the tag (by slot).
     loud: BTreeMap<usize, Loud>,
-    /// The server's word on the tag's home: the head, the person its track is, and when the
-    /// word came.
-    home: Option<(NodeId, Option<TargetId>, ClusterTime)>,
+    /// The server's word on the tag's home: the head, whether this head's bound track shares
+    /// it (the same person), and when the word came.
+    home: Option<(NodeId, bool, ClusterTime)>,
 }
 
 /// A binding made or undone, for the log.
@@ -149,6 +149,8 @@ pub struct TagBook {
     away: BTreeSet<TagId>,
     /// The claims last told the server (tag → claiming track).
     told: BTreeMap<TagId, TargetId>,
+    /// Whether the last word named any tag.
+    told_any: bool,
     /// Each node slot's radio position on the floor, `[x, y]` (what the server is told a tag
     /// is near).
     positions: Vec<[f64; 2]>,
@@ -174,6 +176,7 @@ impl TagBook {
             me: None,
             away: BTreeSet::new(),
             told: BTreeMap::new(),
+            told_any: false,
             positions: Vec::new(),
         }
     }
@@ -244,44 +247,41 @@ impl TagBook {
     }
 
     /// How loud the cluster hears each tag at `now`: the loudest node's smoothed readings
-    /// among those heard in the last [`LOUD_WINDOW_NS`], and the track that claims it (holds
-    /// it, or has the strongest evidence, at least [`BIND_LLR`]), in increasing tag order (what
-    /// the head tells the server).
+    /// among the nodes heard in the last [`LOUD_WINDOW_NS`] (each node's readings smoothed
+    /// with weight [`LOUD_SMOOTHING`], restarted after a silence that long), where that node
+    /// is, and the track the tag is bound to, in increasing tag order.
     pub fn loudest(&self, now: ClusterTime) -> Vec<TagHeard> {
         self.tags
             .iter()
             .filter_map(|(&tag, t)| {
-                let (slot, dbm) = t
+                // (A node whose position is not known cannot say where the tag is.)
+                let (near, dbm) = t
                     .loud
                     .iter()
                     .filter(|(_, l)| now - l.at <= LOUD_WINDOW_NS)
-                    .map(|(&slot, l)| (slot, l.dbm))
+                    .filter_map(|(&slot, l)| Some((*self.positions.get(slot)?, l.dbm)))
                     .reduce(|a, b| if b.1 > a.1 { b } else { a })?;
-                let near = self
-                    .positions
-                    .get(slot)
-                    .map_or([f32::NAN; 2], |p| [p[0] as f32, p[1] as f32]);
-                let best = t
-                    .evidence
-                    .iter()
-                    .filter(|&(_, &e)| e >= BIND_LLR)
-                    .max_by(|a, b| a.1.total_cmp(b.1))
-                    .map(|(&k, _)| k);
                 Some(TagHeard {
                     tag,
                     dbm: dbm as f32,
-                    near,
-                    track: t.bound.or(best),
+                    near: [near[0] as f32, near[1] as f32],
+                    track: t.bound,
                 })
             })
             .collect()
     }
 
-    /// What to tell the server at `now` ([`TagBook::loudest`]), noted as told.
-    pub fn tell(&mut self, now: ClusterTime) -> Vec<TagHeard> {
+    /// What to tell the server at `now` ([`TagBook::loudest`]), noted as told; `None` when
+    /// there is nothing and nothing was told before (an empty list is told once: the server
+    /// takes each list as all the head hears).
+    pub fn tell(&mut self, now: ClusterTime) -> Option<Vec<TagHeard>> {
         let heard = self.loudest(now);
+        if heard.is_empty() && !self.told_any {
+            return None;
+        }
+        self.told_any = !heard.is_empty();
         self.told = heard.iter().filter_map(|h| Some((h.tag, h.track?))).collect();
-        heard
+        Some(heard)
     }
 
     /// Whether a claim changed since the server was last told (a track took a tag, or let it
@@ -301,7 +301,7 @@ impl TagBook {
     pub fn set_homes(&mut self, homes: &[TagHome], now: ClusterTime) {
         for h in homes {
             if let Some(t) = self.tags.get_mut(&h.tag) {
-                t.home = Some((h.head, h.global, now));
+                t.home = Some((h.head, h.shared, now));
             }
         }
     }
@@ -336,18 +336,16 @@ impl TagBook {
         changes
     }
 
-    /// The tag whose readings track `local` (of person `global`, once the server named one)
-    /// takes: the one bound to it, unless that tag's home is another head and the home's
-    /// track is not that same person.
-    pub fn fused_tag_of(&self, local: TargetId, global: Option<TargetId>) -> Option<TagId> {
+    /// The tag whose readings track `local` takes: the one bound to it, unless that tag's
+    /// home is another head that does not share it with this head's track.
+    pub fn fused_tag_of(&self, local: TargetId) -> Option<TagId> {
         self.tag_of(local).filter(|&g| {
             !self.away(g)
-                || global.is_some()
-                    && self
-                        .tags
-                        .get(&g)
-                        .and_then(|t| t.home)
-                        .is_some_and(|(_, person, _)| person == global)
+                || self
+                    .tags
+                    .get(&g)
+                    .and_then(|t| t.home)
+                    .is_some_and(|(_, shared, _)| shared)
         })
     }
 
@@ -677,13 +675,13 @@ mod tests {
         let mut book =
             TagBook::default().for_head(NodeId(3), (0..4).map(|s| [node(s).x, node(s).y]).collect());
         run_between(&mut book, &tracks, tag, at, 0.0, 2.0);
-        assert_eq!(book.fused_tag_of(TargetId(1), None), Some(tag));
+        assert_eq!(book.fused_tag_of(TargetId(1)), Some(tag));
         // The server names head 4 the tag's home: the track takes none of its readings while
         // the word holds; the binding stays (by the evidence), so the track still claims it.
         let home = [TagHome {
             tag,
             head: NodeId(4),
-            global: None,
+            shared: false,
         }];
         book.set_homes(&home, ClusterTime::from_millis(2000));
         let changes = run_between(&mut book, &tracks, tag, at, 2.0, 4.0);
@@ -696,7 +694,7 @@ mod tests {
             }]
         );
         assert!(book.away(tag));
-        assert_eq!(book.fused_tag_of(TargetId(1), None), None);
+        assert_eq!(book.fused_tag_of(TargetId(1)), None);
         assert_eq!(book.track_of(tag), Some(TargetId(1)));
         assert_eq!(
             book.loudest(ClusterTime::from_millis(4000))[0].track,
@@ -707,39 +705,59 @@ mod tests {
             &[TagHome {
                 tag,
                 head: NodeId(3),
-                global: None,
+                shared: false,
             }],
             ClusterTime::from_millis(4000),
         );
         run_between(&mut book, &tracks, tag, at, 4.0, 4.4);
-        assert_eq!(book.fused_tag_of(TargetId(1), None), Some(tag));
+        assert_eq!(book.fused_tag_of(TargetId(1)), Some(tag));
         book.set_homes(&home, ClusterTime::from_millis(4400));
         run_between(&mut book, &tracks, tag, at, 4.4, 5.0);
-        assert_eq!(book.fused_tag_of(TargetId(1), None), None);
+        assert_eq!(book.fused_tag_of(TargetId(1)), None);
         let after = 4.4 + HOME_TTL_NS as f64 / 1e9;
         run_between(&mut book, &tracks, tag, at, 5.0, after + 0.4);
         assert!(!book.away(tag), "the server's word lapsed");
-        assert_eq!(book.fused_tag_of(TargetId(1), None), Some(tag));
+        assert_eq!(book.fused_tag_of(TargetId(1)), Some(tag));
     }
 
     #[test]
-    fn a_track_of_the_homes_person_takes_an_away_tag() {
+    fn a_track_the_server_says_is_the_homes_person_takes_an_away_tag() {
         let tracks = [track(1, 7.0, 6.0)];
         let tag = TagId(0xaa);
         let mut book =
             TagBook::default().for_head(NodeId(3), (0..4).map(|s| [node(s).x, node(s).y]).collect());
         run_between(&mut book, &tracks, tag, Vector3::new(7.0, 6.0, 1.0), 0.0, 2.0);
-        let home = TagHome {
+        let home = |shared| TagHome {
             tag,
             head: NodeId(4),
-            global: Some(TargetId(100)),
+            shared,
         };
-        book.set_homes(&[home], ClusterTime::from_millis(2000));
+        book.set_homes(&[home(true)], ClusterTime::from_millis(2000));
         book.refresh_homes(ClusterTime::from_millis(2000));
         assert!(book.away(tag));
-        assert_eq!(book.fused_tag_of(TargetId(1), Some(TargetId(100))), Some(tag));
-        assert_eq!(book.fused_tag_of(TargetId(1), Some(TargetId(101))), None);
-        assert_eq!(book.fused_tag_of(TargetId(1), None), None);
+        assert_eq!(book.fused_tag_of(TargetId(1)), Some(tag));
+        book.set_homes(&[home(false)], ClusterTime::from_millis(2200));
+        book.refresh_homes(ClusterTime::from_millis(2200));
+        assert_eq!(book.fused_tag_of(TargetId(1)), None);
+    }
+
+    #[test]
+    fn the_server_is_told_each_tags_claim_and_an_empty_list_once() {
+        let tracks = [track(1, 7.0, 6.0)];
+        let tag = TagId(0xaa);
+        let mut book =
+            TagBook::default().for_head(NodeId(3), (0..4).map(|s| [node(s).x, node(s).y]).collect());
+        assert_eq!(book.tell(ClusterTime::ZERO), None, "nothing heard, nothing told");
+        run_between(&mut book, &tracks, tag, Vector3::new(7.0, 6.0, 1.0), 0.0, 2.0);
+        assert!(book.claims_changed(ClusterTime::from_millis(2000)));
+        let told = book.tell(ClusterTime::from_millis(2000)).unwrap();
+        assert_eq!(told[0].track, Some(TargetId(1)));
+        assert_eq!(told[0].near, [10.0, 10.0], "the node nearest (7, 6)");
+        assert!(!book.claims_changed(ClusterTime::from_millis(2000)));
+        // Silence past the window: the list empties, told once.
+        let later = ClusterTime::from_millis(2000) + LOUD_WINDOW_NS + 1;
+        assert_eq!(book.tell(later), Some(Vec::new()));
+        assert_eq!(book.tell(later), None);
     }
 
     #[test]
@@ -753,7 +771,7 @@ mod tests {
             &[TagHome {
                 tag,
                 head: NodeId(4),
-                global: None,
+                shared: false,
             }],
             ClusterTime::ZERO,
         );

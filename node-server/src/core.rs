@@ -93,6 +93,8 @@ pub struct Counters {
     pub undelivered: u64,
     /// Times a tag's home moved from one head to another (`tag_homes`).
     pub tag_home_moves: u64,
+    /// Tags given no home: the server's book of them was full (`tag_homes::MAX_TAGS`).
+    pub tags_refused: u64,
 }
 
 /// The server core.
@@ -111,7 +113,7 @@ pub struct ServerNode {
     log: LogLimiter,
     /// The visualization nodes' feed.
     viewers: viewers::ViewFeed,
-    /// Which head binds each radio tag.
+    /// Which head's track takes each radio tag's readings.
     tag_homes: crate::tag_homes::TagHomes,
 }
 
@@ -335,8 +337,19 @@ impl ServerNode {
             Message::TagsHeard(t) if role == Role::Head => {
                 let (homes, moved) = self.tag_homes.heard(now, src, &t.tags, &self.tracks);
                 self.counters.tag_home_moves = self.tag_homes.moves;
-                for m in moved.iter().filter(|m| m.from.is_some()) {
-                    tracing::info!(tag = %m.tag, from = ?m.from, to = %m.to, "a tag's home moved to the cluster that hears it louder");
+                self.counters.tags_refused = self.tag_homes.refused;
+                for m in &moved {
+                    let Some(from) = m.from else { continue };
+                    tracing::info!(tag = %m.tag, %from, to = %m.to, "a tag's home moved to the track nearer its loudest node");
+                    // The former home holds the readings back now, not at its next word.
+                    if from != src
+                        && let Some(a) = self.tag_homes.answer(m.tag, from, &self.tracks)
+                    {
+                        out.push(Outgoing::new(
+                            from,
+                            Message::TagHomes(TagHomes { homes: vec![a] }),
+                        ));
+                    }
                 }
                 if !homes.is_empty() {
                     out.push(Outgoing::new(src, Message::TagHomes(TagHomes { homes })));

@@ -176,11 +176,12 @@ fn unexpected_messages_are_rejected_without_state_change() {
     assert_eq!(s.counters().rejected, 3);
 }
 
-/// Heads say how loud they hear each tag and are answered with each tag's home: the louder
-/// cluster, for both of them; a camera's word on tags is rejected and names no home. A
-/// restore from the recording rebuilds the homes.
+/// Heads say how loud they hear each tag and are answered with each tag's home (here no
+/// track is known to the server, so the louder cluster), the former home at once too; a
+/// camera's word on tags is rejected and names no home. A restore from the recording rebuilds
+/// the homes.
 #[test]
-fn each_tag_is_homed_in_the_cluster_that_hears_it_loudest() {
+fn each_tag_is_homed_and_a_former_home_is_told_at_once() {
     use proto::TagId;
     use proto::msg::{TagHeard, TagHome, TagsHeard};
     let mut s = started();
@@ -213,12 +214,14 @@ fn each_tag_is_homed_in_the_cluster_that_hears_it_loudest() {
     let home = |tag: u64, head: NodeId| TagHome {
         tag: TagId(tag),
         head,
-        global: None,
+        shared: false,
     };
     let out = s.on_message(ms(100), heard(H2, &[(7, -78.0), (8, -60.0)]));
     assert_eq!(homes(&out, H2), vec![home(7, H2), home(8, H2)]);
     let out = s.on_message(ms(200), heard(H3, &[(7, -55.0)]));
     assert_eq!(homes(&out, H3), vec![home(7, H3)]);
+    // The former home is told at once, not at its next word.
+    assert_eq!(homes(&out, H2), vec![home(7, H3)]);
     let out = s.on_message(ms(1100), heard(H2, &[(7, -77.0), (8, -61.0)]));
     assert_eq!(homes(&out, H2), vec![home(7, H3), home(8, H2)]);
     assert_eq!(s.counters().tag_home_moves, 1);

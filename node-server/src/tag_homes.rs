@@ -81,9 +81,9 @@ pub struct TagHomes {
 }
 
 impl TagHomes {
-    /// Head `head` hears `tags` (each once) at `now`: note it, and name each of those tags'
-    /// home (in `tags`' order), with the homes that moved. `global_of(head, local)` is the
-    /// global id of a head's track and the head that owns that global.
+    /// Head `head` hears `tags` (each once: all it hears, so a tag it leaves out it no longer
+    /// hears) at `now`: note it, and answer each of those tags' home (in `tags`' order), with
+    /// the homes that moved (whose former home [`TagHomes::answer`] should reach too).
     pub fn heard(
         &mut self,
         now: ClusterTime,
@@ -92,11 +92,12 @@ impl TagHomes {
         tracks: &impl Tracked,
     ) -> (Vec<TagHome>, Vec<Moved>) {
         let global_of = |k: NodeId, t: TargetId| tracks.global_of(k, t);
-        for t in self.tags.values_mut() {
-            t.heard.retain(|_, w| now - w.at < HEARD_STALE_NS);
+        let named: std::collections::BTreeSet<TagId> = tags.iter().map(|h| h.tag).collect();
+        for (g, t) in &mut self.tags {
+            t.heard
+                .retain(|&k, w| now - w.at < HEARD_STALE_NS && (k != head || named.contains(g)));
         }
         self.tags.retain(|_, t| !t.heard.is_empty());
-        let mut homes = Vec::with_capacity(tags.len());
         let mut moved = Vec::new();
         for h in tags {
             if !self.tags.contains_key(&h.tag) && self.tags.len() >= MAX_TAGS {
@@ -139,7 +140,10 @@ impl TagHomes {
             let far = |k: NodeId, w: &Word| -> (f64, f32) {
                 let at = w.track.and_then(|t| tracks.position_of(k, t));
                 match at {
-                    Some(p) => ((p[0] - f64::from(near[0])).hypot(p[1] - f64::from(near[1])), 0.0),
+                    Some(p) => (
+                        (p[0] - f64::from(near[0])).hypot(p[1] - f64::from(near[1])),
+                        -w.dbm,
+                    ),
                     None => (f64::INFINITY, -w.dbm),
                 }
             };
@@ -184,21 +188,34 @@ impl TagHomes {
                 });
                 tag.home = Some(home);
             }
-            // The person the home's track is: another head's track of them may take the
-            // readings too (a track handed back to its first head takes them at once).
-            let global = tag
-                .heard
-                .get(&home)
-                .and_then(|w| w.track)
-                .and_then(|t| global_of(home, t))
-                .map(|(g, _)| g);
-            homes.push(TagHome {
-                tag: h.tag,
-                head: home,
-                global,
-            });
         }
+        let homes = tags
+            .iter()
+            .filter_map(|h| self.answer(h.tag, head, tracks))
+            .collect();
         (homes, moved)
+    }
+
+    /// What head `asker` is told of `tag`: its home, and whether the asker's claiming track is
+    /// the home's person by the server's books (then it takes the readings too: one person's
+    /// tracks in two clusters, a track handed back to its first head). The server decides,
+    /// not the head, whose label of its track may be stale after a split or a merge.
+    pub fn answer(&self, tag: TagId, asker: NodeId, tracks: &impl Tracked) -> Option<TagHome> {
+        let t = self.tags.get(&tag)?;
+        let home = t.home?;
+        let person = |k: NodeId| {
+            t.heard
+                .get(&k)
+                .and_then(|w| w.track)
+                .and_then(|local| tracks.global_of(k, local))
+                .map(|(g, _)| g)
+        };
+        let shared = asker != home && person(asker).is_some() && person(asker) == person(home);
+        Some(TagHome {
+            tag,
+            head: home,
+            shared,
+        })
     }
 
     /// The home of `tag`, if one was named and some head still hears it.
@@ -324,31 +341,58 @@ mod tests {
         h.heard(ClusterTime(0), NodeId(3), &word(-55.0, [3.0, 2.0], 1), &book);
         let (homes, _) = h.heard(ClusterTime(0), NodeId(4), &word(-70.0, [18.0, 5.0], 9), &book);
         assert_eq!(home_of(&homes, 7), NodeId(3));
-        assert_eq!(homes[0].global, Some(TargetId(100)));
+        assert!(!homes[0].shared, "another person's track");
         // The tag walked to head 4's person: head 4's node hears it loudest now.
         h.heard(ClusterTime(S), NodeId(3), &word(-75.0, [3.0, 2.0], 1), &book);
         let (homes, _) = h.heard(ClusterTime(S), NodeId(4), &word(-50.0, [19.0, 5.0], 9), &book);
         assert_eq!(home_of(&homes, 7), NodeId(4));
-        assert_eq!(homes[0].global, Some(TargetId(200)));
         assert_eq!(h.moves, 1);
     }
 
     #[test]
-    fn a_cluster_whose_claiming_track_is_reported_is_home_and_names_its_person() {
-        // One person, global 100, owned by head 3 (track 1); head 4 tracks them too (track 2,
-        // nearer the loudest node) and has a fresh track 5 the server has no global for.
+    fn a_cluster_whose_claiming_track_is_reported_is_home_and_shares_with_its_persons_tracks() {
+        // One person, global 100, owned by head 3 (track 1 at (5, 5)); head 4 tracks them too
+        // (track 2, 2 m nearer the loudest node) and has a fresh track 5 the server has no
+        // global for.
         let book = Book(BTreeMap::from([
             ((3, 1), (100, 3, [5.0, 5.0])),
-            ((4, 2), (100, 3, [5.3, 5.0])),
+            ((4, 2), (100, 3, [7.0, 5.0])),
         ]));
         let mut h = TagHomes::default();
-        h.heard(ClusterTime(0), NodeId(3), &word(-70.0, [4.0, 5.0], 1), &book);
-        let (homes, _) = h.heard(ClusterTime(0), NodeId(4), &word(-55.0, [6.0, 5.0], 2), &book);
+        h.heard(ClusterTime(0), NodeId(4), &word(-55.0, [7.0, 5.0], 2), &book);
+        let (homes, _) = h.heard(ClusterTime(0), NodeId(3), &word(-70.0, [4.0, 5.0], 1), &book);
+        assert_eq!(home_of(&homes, 7), NodeId(3), "the owner's track, though farther");
+        assert!(!homes[0].shared, "the home itself");
+        // Head 4's track of the same person takes the readings too; its fresh one does not.
+        let (homes, _) = h.heard(ClusterTime(S), NodeId(4), &word(-55.0, [7.0, 5.0], 2), &book);
         assert_eq!(home_of(&homes, 7), NodeId(3));
-        // … and the answer names the person, so head 4's track of them may take it too.
-        assert_eq!(homes[0].global, Some(TargetId(100)));
-        let (homes, _) = h.heard(ClusterTime(S), NodeId(4), &word(-55.0, [6.0, 5.0], 5), &book);
-        assert_eq!(home_of(&homes, 7), NodeId(3));
+        assert!(homes[0].shared);
+        let (homes, _) = h.heard(ClusterTime(S), NodeId(4), &word(-55.0, [7.0, 5.0], 5), &book);
+        assert!(!homes[0].shared);
+    }
+
+    #[test]
+    fn a_head_that_stops_naming_a_tag_no_longer_competes_for_it() {
+        let mut h = TagHomes::default();
+        h.heard(ClusterTime(0), NodeId(3), &heard(&[(7, -55.0), (8, -60.0)]), none);
+        h.heard(ClusterTime(0), NodeId(4), &heard(&[(7, -70.0)]), none);
+        assert_eq!(h.home(TagId(7)), Some(NodeId(3)));
+        // Head 3 hears only tag 8 now: its word on 7 is gone at once, not after staleness.
+        h.heard(ClusterTime(S), NodeId(3), &heard(&[(8, -60.0)]), none);
+        let (homes, moved) = h.heard(ClusterTime(S), NodeId(4), &heard(&[(7, -70.0)]), none);
+        assert_eq!(home_of(&homes, 7), NodeId(4));
+        assert_eq!(
+            moved,
+            vec![Moved {
+                tag: TagId(7),
+                from: Some(NodeId(3)),
+                to: NodeId(4)
+            }]
+        );
+        assert_eq!(
+            h.answer(TagId(7), NodeId(3), none).map(|a| a.head),
+            Some(NodeId(4))
+        );
     }
 
     #[test]
@@ -394,8 +438,9 @@ mod tests {
                 track: Some(TargetId(1)),
             })
             .collect();
-        for chunk in many.chunks(256) {
-            h.heard(ClusterTime(0), NodeId(3), chunk, none);
+        // (Each head's list is all it hears: five heads name a share each.)
+        for (i, chunk) in (0u32..).zip(many.chunks(256)) {
+            h.heard(ClusterTime(0), NodeId(3 + i), chunk, none);
         }
         assert_eq!(h.refused, 10);
         assert_eq!(h.home(TagId(MAX_TAGS as u64 + 5)), None);

@@ -373,12 +373,12 @@ pub fn messages() -> Vec<Envelope> {
                 TagHome {
                     tag: TagId(0x0200_0000_0003),
                     head: NodeId(3),
-                    global: Some(TargetId(1005)),
+                    shared: true,
                 },
                 TagHome {
                     tag: TagId(0x0200_0000_0004),
                     head: NodeId(4),
-                    global: None,
+                    shared: false,
                 },
             ],
         })),

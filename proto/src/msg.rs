@@ -354,16 +354,15 @@ pub struct TagHeard {
     pub dbm: f32,
     /// Where that node's radio is on the floor, `[x, y]` metres: near the tag.
     pub near: [f32; 2],
-    /// The head's track that holds the tag or has the evidence to (whether or not the tag's
-    /// home lets it bind here), if any: the one that *claims* it.
+    /// The head's track the tag is bound to, if any: the one that *claims* it (bound by the
+    /// head's own evidence, whether or not the tag's home lets it take the readings).
     pub track: Option<TargetId>,
 }
 
-/// head → server, with its status (every second while it hears tags): the tags its cluster
-/// hears, how loud and whether a track claims them, each tag once, in increasing order, at
-/// most [`MAX_TAGS_HEARD`]. The server makes each tag's home the cluster that hears it
-/// loudest among those with a track that claims it, or the head that owns that track's
-/// global ([`TagHomes`]).
+/// head → server, with its status and whenever a claim changes: every tag its cluster hears
+/// (a complete list: a tag left out is no longer heard), how loud, where, and which track
+/// claims it, each tag once, in increasing order, at most [`MAX_TAGS_HEARD`]. The server
+/// names each tag's home ([`TagHomes`], `node_server::tag_homes` has the rule).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TagsHeard {
     pub tags: Vec<TagHeard>,
@@ -393,19 +392,18 @@ pub struct Handover {
     pub cov: Mat6,
 }
 
-/// One tag's home: the head whose cluster hears it loudest (among those claiming it), the
-/// one whose track takes its readings, and the person (global id) that track is, if known:
-/// another head's track of that same person may take them too.
+/// One tag's home: the head whose track takes its readings; and whether the asking head's
+/// claiming track is the same person (one global, by the server's books) and takes them too.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TagHome {
     pub tag: TagId,
     pub head: NodeId,
-    pub global: Option<TargetId>,
+    pub shared: bool,
 }
 
-/// server → head, in answer to its [`TagsHeard`]: the homes of the tags it named, each once,
-/// in increasing order. A head fuses the readings of a tag whose home is another head into
-/// none of its tracks, but one of the home's person.
+/// server → head, in answer to its [`TagsHeard`] (and to a head that just lost a home): the
+/// homes of the tags it named, each once, in increasing order. A head fuses the readings of a
+/// tag whose home is another head into none of its tracks, unless told they are shared.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TagHomes {
     pub homes: Vec<TagHome>,
@@ -540,7 +538,7 @@ pub enum Message {
     PeopleFrame(PeopleFrame),
     /// head → server: the tags its cluster hears, and how loud.
     TagsHeard(TagsHeard),
-    /// server → head: which head binds each of those tags.
+    /// server → head: which head's track takes each of those tags' readings.
     TagHomes(TagHomes),
 }
 

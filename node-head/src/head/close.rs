@@ -78,7 +78,11 @@ impl HeadNode {
         let mut rssi_nodes = vec![false; self.nodes.len()];
         self.hand_sensed_to_fusion();
         self.hand_readings_to_tracks(now);
-        if self.tags.claims_changed(now) {
+        if self.tags.claims_changed(now)
+            && self
+                .told_tags_at
+                .is_none_or(|t| now - t >= super::TELL_TAGS_MIN_NS)
+        {
             self.tell_tags(now, out);
         }
         for t in 0..self.tracks.len() {

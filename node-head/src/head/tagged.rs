@@ -74,7 +74,7 @@ impl HeadNode {
         self.radio_tracks_for(&heard, now);
         self.unseen_tag_tracks(&heard, now);
         for t in &mut self.tracks {
-            let Some(tag) = self.tags.fused_tag_of(t.local, t.global) else {
+            let Some(tag) = self.tags.fused_tag_of(t.local) else {
                 continue;
             };
             for h in heard.iter().filter(|h| h.reading.tag == tag) {

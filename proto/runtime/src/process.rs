@@ -266,6 +266,10 @@ where
             break Err(RunError::Node(e));
         }
     };
+    // A flurry at the stop: say how many followed its first line.
+    for (_, more) in undelivered_log.overdue(i64::MAX) {
+        warn!(node = %me, more, "more messages not delivered since the last such line");
+    }
     summary.transport = stats.snapshot();
     handle.shutdown().await;
     info!(

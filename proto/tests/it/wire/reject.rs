@@ -830,7 +830,7 @@ fn tag_lists_are_sets_of_plausible_readings() {
                 .map(|&t| TagHome {
                     tag: TagId(t),
                     head: NodeId(3),
-                    global: None,
+                    shared: false,
                 })
                 .collect(),
         })

@@ -485,23 +485,19 @@ fn message() -> impl Strategy<Value = Message> {
                     .collect(),
             })
         }),
-        prop::collection::btree_map(
-            any::<u64>(),
-            (any::<u32>(), prop::option::of(any::<u32>())),
-            0..=MAX_TAGS_HEARD
-        )
-        .prop_map(|homes| {
-            Message::TagHomes(TagHomes {
-                homes: homes
-                    .into_iter()
-                    .map(|(t, (h, g))| TagHome {
-                        tag: TagId(t),
-                        head: NodeId(h),
-                        global: g.map(TargetId),
-                    })
-                    .collect(),
-            })
-        }),
+        prop::collection::btree_map(any::<u64>(), (any::<u32>(), any::<bool>()), 0..=MAX_TAGS_HEARD)
+            .prop_map(|homes| {
+                Message::TagHomes(TagHomes {
+                    homes: homes
+                        .into_iter()
+                        .map(|(t, (h, shared))| TagHome {
+                            tag: TagId(t),
+                            head: NodeId(h),
+                            shared,
+                        })
+                        .collect(),
+                })
+            }),
     ]
 }
 
