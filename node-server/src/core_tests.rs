@@ -183,24 +183,9 @@ fn unexpected_messages_are_rejected_without_state_change() {
 #[test]
 fn each_tag_is_homed_and_a_former_home_is_told_at_once() {
     use proto::TagId;
-    use proto::msg::{TagHeard, TagHome, TagsHeard};
+    use proto::msg::TagHome;
     let mut s = started();
-    let heard = |head: NodeId, tags: &[(u64, f32)]| {
-        env(
-            head,
-            Message::TagsHeard(TagsHeard {
-                tags: tags
-                    .iter()
-                    .map(|&(t, dbm)| TagHeard {
-                        tag: TagId(t),
-                        dbm,
-                        near: [1.0, 1.0],
-                        track: Some(TargetId(1)),
-                    })
-                    .collect(),
-            }),
-        )
-    };
+    let heard = |head: NodeId, tags: &[(u64, f32)]| env(head, proto::examples::tags_heard(tags));
     let homes = |out: &[Outgoing], to: NodeId| -> Vec<TagHome> {
         out.iter()
             .filter(|o| o.to == to)

@@ -470,3 +470,19 @@ fn view_update() -> ViewUpdate {
         },
     }
 }
+
+/// A head's word on tags `(tag, dBm)`, each near (1, 1) and bound to its track 1 (tests of the
+/// tag homes, at the wire and at the server).
+pub fn tags_heard(tags: &[(u64, f32)]) -> Message {
+    Message::TagsHeard(TagsHeard {
+        tags: tags
+            .iter()
+            .map(|&(t, dbm)| TagHeard {
+                tag: TagId(t),
+                dbm,
+                near: [1.0, 1.0],
+                track: Some(TargetId(1)),
+            })
+            .collect(),
+    })
+}

@@ -810,19 +810,7 @@ fn the_largest_priors_and_answers_fit_in_a_frame() {
 /// an impossible loudness are rejected naming the field.
 #[test]
 fn tag_lists_are_sets_of_plausible_readings() {
-    let heard = |tags: &[(u64, f32)]| {
-        Message::TagsHeard(TagsHeard {
-            tags: tags
-                .iter()
-                .map(|&(t, dbm)| TagHeard {
-                    tag: TagId(t),
-                    dbm,
-                    near: [1.0, 2.0],
-                    track: Some(TargetId(1)),
-                })
-                .collect(),
-        })
-    };
+    let heard = proto::examples::tags_heard;
     let homes = |tags: &[u64]| {
         Message::TagHomes(TagHomes {
             homes: tags
