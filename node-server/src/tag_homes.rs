@@ -2,10 +2,10 @@
 //! (`node_head::tags`). A head weighs a tag's readings against its own tracks only, and a far
 //! tag's weak readings fit many tracks about as well as the one it is on, so without a rule
 //! across clusters one tag was bound in four heads at once (docs/multi-target.md). The server
-//! sees every cluster: each head tells it, every second and whenever a claim changes, how
-//! loud its loudest node hears each tag, where that node is, and which of its tracks claims
-//! the tag (holds it, or has the evidence to) (`TagsHeard`); the answer names each of those
-//! tags' home and the person (global) its track is (`TagHomes`).
+//! sees every cluster: each head tells it, with its status and whenever a claim changes, every
+//! tag it hears, how loud its loudest node hears it, where that node is, and the track the
+//! tag is bound to, its claim (`TagsHeard`: a complete list, so a tag left out is no longer
+//! heard there); the answer names each of those tags' home (`TagHomes`).
 //!
 //! The rule needs no radio model shared across heads: RSSI falls with distance, so the
 //! loudest node any head hears the tag at is near it, and the home is the cluster whose
@@ -15,9 +15,11 @@
 //! that is reported. While no head claims the tag the loudest cluster is home. A home moves
 //! only for a track [`HOME_MARGIN_M`] nearer (or, without positions, a cluster
 //! [`HOME_MARGIN_DB`] louder), so a person on a boundary does not flip their tag between two
-//! heads at every fade; a home whose head stopped naming the tag for [`HEARD_STALE_NS`] goes
-//! to the best of the others. One person's tracks in two clusters may both take the person's
-//! tag (the answer names the person); what must not happen is one tag in two people's tracks.
+//! heads at every fade; a home whose head stopped naming the tag (or fell silent for
+//! [`HEARD_STALE_NS`]) goes to the best of the others, and the former home is told at once.
+//! One person's tracks in two clusters may both take the person's tag: the answer says
+//! whether the asker's track is the home's person by the server's books
+//! ([`TagHomes::answer`]); what must not happen is one tag in two people's tracks.
 
 use proto::msg::{TagHeard, TagHome};
 use proto::{ClusterTime, NodeId, TagId, TargetId};
