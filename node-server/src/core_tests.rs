@@ -764,6 +764,38 @@ fn a_far_heads_poor_estimate_never_founds_a_second_global() {
     );
 }
 
+/// Head 3 tracks the target near the far wall of its region (x 6–12 m); head 2's copy, seen by
+/// its distant cameras, slides along their rays beyond the room, where no region reaches. Head
+/// 3's region is still the nearest: the copy loses its id instead of splitting off one of its
+/// own (four-people, seed 5: a second global at x = 12–12.8 m for 4 s).
+#[test]
+fn a_far_heads_track_beyond_every_region_never_founds_a_global() {
+    let mut s = started();
+    s.on_message(ms(0), report(H3, 2, None, ms(0), 9.0, 2.0));
+    let g = s.global_of(H3, TargetId(2)).unwrap();
+    for k in 1..=3i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H3, 2, None, t, 9.0, 2.0));
+        s.on_message(t, report(H2, 4, None, t, 9.2, 2.0));
+    }
+    assert_eq!(s.global_of(H2, TargetId(4)), Some(g));
+    for k in 4..=20i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H3, 2, None, t, 9.0, 2.0));
+        s.on_message(t, report(H2, 4, None, t, 12.5, 3.0));
+    }
+    assert_eq!(s.global_of(H2, TargetId(4)), None);
+    assert_eq!(s.globals().count(), 1);
+    // Beyond the near wall, nearer head 2's own region than head 3's, the same track is head
+    // 2's to found.
+    for k in 21..=30i64 {
+        let t = ms(k * 200);
+        s.on_message(t, report(H3, 2, None, t, 9.0, 2.0));
+        s.on_message(t, report(H2, 4, None, t, -0.8, 3.0));
+    }
+    assert!(s.global_of(H2, TargetId(4)).is_some_and(|g2| g2 != g));
+}
+
 /// Over TCP the transport's heartbeats stay inside the transport; the core hears a camera only
 /// when it sends its status (about once a second). Its live link keeps it up all the same: no
 /// down/up flapping however quiet it is, and down at once when the link goes.
