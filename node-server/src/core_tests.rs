@@ -796,6 +796,33 @@ fn a_far_heads_track_beyond_every_region_never_founds_a_global() {
     assert!(s.global_of(H2, TargetId(4)).is_some_and(|g2| g2 != g));
 }
 
+/// Three heads in a row (2: x 0–6, 3: 6–12, 4: 12–18); head 3 is down. A person in head 3's
+/// floor, nearer head 4's region than head 2's, seen only by head 2's cameras: head 2 founds
+/// their global, as it did before the rule for places beyond every region (the survivors share
+/// a dead head's floor). Beyond the room past head 4's far wall, head 2's track does not.
+#[test]
+fn inside_a_dead_heads_region_any_head_may_found_a_global() {
+    let toml = crate::testkit::TOML
+        .replace("max = [12.0, 8.0, 3.0]", "max = [18.0, 8.0, 3.0]")
+        .replace(
+            "[[nodes]]\nid = 10",
+            "[[nodes]]\nid = 4\nrole = \"head\"\nregion = [12.0, 0.0, 18.0, 8.0]\n[[nodes]]\nid = 10",
+        );
+    let sc = proto::scenario::Scenario::from_toml(&toml, "<three-heads>").unwrap();
+    let mut s = ServerNode::new(ServerConfig::from_scenario(sc, NodeId(1)));
+    let h4 = NodeId(4);
+    s.on_message(ms(0), hello(H2, Role::Head));
+    s.on_message(ms(0), hello(h4, Role::Head));
+    assert!(!s.membership().is_up(H3));
+    s.on_message(ms(0), report(H2, 1, None, ms(0), 10.0, 4.0));
+    assert!(
+        s.global_of(H2, TargetId(1)).is_some(),
+        "head 3's floor, head 3 down"
+    );
+    s.on_message(ms(0), report(H2, 2, None, ms(0), 19.0, 4.0));
+    assert_eq!(s.global_of(H2, TargetId(2)), None, "beyond head 4's far wall");
+}
+
 /// Over TCP the transport's heartbeats stay inside the transport; the core hears a camera only
 /// when it sends its status (about once a second). Its live link keeps it up all the same: no
 /// down/up flapping however quiet it is, and down at once when the link goes.

@@ -183,6 +183,11 @@ impl Membership {
         })
     }
 
+    /// Whether `(x, y)` lies in some head's region, live or not.
+    pub fn in_any_region(&self, x: f64, y: f64) -> bool {
+        self.regions.values().any(|r| inside_region(r, x, y, 0.0))
+    }
+
     /// The live head nearest to `(x, y)` by region (heads without a region come last), except
     /// `except`; ties go to the lowest id.
     pub fn nearest_live_head(&self, x: f64, y: f64, except: NodeId) -> Option<NodeId> {

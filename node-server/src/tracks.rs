@@ -35,12 +35,12 @@
 //! - A member head that reports the track inside its own region while it is outside the
 //!   owner's takes ownership without a handover (`OwnerChanged`): it already tracks it.
 //! - Authority follows regions: a head's track lying outside its region by more than the
-//!   handover margin, where a live head's region covers it (or, beyond every region, lies
-//!   nearer by more than the margin), is a second opinion from cameras at the edge of their
-//!   range. It never founds a global (no `NewGlobal`, no `Split`): it is
+//!   handover margin, where a live head's region covers it (or, beyond every head's region,
+//!   where a live head's region lies nearer by more than the margin), is a second opinion from
+//!   cameras at the edge of their range. It never founds a global (no `NewGlobal`, no `Split`): it is
 //!   merged when it agrees with a global, otherwise it waits without an id (a disagreeing
-//!   merged one goes back to pending) while the covering head, whose cameras see the place
-//!   well, founds the target. Without this a far head's poor estimate of a target the owner
+//!   merged one goes back to pending) while the covering (or nearest) head, whose cameras see
+//!   the place well, founds the target. Without this a far head's poor estimate of a target the owner
 //!   tracks well turns into a second global id.
 //! - On a handover the old head stops tracking the target, so its local tracks bound to the
 //!   global are released: a track it starts again on the target merges back into the global
@@ -344,13 +344,14 @@ impl Tracks {
             })
     }
 
-    /// Whether `head`'s report lies outside its region by more than the handover margin, where
-    /// another live head's region is nearer by more than that margin (covers it, or lies
-    /// nearer to a place beyond every region): then the report may not found a global. A place
-    /// no region covers is the nearest region's edge of the watched area, and a far head's
-    /// track there is most often its cameras' poor depth sliding a track of a person that the
-    /// near head sees (four-people, seed 5: a second global at x = 12–12.8 m, outside the
-    /// 12 m room, for 4 s).
+    /// Whether `head`'s report lies outside its region by more than the handover margin, in a
+    /// region a live head covers, or beyond every head's region where a live head's region is
+    /// nearer by more than that margin: then the report may not found a global. A place no
+    /// region covers is the nearest region's edge of the watched area, and a far head's track
+    /// there is most often its cameras' poor depth sliding a track of a person that the near
+    /// head sees (four-people, seed 5: a second global at x = 12–12.8 m, outside the 12 m
+    /// room, for 4 s). Inside a dead head's region that no live head covers, any head may found
+    /// one, as before: the survivors share that floor until it comes back.
     fn foreign(&self, head: NodeId, r: &TrackReport, members: &Membership) -> bool {
         let (x, y) = (r.mean[0], r.mean[1]);
         let margin = self.params.handover_margin_m;
@@ -360,11 +361,16 @@ impl Tracks {
         else {
             return false;
         };
-        own > margin
-            && members
-                .nearest_live_head(x, y, head)
-                .and_then(|h| members.region(h))
-                .is_some_and(|region| distance_to_region(region, x, y) + margin < own)
+        if own <= margin {
+            return false;
+        }
+        if members.in_any_region(x, y) {
+            return members.live_head_covering(x, y, 0.0, head).is_some();
+        }
+        members
+            .nearest_live_head(x, y, head)
+            .and_then(|h| members.region(h))
+            .is_some_and(|region| distance_to_region(region, x, y) + margin < own)
     }
 
     /// Whether `g`'s owner is down or has not reported it for the owner staleness: `g`'s

@@ -17,8 +17,8 @@ struct Report<'a> {
     members: &'a Membership,
     /// Consecutive reports needed to merge or split (the hysteresis, at least 1).
     n: u32,
-    /// The report lies outside its head's region, where another live head covers it: it may
-    /// not found a global.
+    /// The report lies outside its head's region, where another live head covers it (or,
+    /// beyond every region, lies clearly nearer): it may not found a global.
     foreign: bool,
 }
 
