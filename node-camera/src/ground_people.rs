@@ -10,8 +10,9 @@
 //! centralized fusion) leave in one [`PeopleFrame`] per head step ([`PeopleSender`]): each
 //! person quantised ([`GroundPerson`]), its histogram only when new, changed or due for a
 //! refresh. A filter that lost its region at a border it was moving towards (its person
-//! walked out) is not reported. On a [`proto::msg::SampleRequest`] the camera answers with
-//! the filters' sample sets.
+//! walked out) is not reported, nor, with `report-unsupported = false` (the crowd and the
+//! hall), any filter no region supports this frame. On a [`proto::msg::SampleRequest`] the
+//! camera answers with every filter's sample set, reported or not.
 //!
 //! The measurement-level simulation has no frames: its projected boxes are converted to the
 //! ground plane directly ([`GroundPeople::from_boxes`]), with no spread and no histogram.
@@ -45,6 +46,8 @@ const _: () = assert!(BINS == HISTOGRAM_BINS && crate::tracker::histogram::HS_BI
 pub struct GroundPeople {
     tracker: MultiTracker,
     corner_sigma_px: f64,
+    /// `ParticleParams::report_unsupported`.
+    report_unsupported: bool,
     people: Vec<GroundPoint>,
     captured: Option<ClusterTime>,
 }
@@ -58,6 +61,7 @@ impl GroundPeople {
         Ok(GroundPeople {
             tracker: MultiTracker::new(params.clone(), fps, seed)?,
             corner_sigma_px: params.corner_sigma_px,
+            report_unsupported: params.report_unsupported,
             people: Vec::new(),
             captured: None,
         })
@@ -79,8 +83,9 @@ impl GroundPeople {
     }
 
     /// Track one frame with its foreground `regions` (and the background model's mask) and
-    /// convert each person to the ground plane; people whose box is above the horizon are
-    /// dropped.
+    /// convert each person to the ground plane; people whose box is above the horizon, who
+    /// walked out of view, or (without `report-unsupported`) whom no region supports this
+    /// frame are not reported.
     ///
     /// # Errors
     /// The tracker refused the frame or a region; nothing changes then.
@@ -101,7 +106,9 @@ impl GroundPeople {
         self.people.clear();
         let edges = feet::lower_edges(&estimates, regions, foreground.as_ref());
         for (person, edge) in estimates.iter().zip(edges) {
-            if walked_out_of_view(person, frame) {
+            if walked_out_of_view(person, frame)
+                || (!self.report_unsupported && person.unsupported_frames > 0)
+            {
                 continue;
             }
             if let Some(obs) = ground::observe(camera, person, edge, 1.0, self.corner_sigma_px, captured) {
@@ -202,7 +209,7 @@ const OUTWARD_PX_PER_FRAME: f32 = 0.25;
 /// nothing measures where it stands any more, and reported it would be a person at the border
 /// who is not there. A filter that lost its region inside the frame (a person hidden), or at a
 /// border it was not moving towards (someone standing at the edge of the view, faded into the
-/// background), is still reported.
+/// background), is still reported with `report-unsupported` (the default).
 fn walked_out_of_view(person: &PersonEstimate, frame: &Frame) -> bool {
     let m = &person.mean;
     let b = m.bbox();

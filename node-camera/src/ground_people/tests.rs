@@ -355,3 +355,59 @@ fn a_contribution_carries_the_colours_by_the_people_frames_policy() {
             .is_none()
     );
 }
+
+/// A red person on a grey floor, with the region the background model would give them, then
+/// the region gone (they walked on out of its reach, or the model took them in): with
+/// `report-unsupported` (paper 004, the default) the filter is still reported where it stands;
+/// without it, it lives on unreported, and is reported again once a region supports it.
+#[test]
+fn a_filter_no_region_supports_is_reported_only_with_report_unsupported() {
+    let cam = Scenario::default_scenario().camera_model(10).unwrap();
+    let bbox = PixelBox {
+        xmin: 160.0,
+        ymin: 120.0,
+        xmax: 192.0,
+        ymax: 200.0,
+    };
+    let mut frame = Frame::new(352, 288, ClusterTime::ZERO);
+    for y in 0..288u32 {
+        for x in 0..352u32 {
+            let inside = (160..=192).contains(&x) && (120..=200).contains(&y);
+            let i = 3 * (y * 352 + x) as usize;
+            frame.data[i..i + 3].copy_from_slice(if inside { &[200, 30, 30] } else { &[110, 110, 110] });
+        }
+    }
+    let region = Detection {
+        centre: [176.0, 160.0],
+        foot: [176.0, 200.0],
+        bbox,
+        area: 33 * 81,
+        colour: proto::msg::ColourSignature {
+            hue: 0.0,
+            saturation: 0.8,
+            intensity: 0.5,
+        },
+    };
+    let mut reported = |report_unsupported: bool| -> Vec<usize> {
+        let params = ParticleParams {
+            report_unsupported,
+            ..ParticleParams::default()
+        };
+        let mut people = GroundPeople::new(&params, 15.0, 1).unwrap();
+        let mut counts = Vec::new();
+        for k in 0..8 {
+            // Frames 0–3 with the region, 4–5 without (fewer than the destroy wait), 6–7 with.
+            let regions: &[Detection] = if (4..6).contains(&k) {
+                &[]
+            } else {
+                std::slice::from_ref(&region)
+            };
+            frame.captured = at_ms(k * 67);
+            counts.push(people.track(&cam, &frame, regions, None).unwrap().len());
+        }
+        assert_eq!(people.tracker().ids().len(), 1, "one filter throughout");
+        counts
+    };
+    assert_eq!(reported(true), vec![0, 1, 1, 1, 1, 1, 1, 1]);
+    assert_eq!(reported(false), vec![0, 1, 1, 1, 0, 0, 1, 1]);
+}

@@ -103,6 +103,16 @@ pub struct ParticleParams {
     /// Floor of the pixel standard deviation of the box's lower corners used for the ground
     /// covariance (a sample set that collapsed still has pixel noise). Ours: 1.
     pub corner_sigma_px: f64,
+    /// Whether a filter that no region supports this frame is still reported, at its own
+    /// predicted box (paper 004's camera stands alone, and its filter carries a person
+    /// through an occlusion; default). `false` reports only the filters a region supports
+    /// this frame, while the others live on unreported until they find one again or are
+    /// destroyed: a camera whose people a head fuses with other cameras' and with its own
+    /// prediction. There an unsupported filter's box mostly stands where nobody is (its
+    /// person walked on, out of its region's reach), and such reports fed false tracks
+    /// (docs/multi-target.md, "On main since stop 38"). Sample sets, sent on request, still
+    /// cover every filter.
+    pub report_unsupported: bool,
 }
 
 impl Default for ParticleParams {
@@ -133,6 +143,7 @@ impl Default for ParticleParams {
             support_iou: 0.2,
             max_people: 32,
             corner_sigma_px: 1.0,
+            report_unsupported: true,
         }
     }
 }

@@ -29,7 +29,7 @@ fn paper004_short_run_has_every_study_with_finite_rows_and_evaluated_checks() {
             "no rows of {study}: {table}"
         );
     }
-    assert_eq!(o.rows.len(), 18, "{table}");
+    assert_eq!(o.rows.len(), 21, "{table}");
     for r in &o.rows {
         assert!(!r.extra.is_empty(), "{} has no figures", r.method);
         let values = r.extra.iter().filter_map(|e| e.value).chain(r.mean_error_m);
