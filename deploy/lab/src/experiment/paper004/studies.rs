@@ -118,6 +118,20 @@ fn particle() -> Tracker {
     Tracker::Particle(ParticleParams::default())
 }
 
+/// The methods the occlusion and crowd studies compare: segmentation alone, the particle
+/// filters as the paper has them, and as the networked scenarios run them.
+fn compared() -> [(&'static str, Tracker); 3] {
+    let supported_only = Tracker::Particle(ParticleParams {
+        report_unsupported: false,
+        ..ParticleParams::default()
+    });
+    [
+        (SEGMENTATION, Tracker::Segmentation),
+        (PARTICLE, particle()),
+        (PARTICLE_SUPPORTED, supported_only),
+    ]
+}
+
 /// Every run of `tracker` on `setup`, seeds from `opts`.
 fn runs(
     setup: &Setup,
@@ -220,15 +234,7 @@ fn pillar(opts: &Options, duration_s: f64, k: usize, out: &mut Outcome) -> crate
     } = PILLARS[k];
     let narrow = k == 0;
     let scene = occlusion_scene(duration_s, width_m);
-    let supported_only = Tracker::Particle(ParticleParams {
-        report_unsupported: false,
-        ..ParticleParams::default()
-    });
-    for (label, tracker) in [
-        (SEGMENTATION, Tracker::Segmentation),
-        (PARTICLE, particle()),
-        (PARTICLE_SUPPORTED, supported_only),
-    ] {
+    for (label, tracker) in compared() {
         let runs = runs(&scene, &tracker, opts, 0)?;
         let scores: Vec<Single> = runs.iter().map(score::single).collect();
         let windows = runs
@@ -465,15 +471,7 @@ pub fn crowd(opts: &Options, duration_s: f64, out: &mut Outcome) -> crate::error
     }
     let mut kept = Vec::new();
     let mut mota = Vec::new();
-    let supported_only = Tracker::Particle(ParticleParams {
-        report_unsupported: false,
-        ..ParticleParams::default()
-    });
-    for (label, tracker) in [
-        (SEGMENTATION, Tracker::Segmentation),
-        (PARTICLE, particle()),
-        (PARTICLE_SUPPORTED, supported_only),
-    ] {
+    for (label, tracker) in compared() {
         let runs = runs(&scene, &tracker, opts, FPS as usize)?;
         let (row, mots) = mot_row(format!("3 crowd: {label}"), &runs)?;
         mota.push(extra(Some(&row), "MOTA"));
