@@ -36,12 +36,12 @@
 //!   owner's takes ownership without a handover (`OwnerChanged`): it already tracks it.
 //! - Authority follows regions: a head's track lying outside its region by more than the
 //!   handover margin, where a live head's region covers it (or, beyond every head's region,
-//!   where a live head's region lies nearer by more than the margin), is a second opinion from
-//!   cameras at the edge of their range. It never founds a global (no `NewGlobal`, no `Split`): it is
-//!   merged when it agrees with a global, otherwise it waits without an id (a disagreeing
-//!   merged one goes back to pending) while the covering (or nearest) head, whose cameras see
-//!   the place well, founds the target. Without this a far head's poor estimate of a target the owner
-//!   tracks well turns into a second global id.
+//!   where a live head's region lies nearer by more than the margin), is a second opinion
+//!   from cameras at the edge of their range. It never founds a global (no `NewGlobal`, no
+//!   `Split`): it is merged when it agrees with a global, otherwise it waits without an id (a
+//!   disagreeing merged one goes back to pending) while the covering (or nearest) head, whose
+//!   cameras see the place well, founds the target. Without this a far head's poor estimate
+//!   of a target the owner tracks well turns into a second global id.
 //! - On a handover the old head stops tracking the target, so its local tracks bound to the
 //!   global are released: a track it starts again on the target merges back into the global
 //!   instead of founding a new one. A released track does not speak for the global: a late
