@@ -340,7 +340,10 @@ impl ServerNode {
                 self.counters.tags_refused = self.tag_homes.refused;
                 for m in &moved {
                     let Some(from) = m.from else { continue };
-                    tracing::info!(tag = %m.tag, %from, to = %m.to, "a tag's home moved to the track nearer its loudest node");
+                    // Debug: a home moves in normal operation (tens of times a minute in the
+                    // hall, counted in `tag_home_moves`), and every replay of a recording (the
+                    // report, the rebuild) would log each move again.
+                    tracing::debug!(tag = %m.tag, %from, to = %m.to, "a tag's home moved to the track nearer its loudest node");
                     // The former home holds the readings back now, not at its next word.
                     if from != src
                         && let Some(a) = self.tag_homes.answer(m.tag, from, &self.tracks)
