@@ -250,17 +250,9 @@ mod tests {
     #[allow(non_upper_case_globals)]
     const none: &Book = &Book(BTreeMap::new());
 
-    /// Words on tags that a track claims.
-    fn heard(tags: &[(u64, f32)]) -> Vec<TagHeard> {
-        tags.iter()
-            .map(|&(t, dbm)| TagHeard {
-                tag: TagId(t),
-                dbm,
-                near: [0.0, 0.0],
-                track: Some(TargetId(1)),
-            })
-            .collect()
-    }
+    /// Words on tags that a track claims (where no track's position is known, `near` says
+    /// nothing).
+    use proto::examples::claimed_tags as heard;
 
     fn unclaimed(tag: u64, dbm: f32) -> Vec<TagHeard> {
         vec![TagHeard {

@@ -475,14 +475,18 @@ fn view_update() -> ViewUpdate {
 /// tag homes, at the wire and at the server).
 pub fn tags_heard(tags: &[(u64, f32)]) -> Message {
     Message::TagsHeard(TagsHeard {
-        tags: tags
-            .iter()
-            .map(|&(t, dbm)| TagHeard {
-                tag: TagId(t),
-                dbm,
-                near: [1.0, 1.0],
-                track: Some(TargetId(1)),
-            })
-            .collect(),
+        tags: claimed_tags(tags),
     })
+}
+
+/// The tags of [`tags_heard`]'s word.
+pub fn claimed_tags(tags: &[(u64, f32)]) -> Vec<TagHeard> {
+    tags.iter()
+        .map(|&(t, dbm)| TagHeard {
+            tag: TagId(t),
+            dbm,
+            near: [1.0, 1.0],
+            track: Some(TargetId(1)),
+        })
+        .collect()
 }
