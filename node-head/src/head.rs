@@ -46,7 +46,19 @@ struct NodeState {
     info: NodeInfo,
     member: bool,
     up: bool,
+    /// Whether anything came from this node since the head started. `launch` starts every
+    /// process at once, and over shared memory a message to an inbox nobody reads yet is lost
+    /// (a hall's head lost ~200 priors and its first commands so), so a node that never spoke
+    /// is sent nothing and no step waits for it; it runs in its starting mode meanwhile.
+    heard: bool,
     mode: Mode,
+}
+
+impl NodeState {
+    /// A member that is up and has spoken: one the head sends priors and commands to.
+    fn reachable(&self) -> bool {
+        self.member && self.up && self.heard
+    }
 }
 
 /// The head's state machine.
@@ -105,6 +117,7 @@ impl HeadNode {
                 info: n.clone(),
                 member: n.member,
                 up: true,
+                heard: false,
                 mode: Mode::Active,
             })
             .collect();
@@ -155,6 +168,15 @@ impl HeadNode {
     /// Keep every step's stats (for experiments and tests).
     pub fn with_history(mut self) -> Self {
         self.keep_history = true;
+        self
+    }
+
+    /// Count every configured node as heard from, for harnesses that drive the head by hand
+    /// (benches, tests) and never announce their nodes the way a running cluster's links do.
+    pub fn with_nodes_heard(mut self) -> Self {
+        for n in &mut self.nodes {
+            n.heard = true;
+        }
         self
     }
 
@@ -266,6 +288,9 @@ impl HeadNode {
             return out;
         }
         let from_server = self.cfg.server == Some(src);
+        if let Some(&slot) = self.slots.get(&src) {
+            self.nodes[slot].heard = true;
+        }
         let member = self.slots.get(&src).copied().filter(|&s| self.nodes[s].member);
         match env.body {
             Message::Answers(a) => match member {
@@ -302,8 +327,11 @@ impl HeadNode {
                     // here and the "up" sent there left it down here for good, and a returning
                     // track lost its radio-only nodes). Up, unless the server's Liveness that
                     // follows the assignment says otherwise.
+                    // The server moves only live nodes: reachable at once (it speaks to its new
+                    // head only at its next status).
                     if mine && !self.nodes[slot].member {
                         self.nodes[slot].up = true;
+                        self.nodes[slot].heard = true;
                     }
                     self.nodes[slot].member = mine;
                     if !mine {
@@ -339,6 +367,8 @@ impl HeadNode {
                 info!(node = %node, up, "node liveness changed");
             }
             self.nodes[slot].up = up;
+            // Up on a link, or in the server's word: the node is running and reads its inbox.
+            self.nodes[slot].heard |= up;
             if !up {
                 self.window.release(slot);
                 if self.window.complete() {
@@ -742,7 +772,7 @@ impl HeadNode {
         self.expected.extend(
             self.nodes
                 .iter()
-                .map(|n| distributed && n.member && n.up && n.mode != Mode::Inactive),
+                .map(|n| distributed && n.reachable() && n.mode != Mode::Inactive),
         );
         let deadline = now + (self.cfg.method.deadline_ms as i64).saturating_mul(1_000_000);
         self.window
@@ -782,7 +812,7 @@ impl HeadNode {
             for n in self
                 .nodes
                 .iter()
-                .filter(|n| n.member && n.up && n.mode != Mode::Inactive)
+                .filter(|n| n.reachable() && n.mode != Mode::Inactive)
             {
                 out.push(Outgoing::new(n.info.id, Message::Priors(priors.clone())));
             }

@@ -364,7 +364,7 @@ impl HeadNode {
             for s in 0..self.nodes.len() {
                 let n = &self.nodes[s];
                 let on = n.info.working_mode(Mode::Active);
-                if n.member && n.up && n.mode != on {
+                if n.reachable() && n.mode != on {
                     self.command(s, on, out);
                 }
             }
@@ -378,7 +378,7 @@ impl HeadNode {
         if searching {
             for s in 0..self.nodes.len() {
                 let n = &self.nodes[s];
-                if n.member && n.up && n.info.rssi && !n.mode.radio_on() {
+                if n.reachable() && n.info.rssi && !n.mode.radio_on() {
                     let on = n.info.working_mode(Mode::CameraOff);
                     self.command(s, on, out);
                 }
@@ -394,7 +394,7 @@ impl HeadNode {
             means.push(*p.mean());
         }
         let slots: Vec<usize> = (0..self.nodes.len())
-            .filter(|&s| self.nodes[s].member && self.nodes[s].up)
+            .filter(|&s| self.nodes[s].reachable())
             .collect();
         let candidates: Vec<Candidate> = slots
             .iter()

@@ -42,7 +42,7 @@ fn env(source: u32, body: Message) -> Envelope {
 #[test]
 fn a_step_without_tracks_sends_nothing_and_strangers_are_rejected() {
     let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap()).with_nodes_heard();
     let out = h.tick(ClusterTime::ZERO);
     // Nothing but its status to the server.
     assert!(
@@ -102,7 +102,7 @@ fn handover(global: u32, to: u32, from: Option<u32>, x: f64) -> Message {
 #[test]
 fn handover_starts_a_track_that_reports_its_global_id_and_leaves_again() {
     let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap()).with_nodes_heard();
     h.tick(ClusterTime::ZERO);
     h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, Some(3), 3.0)));
     assert_eq!(h.tracks().len(), 1);
@@ -135,10 +135,63 @@ fn handover_starts_a_track_that_reports_its_global_id_and_leaves_again() {
     assert!(h.tracks().is_empty());
 }
 
+/// A node's status as it sends it at its first tick.
+fn first_status(mode: Mode) -> Message {
+    Message::NodeStatus(proto::msg::NodeStatus {
+        mode,
+        time_in_mode_ns: [0; 3],
+        frames: 0,
+        detections: 0,
+        dropped: 0,
+        rejected: 0,
+        sync_offset_ns: 0,
+        sync_error_ns: 0,
+        bytes_sent: 0,
+    })
+}
+
+/// The nodes a head's outgoing messages send priors to.
+fn prior_recipients(out: &[Outgoing]) -> Vec<NodeId> {
+    out.iter()
+        .filter(|o| matches!(o.body, Message::Priors(_)))
+        .map(|o| o.to)
+        .collect()
+}
+
+#[test]
+fn a_node_is_sent_nothing_and_not_waited_for_until_it_was_heard() {
+    let s = Scenario::default_scenario();
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    h.tick(ClusterTime::ZERO);
+    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, Some(3), 3.0)));
+    assert_eq!(h.tracks().len(), 1);
+    // Nobody spoke yet (`launch` starts every process at once): no priors, no step waiting.
+    let out = h.tick(ClusterTime::from_millis(200));
+    assert_eq!(prior_recipients(&out), Vec::<NodeId>::new());
+    assert!(
+        out.iter().all(|o| !matches!(o.body, Message::Command(_))),
+        "{out:?}"
+    );
+    // Camera 10's first status, and camera 11's link coming up.
+    h.on_message(ClusterTime::from_millis(210), env(10, first_status(Mode::Active)));
+    h.node_liveness(ClusterTime::from_millis(210), NodeId(11), true);
+    let out = h.tick(ClusterTime::from_millis(400));
+    // Camera 11 is the planner's to switch off now (`camera-entropy`), 10 gets the priors:
+    // nothing goes to a camera still unheard.
+    assert!(
+        out.iter()
+            .all(|o| [NodeId(1), NodeId(10), NodeId(11)].contains(&o.to)),
+        "{out:?}"
+    );
+    assert_eq!(prior_recipients(&out), vec![NodeId(10)]);
+    assert_eq!(h.mode_of(NodeId(11)), Some(Mode::Inactive));
+    assert!(h.step_open(), "the step waits for the camera it asked");
+}
+
 #[test]
 fn a_naming_handover_names_the_nearest_unnamed_track() {
     let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap()).with_nodes_heard();
     h.tick(ClusterTime::ZERO);
     // Two people of ours, 0.5 m apart, neither named yet; the server names the second.
     for x in [3.0, 3.5] {
@@ -182,7 +235,7 @@ fn a_track_that_leaves_the_world_is_dropped() {
 #[test]
 fn assignment_moves_a_camera_out_of_the_cluster() {
     let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap()).with_nodes_heard();
     h.tick(ClusterTime::ZERO);
     h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.0)));
     let moved = NodeId(10);
@@ -217,7 +270,7 @@ fn assignment_moves_a_camera_out_of_the_cluster() {
 #[test]
 fn a_camera_assigned_back_is_not_left_down_by_a_stale_liveness() {
     let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap()).with_nodes_heard();
     h.tick(ClusterTime::ZERO);
     h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.0)));
     let cam = NodeId(10);
@@ -245,7 +298,7 @@ fn a_camera_assigned_back_is_not_left_down_by_a_stale_liveness() {
 #[test]
 fn duplicate_tracks_on_one_target_are_merged() {
     let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap()).with_nodes_heard();
     h.tick(ClusterTime::ZERO);
     h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.0)));
     h.on_message(ClusterTime::ZERO, env(1, handover(8, 2, None, 3.05)));
@@ -262,7 +315,7 @@ fn duplicate_tracks_on_one_target_are_merged() {
 #[test]
 fn activation_cost_is_the_energy_of_one_step() {
     let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap()).with_nodes_heard();
     h.tick(ClusterTime::ZERO);
     h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, Some(3), 3.0)));
     h.tick(ClusterTime::from_millis(200));
@@ -290,7 +343,7 @@ fn camera_only_steps(
     s.method.drop_lost_cameras = drop_lost;
     s.method.energy_weight = 1.0;
     let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
-    let mut h = HeadNode::new(cfg.clone());
+    let mut h = HeadNode::new(cfg.clone()).with_nodes_heard();
     h.tick(ClusterTime::ZERO);
     h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, Some(3), 3.0)));
     let mut mean = State::zeros();
@@ -409,7 +462,7 @@ fn a_measurement_captured_far_from_now_is_refused() {
     let mut s = Scenario::default_scenario();
     s.method.fusion = Fusion::CentralizedEif;
     let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
-    let mut h = HeadNode::new(cfg.clone());
+    let mut h = HeadNode::new(cfg.clone()).with_nodes_heard();
     h.tick(ClusterTime::ZERO);
     let node = cfg.nodes.iter().find(|n| n.member).unwrap();
     let seen = nalgebra::Vector3::new(3.0, 4.0, 0.25);
@@ -544,7 +597,7 @@ fn centralized_head_stepped_once() -> (HeadConfig, HeadNode, ClusterTime) {
 /// Head 2 of `s` with one track handed over at t = 0 at `mean`, σ 0.1 in every component.
 fn head_with_a_track(s: &Scenario, mean: State) -> (HeadConfig, HeadNode) {
     let cfg = HeadConfig::from_scenario(s, 2).unwrap();
-    let mut h = HeadNode::new(cfg.clone());
+    let mut h = HeadNode::new(cfg.clone()).with_nodes_heard();
     h.tick(ClusterTime::ZERO);
     h.on_message(
         ClusterTime::ZERO,
@@ -668,7 +721,7 @@ fn a_people_frame_gives_one_floor_detection_per_person() {
 fn a_stale_or_foreign_people_frame_changes_nothing() {
     let s = Scenario::default_scenario();
     let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
-    let mut h = HeadNode::new(cfg.clone());
+    let mut h = HeadNode::new(cfg.clone()).with_nodes_heard();
     h.tick(ClusterTime::ZERO);
     let node = cfg.nodes.iter().find(|n| n.member).unwrap();
     let now = ClusterTime::from_secs_f64(20.0);
@@ -807,7 +860,7 @@ fn a_head_starts_tracks_only_near_its_region() {
     // The births one step makes of a person at `at` that the cluster's cameras agree on, after
     // the server's `news`.
     let births_at = |at: [f64; 2], news: &[Message]| {
-        let mut h = HeadNode::new(cfg.clone());
+        let mut h = HeadNode::new(cfg.clone()).with_nodes_heard();
         let now = ClusterTime::from_millis(100);
         for m in news {
             h.on_message(now, env(server, m.clone()));

@@ -170,7 +170,7 @@ impl Sim {
             })
             .collect();
         Sim {
-            head: HeadNode::new(cfg).with_history(),
+            head: HeadNode::new(cfg).with_history().with_nodes_heard(),
             cams,
             present: vec![true; targets.len()],
             targets,

@@ -261,7 +261,7 @@ fn head_step_us(n: usize, scale: f64, rssi: bool) -> Result<f64> {
         ml_depth: node_head::fusion::ml::DepthHandling::default(),
         acoustic: Vec::new(),
     };
-    let mut head = HeadNode::new(cfg);
+    let mut head = HeadNode::new(cfg).with_nodes_heard();
     let truth = State::new(6.2, 3.9, 0.3, 0.0, 0.0, 0.0);
     let cov = Matrix6::from_diagonal(&Vector6::new(0.05, 0.05, 0.02, 0.1, 0.1, 0.01));
     head.on_message(

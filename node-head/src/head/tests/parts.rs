@@ -30,7 +30,7 @@ fn grid_handover(k: u32) -> Message {
 fn a_step_in_several_parts_closes_once_every_part_is_answered() {
     let mut s = Scenario::default_scenario();
     s.method.activation = Activation::AllOn;
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap()).with_nodes_heard();
     h.tick(ClusterTime::ZERO);
     for k in 0..40 {
         h.on_message(ClusterTime::ZERO, env(1, grid_handover(k)));

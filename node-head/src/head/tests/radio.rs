@@ -16,7 +16,7 @@ fn a_radio_only_cluster_tracks_each_tag_on_its_own_track() {
         n.camera = None;
     }
     let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
-    let mut h = HeadNode::new(cfg.clone());
+    let mut h = HeadNode::new(cfg.clone()).with_nodes_heard();
     let t0 = ClusterTime::ZERO;
     let priors = h.tick(t0);
     assert_eq!(h.tracks().len(), 1, "the search track");
@@ -129,7 +129,7 @@ fn an_unseen_tag_gets_a_radio_track_at_its_fix_with_unseen_tags_on() {
     s.method.activation = Activation::ThreeMode;
     s.method.unseen_tags = true;
     let cfg = HeadConfig::from_scenario(&s, 2).unwrap();
-    let mut h = HeadNode::new(cfg.clone());
+    let mut h = HeadNode::new(cfg.clone()).with_nodes_heard();
     let reports = |out: &[Outgoing]| {
         out.iter()
             .filter(|o| matches!(o.body, Message::TrackReport(_)))
