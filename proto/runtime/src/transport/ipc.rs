@@ -436,10 +436,10 @@ pub(crate) fn start(
 /// shutdown stops and joins it.
 fn start_janitor(config: Config, handle: &mut ShutdownHandle) -> Result<(), TransportError> {
     let (stop, stopped) = std::sync::mpsc::channel::<()>();
-    let period = super::ipc_janitor::period_for(std::process::id());
+    let pid = std::process::id();
     let thread = std::thread::Builder::new()
         .name("iox2-janitor".into())
-        .spawn(move || super::ipc_janitor::run::<Svc>(config, period, stopped))
+        .spawn(move || super::ipc_janitor::run::<Svc>(config, pid, stopped))
         .map_err(TransportError::Io)?;
     handle.on_stop.push(Box::new(move || drop(stop)));
     handle.threads.push(thread);
