@@ -135,21 +135,6 @@ fn handover_starts_a_track_that_reports_its_global_id_and_leaves_again() {
     assert!(h.tracks().is_empty());
 }
 
-/// A node's status as it sends it at its first tick.
-fn first_status(mode: Mode) -> Message {
-    Message::NodeStatus(proto::msg::NodeStatus {
-        mode,
-        time_in_mode_ns: [0; 3],
-        frames: 0,
-        detections: 0,
-        dropped: 0,
-        rejected: 0,
-        sync_offset_ns: 0,
-        sync_error_ns: 0,
-        bytes_sent: 0,
-    })
-}
-
 /// The nodes a head's outgoing messages send priors to.
 fn prior_recipients(out: &[Outgoing]) -> Vec<NodeId> {
     out.iter()
@@ -172,8 +157,8 @@ fn a_node_is_sent_nothing_and_not_waited_for_until_it_was_heard() {
         out.iter().all(|o| !matches!(o.body, Message::Command(_))),
         "{out:?}"
     );
-    // Camera 10's first status, and camera 11's link coming up.
-    h.on_message(ClusterTime::from_millis(210), env(10, first_status(Mode::Active)));
+    // A first message from camera 10 (any kind), and camera 11's link coming up.
+    h.on_message(ClusterTime::from_millis(210), env(10, Message::Heartbeat));
     h.node_liveness(ClusterTime::from_millis(210), NodeId(11), true);
     let out = h.tick(ClusterTime::from_millis(400));
     // Camera 11 is the planner's to switch off now (`camera-entropy`), 10 gets the priors:
