@@ -46,10 +46,11 @@ struct NodeState {
     info: NodeInfo,
     member: bool,
     up: bool,
-    /// Whether anything came from this node since the head started. `launch` starts every
-    /// process at once, and over shared memory a message to an inbox nobody reads yet is lost
-    /// (a hall's head lost ~200 priors and its first commands so), so a node that never spoke
-    /// is sent nothing and no step waits for it; it runs in its starting mode meanwhile.
+    /// Whether this node is known to run: it sent something, its link came up, or the server
+    /// said it is up. `launch` starts every process at once, and over shared memory a message
+    /// to an inbox nobody reads yet is lost (a hall's heads lost ~200 priors and their first
+    /// commands so), so a node not heard is sent nothing and no step waits for it; it runs in
+    /// its starting mode meanwhile.
     heard: bool,
     mode: Mode,
 }
@@ -327,11 +328,11 @@ impl HeadNode {
                     // here and the "up" sent there left it down here for good, and a returning
                     // track lost its radio-only nodes). Up, unless the server's Liveness that
                     // follows the assignment says otherwise.
-                    // The server moves only live nodes: reachable at once (it speaks to its new
-                    // head only at its next status).
+                    // Not yet heard, though: the server moves a down head's cameras whether
+                    // they run or not; a live one's `Liveness` follows (or its link comes up,
+                    // or it speaks).
                     if mine && !self.nodes[slot].member {
                         self.nodes[slot].up = true;
-                        self.nodes[slot].heard = true;
                     }
                     self.nodes[slot].member = mine;
                     if !mine {

@@ -161,7 +161,7 @@ fn a_node_is_sent_nothing_and_not_waited_for_until_it_was_heard() {
     h.on_message(ClusterTime::from_millis(210), env(10, Message::Heartbeat));
     h.node_liveness(ClusterTime::from_millis(210), NodeId(11), true);
     let out = h.tick(ClusterTime::from_millis(400));
-    // Camera 11 is the planner's to switch off now (`camera-entropy`), 10 gets the priors:
+    // Camera 11 is the planner's to switch off now (`three-mode`), 10 gets the priors:
     // nothing goes to a camera still unheard.
     assert!(
         out.iter()
@@ -170,7 +170,52 @@ fn a_node_is_sent_nothing_and_not_waited_for_until_it_was_heard() {
     );
     assert_eq!(prior_recipients(&out), vec![NodeId(10)]);
     assert_eq!(h.mode_of(NodeId(11)), Some(Mode::Inactive));
-    assert!(h.step_open(), "the step waits for the camera it asked");
+    // Camera 10 was the only one asked: its answer closes the step before its deadline (the
+    // unheard cameras are not waited for).
+    let prior = first_prior(&out).unwrap();
+    let answers = Answers {
+        step: prior.step,
+        part: 0,
+        captured: ClusterTime::from_millis(400),
+        mode: Mode::Active,
+        rssi: Vec::new(),
+        contributions: vec![Contribution {
+            target: prior.target,
+            info: zero_information(),
+            folded: Kinds::of(ObservationKind::Pinhole),
+            ground: None,
+        }],
+    };
+    assert!(h.step_open());
+    h.on_message(ClusterTime::from_millis(410), env(10, Message::Answers(answers)));
+    assert!(!h.step_open(), "the step still waits: {:?}", h.counters());
+}
+
+#[test]
+fn a_camera_moved_to_a_head_is_sent_nothing_until_it_is_known_to_run() {
+    let s = Scenario::default_scenario();
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
+    h.tick(ClusterTime::ZERO);
+    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.0)));
+    // Head 3 went down and the server moves its camera 13 here: maybe it never started.
+    let moved = Message::Assignment(proto::msg::Assignment {
+        node: NodeId(13),
+        head: NodeId(2),
+    });
+    h.on_message(ClusterTime::ZERO, env(1, moved));
+    let out = h.tick(ClusterTime::from_millis(200));
+    assert!(!prior_recipients(&out).contains(&NodeId(13)), "{out:?}");
+    // The server's word that it runs.
+    let up = Message::Liveness(proto::msg::Liveness {
+        node: NodeId(13),
+        up: true,
+    });
+    h.on_message(ClusterTime::from_millis(210), env(1, up));
+    let out = h.tick(ClusterTime::from_millis(400));
+    assert!(
+        out.iter().any(|o| o.to == NodeId(13)),
+        "camera 13 runs and belongs here but is sent nothing: {out:?}"
+    );
 }
 
 #[test]

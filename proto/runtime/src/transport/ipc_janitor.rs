@@ -41,7 +41,7 @@ pub(super) struct Swept {
     pub busy: u64,
     /// Dead nodes whose cleanup failed; tried again at the next sweep.
     pub failed: u64,
-    /// Nodes of the domain the sweep listed, alive or not.
+    /// Nodes of the domain the sweep listed, alive or dead (the dead ones it cleaned included).
     pub listed: usize,
 }
 
@@ -79,10 +79,11 @@ pub(super) fn sweep<S: Service>(config: &Config) -> Swept {
     swept
 }
 
-/// The janitor thread's body: sweep until `stop` is dropped, waiting [`period_for`] this
-/// process and the nodes the last sweep listed.
+/// The janitor thread's body: sweep until `stop` is dropped, waiting [`next_wait`] this
+/// process and the nodes the last sweep found alive.
 pub(super) fn run<S: Service>(config: Config, pid: u32, stop: Receiver<()>) {
     let mut period = period_for(pid, 0);
+    let mut first = true;
     loop {
         match stop.recv_timeout(period) {
             Err(RecvTimeoutError::Timeout) => {}
@@ -97,19 +98,45 @@ pub(super) fn run<S: Service>(config: Config, pid: u32, stop: Receiver<()>) {
                 "removed stale iceoryx2 resources of dead nodes"
             );
         }
-        period = period_for(pid, swept.listed);
+        // The nodes still there: a domain that had many dead ones is not swept less for them.
+        let live = swept
+            .listed
+            .saturating_sub(usize::try_from(swept.cleaned).unwrap_or(usize::MAX));
+        period = next_wait(pid, live, first);
+        first = false;
     }
 }
 
-/// Process `pid`'s wait before its next sweep when its last one listed `listed` nodes:
-/// [`SWEEP_PERIOD`], stretched by `listed / NODES_PER_PERIOD` when that is more than one, ± a
-/// third by a hash of the pid.
-pub(super) fn period_for(pid: u32, listed: usize) -> Duration {
-    let mean = SWEEP_PERIOD.mul_f64((listed as f64 / NODES_PER_PERIOD as f64).max(1.0));
-    let third = mean / 3;
-    // Fibonacci hashing: consecutive pids land far apart.
-    let spread = u64::from(pid.wrapping_mul(2_654_435_769) >> 22) * 2 * third.as_millis() as u64 / 1024;
-    mean - third + Duration::from_millis(spread)
+/// Longest stretch of a process's sweep period: one odd listing cannot stall its sweeps for
+/// minutes.
+const MAX_STRETCH: f64 = 20.0;
+
+/// A fraction in [0, 1) from `pid` (Fibonacci hashing with `factor`: consecutive pids land far
+/// apart).
+fn fraction(pid: u32, factor: u32) -> f64 {
+    f64::from(pid.wrapping_mul(factor) >> 22) / 1024.0
+}
+
+/// Process `pid`'s wait before its next sweep when its last one found `live` nodes:
+/// [`SWEEP_PERIOD`], stretched by `live / NODES_PER_PERIOD` when that is more than one (at
+/// most [`MAX_STRETCH`]), ± a third by a hash of the pid.
+pub(super) fn period_for(pid: u32, live: usize) -> Duration {
+    let stretch = (live as f64 / NODES_PER_PERIOD as f64).clamp(1.0, MAX_STRETCH);
+    let mean = SWEEP_PERIOD.mul_f64(stretch);
+    mean.mul_f64(2.0 / 3.0 + fraction(pid, 2_654_435_769) * 2.0 / 3.0)
+}
+
+/// The wait after a sweep that found `live` nodes. After a process's first sweep it is a
+/// pid-hashed share of [`period_for`]: a launch's processes all start together, so their first
+/// sweeps fall within the same second, and a whole stretched period of the same length after
+/// them would leave the domain unswept for most of it.
+pub(super) fn next_wait(pid: u32, live: usize, first: bool) -> Duration {
+    let period = period_for(pid, live);
+    if first {
+        period.mul_f64(fraction(pid, 2_246_822_519))
+    } else {
+        period
+    }
 }
 
 #[cfg(test)]
@@ -118,16 +145,20 @@ mod tests {
 
     #[test]
     fn periods_spread_around_the_mean() {
-        for listed in [0, NODES_PER_PERIOD] {
+        for (live, mean) in [
+            (0, SWEEP_PERIOD),
+            (NODES_PER_PERIOD, SWEEP_PERIOD),
+            (4 * NODES_PER_PERIOD, SWEEP_PERIOD * 4),
+        ] {
             // A launch's processes: consecutive pids.
-            let periods: Vec<Duration> = (4000..4100).map(|pid| period_for(pid, listed)).collect();
+            let periods: Vec<Duration> = (4000..4100).map(|pid| period_for(pid, live)).collect();
             let lo = *periods.iter().min().unwrap();
             let hi = *periods.iter().max().unwrap();
-            assert!(lo >= SWEEP_PERIOD - SWEEP_PERIOD / 3, "{lo:?}");
-            assert!(lo < SWEEP_PERIOD * 3 / 4, "{lo:?}");
-            assert!(hi < SWEEP_PERIOD + SWEEP_PERIOD / 3, "{hi:?}");
-            assert!(hi > SWEEP_PERIOD * 5 / 4, "{hi:?}");
+            assert!(lo >= mean * 2 / 3 && lo < mean * 3 / 4, "{live}: {lo:?}");
+            assert!(hi < mean * 4 / 3 && hi > mean * 5 / 4, "{live}: {hi:?}");
         }
+        // However many nodes, at most MAX_STRETCH periods.
+        assert!(period_for(1, usize::MAX) < SWEEP_PERIOD.mul_f64(MAX_STRETCH * 4.0 / 3.0));
     }
 
     #[test]
@@ -144,7 +175,7 @@ mod tests {
             "{}",
             rate(want as u32)
         );
-        for processes in [20, 106, 400] {
+        for processes in [20, 106, 150] {
             let got = rate(processes);
             assert!(
                 (got - want).abs() < 0.2 * want,
@@ -153,5 +184,25 @@ mod tests {
         }
         // A small domain: every process every period, as before.
         assert!((rate(4) - 4.0).abs() < 0.2 * 4.0, "{}", rate(4));
+    }
+
+    #[test]
+    fn a_launch_leaves_no_long_unswept_gap() {
+        // 106 processes started together (consecutive pids), 212 nodes: every sweep of the
+        // domain in its first two minutes, as `run` schedules them.
+        let mut sweeps: Vec<f64> = Vec::new();
+        for pid in 7000..7106u32 {
+            let mut t = period_for(pid, 0).as_secs_f64();
+            let mut first = true;
+            while t < 120.0 {
+                sweeps.push(t);
+                t += next_wait(pid, 212, first).as_secs_f64();
+                first = false;
+            }
+        }
+        sweeps.sort_by(f64::total_cmp);
+        let longest = sweeps.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
+        assert!(longest < 3.0, "the domain went {longest:.1} s unswept");
+        assert!(sweeps[0] < 4.0);
     }
 }
