@@ -3,6 +3,7 @@ use super::*;
 use proto::observation::{Kinds, Observation, PinholePoint};
 use proto::scenario::{Fusion, Scenario};
 
+mod membership;
 mod parts;
 mod radio;
 
@@ -135,89 +136,6 @@ fn handover_starts_a_track_that_reports_its_global_id_and_leaves_again() {
     assert!(h.tracks().is_empty());
 }
 
-/// The nodes a head's outgoing messages send priors to.
-fn prior_recipients(out: &[Outgoing]) -> Vec<NodeId> {
-    out.iter()
-        .filter(|o| matches!(o.body, Message::Priors(_)))
-        .map(|o| o.to)
-        .collect()
-}
-
-#[test]
-fn a_node_is_sent_nothing_and_not_waited_for_until_it_was_heard() {
-    let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
-    h.tick(ClusterTime::ZERO);
-    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, Some(3), 3.0)));
-    assert_eq!(h.tracks().len(), 1);
-    // Nobody spoke yet (`launch` starts every process at once): no priors, no step waiting.
-    let out = h.tick(ClusterTime::from_millis(200));
-    assert_eq!(prior_recipients(&out), Vec::<NodeId>::new());
-    assert!(
-        out.iter().all(|o| !matches!(o.body, Message::Command(_))),
-        "{out:?}"
-    );
-    // A first message from camera 10 (any kind), and camera 11's link coming up.
-    h.on_message(ClusterTime::from_millis(210), env(10, Message::Heartbeat));
-    h.node_liveness(ClusterTime::from_millis(210), NodeId(11), true);
-    let out = h.tick(ClusterTime::from_millis(400));
-    // Camera 11 is the planner's to switch off now (`three-mode`), 10 gets the priors:
-    // nothing goes to a camera still unheard.
-    assert!(
-        out.iter()
-            .all(|o| [NodeId(1), NodeId(10), NodeId(11)].contains(&o.to)),
-        "{out:?}"
-    );
-    assert_eq!(prior_recipients(&out), vec![NodeId(10)]);
-    assert_eq!(h.mode_of(NodeId(11)), Some(Mode::Inactive));
-    // Camera 10 was the only one asked: its answer closes the step before its deadline (the
-    // unheard cameras are not waited for).
-    let prior = first_prior(&out).unwrap();
-    let answers = Answers {
-        step: prior.step,
-        part: 0,
-        captured: ClusterTime::from_millis(400),
-        mode: Mode::Active,
-        rssi: Vec::new(),
-        contributions: vec![Contribution {
-            target: prior.target,
-            info: zero_information(),
-            folded: Kinds::of(ObservationKind::Pinhole),
-            ground: None,
-        }],
-    };
-    assert!(h.step_open());
-    h.on_message(ClusterTime::from_millis(410), env(10, Message::Answers(answers)));
-    assert!(!h.step_open(), "the step still waits: {:?}", h.counters());
-}
-
-#[test]
-fn a_camera_moved_to_a_head_is_sent_nothing_until_it_is_known_to_run() {
-    let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap());
-    h.tick(ClusterTime::ZERO);
-    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.0)));
-    // Head 3 went down and the server moves its camera 13 here: maybe it never started.
-    let moved = Message::Assignment(proto::msg::Assignment {
-        node: NodeId(13),
-        head: NodeId(2),
-    });
-    h.on_message(ClusterTime::ZERO, env(1, moved));
-    let out = h.tick(ClusterTime::from_millis(200));
-    assert!(!prior_recipients(&out).contains(&NodeId(13)), "{out:?}");
-    // The server's word that it runs.
-    let up = Message::Liveness(proto::msg::Liveness {
-        node: NodeId(13),
-        up: true,
-    });
-    h.on_message(ClusterTime::from_millis(210), env(1, up));
-    let out = h.tick(ClusterTime::from_millis(400));
-    assert!(
-        out.iter().any(|o| o.to == NodeId(13)),
-        "camera 13 runs and belongs here but is sent nothing: {out:?}"
-    );
-}
-
 #[test]
 fn a_naming_handover_names_the_nearest_unnamed_track() {
     let s = Scenario::default_scenario();
@@ -260,69 +178,6 @@ fn a_track_that_leaves_the_world_is_dropped() {
         h.tracks().first().map(|t| t.position())
     );
     assert_eq!((h.counters().deaths, h.counters().left_world), (1, 1));
-}
-
-#[test]
-fn assignment_moves_a_camera_out_of_the_cluster() {
-    let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap()).with_nodes_heard();
-    h.tick(ClusterTime::ZERO);
-    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.0)));
-    let moved = NodeId(10);
-    h.on_message(
-        ClusterTime::ZERO,
-        env(
-            1,
-            Message::Assignment(proto::msg::Assignment {
-                node: moved,
-                head: NodeId(3),
-            }),
-        ),
-    );
-    let out = h.tick(ClusterTime::from_millis(200));
-    assert!(!out.iter().any(|o| o.to == moved));
-    let power_before = h.power_mw();
-    h.on_message(
-        ClusterTime::ZERO,
-        env(
-            1,
-            Message::Assignment(proto::msg::Assignment {
-                node: moved,
-                head: NodeId(2),
-            }),
-        ),
-    );
-    assert!(h.power_mw() > power_before);
-}
-
-/// A camera seen going down while in this cluster, then assigned to another head (which heard
-/// of it coming back), then assigned here again, is up here again: it gets priors.
-#[test]
-fn a_camera_assigned_back_is_not_left_down_by_a_stale_liveness() {
-    let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap()).with_nodes_heard();
-    h.tick(ClusterTime::ZERO);
-    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.0)));
-    let cam = NodeId(10);
-    let assign = |head: u32| {
-        env(
-            1,
-            Message::Assignment(proto::msg::Assignment {
-                node: cam,
-                head: NodeId(head),
-            }),
-        )
-    };
-    let liveness = Message::Liveness(proto::msg::Liveness { node: cam, up: false });
-    h.on_message(ClusterTime::ZERO, env(1, liveness));
-    h.on_message(ClusterTime::ZERO, assign(3));
-    h.on_message(ClusterTime::ZERO, assign(2));
-    let out = h.tick(ClusterTime::from_millis(200));
-    assert!(
-        out.iter()
-            .any(|o| o.to == cam && matches!(o.body, Message::Priors(_))),
-        "camera 10 is back in the cluster but gets no prior: {out:?}"
-    );
 }
 
 #[test]
