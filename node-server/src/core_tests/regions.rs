@@ -4,6 +4,21 @@
 
 use super::*;
 
+/// 200 ms steps `steps` in which each head reports its unnamed track `local` at rest at a
+/// floor point.
+fn reports_at_rest(
+    s: &mut ServerNode,
+    steps: std::ops::RangeInclusive<i64>,
+    tracks: &[(NodeId, u32, [f64; 2])],
+) {
+    for k in steps {
+        let t = ms(k * 200);
+        for &(head, local, [x, y]) in tracks {
+            s.on_message(t, report(head, local, None, t, x, y));
+        }
+    }
+}
+
 #[test]
 fn a_track_started_in_another_clusters_area_is_not_pushed_onto_that_head() {
     let mut s = started_without_h2();
@@ -53,17 +68,9 @@ fn a_far_heads_poor_estimate_never_founds_a_second_global() {
         assert_eq!(s.global_of(H3, TargetId(9)), None, "step {k}");
     }
     // Once it agrees it merges; when it drifts off again it loses the id instead of splitting.
-    for k in 11..=13i64 {
-        let t = ms(k * 200);
-        s.on_message(t, report(H2, 5, None, t, 3.0, 4.0));
-        s.on_message(t, report(H3, 9, None, t, 3.2, 4.0));
-    }
+    reports_at_rest(&mut s, 11..=13, &[(H2, 5, [3.0, 4.0]), (H3, 9, [3.2, 4.0])]);
     assert_eq!(s.global_of(H3, TargetId(9)), Some(g));
-    for k in 14..=20i64 {
-        let t = ms(k * 200);
-        s.on_message(t, report(H2, 5, None, t, 3.0, 4.0));
-        s.on_message(t, report(H3, 9, None, t, 1.2, 4.0));
-    }
+    reports_at_rest(&mut s, 14..=20, &[(H2, 5, [3.0, 4.0]), (H3, 9, [1.2, 4.0])]);
     assert_eq!(s.global_of(H3, TargetId(9)), None);
     assert_eq!(s.globals().count(), 1);
     assert!(
@@ -82,26 +89,14 @@ fn a_far_heads_track_beyond_every_region_never_founds_a_global() {
     let mut s = started();
     s.on_message(ms(0), report(H3, 2, None, ms(0), 9.0, 2.0));
     let g = s.global_of(H3, TargetId(2)).unwrap();
-    for k in 1..=3i64 {
-        let t = ms(k * 200);
-        s.on_message(t, report(H3, 2, None, t, 9.0, 2.0));
-        s.on_message(t, report(H2, 4, None, t, 9.2, 2.0));
-    }
+    reports_at_rest(&mut s, 1..=3, &[(H3, 2, [9.0, 2.0]), (H2, 4, [9.2, 2.0])]);
     assert_eq!(s.global_of(H2, TargetId(4)), Some(g));
-    for k in 4..=20i64 {
-        let t = ms(k * 200);
-        s.on_message(t, report(H3, 2, None, t, 9.0, 2.0));
-        s.on_message(t, report(H2, 4, None, t, 12.5, 3.0));
-    }
+    reports_at_rest(&mut s, 4..=20, &[(H3, 2, [9.0, 2.0]), (H2, 4, [12.5, 3.0])]);
     assert_eq!(s.global_of(H2, TargetId(4)), None);
     assert_eq!(s.globals().count(), 1);
     // Beyond the near wall, nearer head 2's own region than head 3's, the same track is head
     // 2's to found.
-    for k in 21..=30i64 {
-        let t = ms(k * 200);
-        s.on_message(t, report(H3, 2, None, t, 9.0, 2.0));
-        s.on_message(t, report(H2, 4, None, t, -0.8, 3.0));
-    }
+    reports_at_rest(&mut s, 21..=30, &[(H3, 2, [9.0, 2.0]), (H2, 4, [-0.8, 3.0])]);
     assert!(s.global_of(H2, TargetId(4)).is_some_and(|g2| g2 != g));
 }
 
