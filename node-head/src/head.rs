@@ -289,10 +289,11 @@ impl HeadNode {
             return out;
         }
         let from_server = self.cfg.server == Some(src);
-        if let Some(&slot) = self.slots.get(&src) {
+        let slot = self.slots.get(&src).copied();
+        if let Some(slot) = slot {
             self.nodes[slot].heard = true;
         }
-        let member = self.slots.get(&src).copied().filter(|&s| self.nodes[s].member);
+        let member = slot.filter(|&s| self.nodes[s].member);
         match env.body {
             Message::Answers(a) => match member {
                 Some(slot) => self.on_answers(now, slot, a, &mut out),

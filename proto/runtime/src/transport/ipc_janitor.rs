@@ -23,8 +23,8 @@ use std::time::Duration;
 /// pids); a sweep lists the domain's nodes (a few files per node).
 pub(super) const SWEEP_PERIOD: Duration = Duration::from_secs(3);
 
-/// iceoryx2 nodes per [`SWEEP_PERIOD`] a process's sweeps may list, on average: a process that
-/// listed more waits longer before its next sweep. Every process sweeping every period costs a
+/// Live iceoryx2 nodes per [`SWEEP_PERIOD`] a process's sweeps may find, on average: a
+/// process that found more waits longer before its next sweep. Every process sweeping every period costs a
 /// domain its size squared — in a 106-process hall the janitors took 0.35 of the cameras' 0.9
 /// cores, a sweep of that domain about 10 ms — while one sweep finds every dead node of the
 /// domain, whoever runs it. With this, a domain of `n` processes still sees about
