@@ -8,17 +8,25 @@
 //! The test is the region's edge. Across the border of a real object the *frame* changes (object
 //! inside, background outside) while the model is the same background on both sides; across a
 //! ghost's border the frame is background on both sides while the *model* changes (the old
-//! object inside). So per border pair — a moving grid pixel and its neighbour in the row that is not
-//! moving — the L1 RGB contrast is summed once in the frame and once in the model, and a region
-//! whose model contrast is at least [`GHOST_RATIO`] times its frame contrast (and at least
-//! [`MIN_GHOST_EDGE`] per pair) is a ghost. (Edge-based
-//! ghost tests are the usual remedy of background subtraction; this one needs no gradient
-//! image, only the pixels on the border.) A region holding both a target and the ghost it just
-//! left mixes the two and stays a detection. Limits: rows only (top and bottom borders are
-//! not sampled), every second row, and a region needs [`MIN_PAIRS`] pairs (about five grid rows)
-//! to be judged; a box at the image's side has pairs on one side only. One frame's verdict
-//! decides: a target dressed like the floor in front of a strong edge of the background could
-//! be taken for a ghost and join the model.
+//! object inside). So per border pair — in each scanned row, the region's outermost moving grid
+//! pixel on either side and its neighbour that is not moving — the L1 RGB contrast is summed
+//! once in the frame and once in the model, and a region whose model contrast is at least
+//! [`GHOST_RATIO`] times its frame contrast (and at least [`MIN_GHOST_EDGE`] per pair) is a
+//! ghost. (Edge-based ghost tests are the usual remedy of background subtraction; this one
+//! needs no gradient image, only the pixels on the border.)
+//!
+//! Only the outline counts. Inside a ghost on a textured floor, the tiles that match the old
+//! object are holes in its mask, and across a hole's sides the *frame* changes (light tile |
+//! dark tile) while the model does not: counted, they made ghosts of a uniformly coloured
+//! person on the hall's checkered floor look real, and their filters stood in them reporting
+//! phantoms (hall seeds 1–16: false positives halved when only the outline was read). A region
+//! holding a target beside the ghost it just left mixes the two on its outline and stays a
+//! detection; a target still wholly inside its ghost (walking straight away from the camera)
+//! is judged by the ghost's outline and joins the model with it. Limits: rows only (top and
+//! bottom borders are not sampled), every second row, and a region needs [`MIN_PAIRS`] pairs
+//! (about five grid rows) to be judged; a box at the image's side has pairs on one side only.
+//! One frame's verdict decides: a target dressed like the floor in front of a strong edge of
+//! the background could be taken for a ghost and join the model.
 
 use crate::region::Grid;
 use proto::msg::PixelBox;
@@ -67,8 +75,8 @@ pub fn grid_box(grid: &Grid, b: &PixelBox) -> (usize, usize, usize, usize) {
 }
 
 /// The border contrast of the moving pixels (`mask` ≠ 0) in the grid box `(x0, y0, x1, y1)`:
-/// along every [`ROW_STEP`]-th row (one pixel beyond the box on either side), every pair of horizontal
-/// neighbours of which one is moving and the other not. `background` is the model, RGB per
+/// along every [`ROW_STEP`]-th row (one pixel beyond the box on either side), the first and
+/// the last pair of horizontal neighbours of which one is moving and the other not. `background` is the model, RGB per
 /// grid pixel.
 ///
 /// Rows only: a person's border is mostly its two sides, and a row is scanned as one slice
@@ -91,9 +99,15 @@ pub fn border_contrast(
     let (a, b) = (x0.saturating_sub(1), (x1 + 1).min(w - 1));
     for y in (y0..=y1.min(h - 1)).step_by(ROW_STEP) {
         let row = &mask[y * w..(y + 1) * w];
-        let pairs = row[a..b].iter().zip(&row[a + 1..=b]).enumerate();
-        for (i, _) in pairs.filter(|(_, (l, r))| (**l == 0) != (**r == 0)) {
-            let x = a + i;
+        let mut pairs = row[a..b]
+            .iter()
+            .zip(&row[a + 1..=b])
+            .enumerate()
+            .filter(|(_, (l, r))| (**l == 0) != (**r == 0))
+            .map(|(i, _)| a + i);
+        let first = pairs.next();
+        let last = pairs.last();
+        for x in first.into_iter().chain(last) {
             let (inside, outside) = if row[x] != 0 { (x, x + 1) } else { (x + 1, x) };
             c.frame += l1(grid.rgb(frame, inside, y), grid.rgb(frame, outside, y));
             c.model += l1(model(y * w + inside), model(y * w + outside));
@@ -147,6 +161,34 @@ mod tests {
         let ghost = border_contrast(&grid, &mask, &picture(floor, floor), &with_object.data, bx);
         assert_eq!(ghost.frame, 0);
         assert!(ghost.is_ghost(), "{ghost:?}");
+    }
+
+    #[test]
+    fn a_ghost_with_holes_where_the_floor_matches_the_old_object_is_a_ghost() {
+        // A light floor with a dark tile at columns 18–21; the model holds a dark object over
+        // columns 15–24, rows 10–19 that has left. Where the dark tile lies under it, frame and
+        // model agree, so the ghost's mask has a hole there, and across the hole's sides the
+        // *frame* changes (light | dark) while the model does not: counted, they would make the
+        // ghost look like a real object. Only the outline (columns 14|15 and 24|25) is read.
+        let grid = Grid::new(40, 30, 1);
+        let (light, dark, old) = ([150, 150, 150], [60, 60, 60], [62, 58, 60]);
+        let floor = |x: usize| if (18..22).contains(&x) { dark } else { light };
+        let mut frame = Frame::new(40, 30, ClusterTime::ZERO);
+        let mut model = vec![0u8; 40 * 30 * 3];
+        let mut mask = vec![0u8; 40 * 30];
+        for y in 0..30 {
+            for x in 0..40 {
+                let k = y * 40 + x;
+                let in_object = (15..25).contains(&x) && (10..20).contains(&y);
+                frame.data[k * 3..k * 3 + 3].copy_from_slice(&floor(x));
+                model[k * 3..k * 3 + 3].copy_from_slice(&if in_object { old } else { floor(x) });
+                mask[k] = u8::from(in_object && floor(x) == light);
+            }
+        }
+        let c = border_contrast(&grid, &mask, &frame, &model, (15, 10, 24, 19));
+        assert_eq!(c.pairs, 10, "the outline only: two pairs in each of 5 rows");
+        assert_eq!(c.frame, 0);
+        assert!(c.is_ghost(), "{c:?}");
     }
 
     #[test]
