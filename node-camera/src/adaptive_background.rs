@@ -13,6 +13,8 @@
 
 use crate::ghost;
 use crate::region::{Grid, erode4, grow_boxes};
+use crate::tracker::histogram::hsv_bins;
+use proto::msg::PixelBox;
 use proto::sensor::Detection;
 use proto::sensor::{Frame, FrameError};
 
@@ -141,6 +143,19 @@ pub struct AdaptiveBackground {
     ghosts: u64,
     /// Grid boxes of this frame's ghosts (scratch).
     ghost_boxes: Vec<(usize, usize, usize, usize)>,
+    /// Grid boxes whose moving pixels of the given colours the next frame's update does not
+    /// take into the background ([`AdaptiveBackground::hold`]).
+    held: Vec<((usize, usize, usize, usize), u128)>,
+}
+
+/// A box (frame pixels) whose moving pixels the next frame's update keeps out of the
+/// background where their colour is one of `hs_bins`: a person standing still
+/// ([`crate::ground_people::standing`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hold {
+    pub bbox: PixelBox,
+    /// Bit k set: hue–saturation bin k ([`crate::tracker::histogram::hsv_bins`]) is held.
+    pub hs_bins: u128,
 }
 
 impl AdaptiveBackground {
@@ -167,6 +182,22 @@ impl AdaptiveBackground {
             restarts: 0,
             ghosts: 0,
             ghost_boxes: Vec::new(),
+            held: Vec::new(),
+        }
+    }
+
+    /// Keep the moving pixels of `holds` out of the background at the next frame, whatever
+    /// their consistency counter says: a tracker's word that a person stands there
+    /// (`[method.particle] hold-still-s`). Replaces the previous frame's holds; ignored before
+    /// the first frame. The ghost test still drops a ghost inside a held box.
+    pub fn hold<'b>(&mut self, holds: impl IntoIterator<Item = &'b Hold>) {
+        self.held.clear();
+        if let Some(g) = self.grid {
+            self.held.extend(
+                holds
+                    .into_iter()
+                    .map(|h| (ghost::grid_box(&g, &h.bbox), h.hs_bins)),
+            );
         }
     }
 
@@ -426,6 +457,19 @@ impl AdaptiveBackground {
                 let down = eta.saturating_sub(1).max(nmin);
                 *n = if dold > eta as u32 { up } else { down };
             }
+            let held = self
+                .held
+                .iter()
+                .filter(|((_, y0, _, y1), _)| (*y0..=*y1).contains(&gy));
+            for &((x0, _, x1, _), colours) in held {
+                for x in (x0..=x1).filter(|&x| mask[x] != 0) {
+                    let o = x * step3;
+                    let (hs, _) = hsv_bins([src[o], src[o + 1], src[o + 2]]);
+                    if colours >> hs & 1 == 1 {
+                        take[x] = 0;
+                    }
+                }
+            }
             for (k, _) in take.iter().enumerate().filter(|(_, t)| **t != 0) {
                 let o = k * step3;
                 bg[k * 3..k * 3 + 3].copy_from_slice(&src[o..o + 3]);
@@ -603,6 +647,40 @@ mod tests {
         }
         assert_eq!(seen[0], 1, "the new object is moving at first");
         assert_eq!(*seen.last().unwrap(), 0, "and parked later: {seen:?}");
+    }
+
+    #[test]
+    fn a_held_box_keeps_a_parked_object_of_its_colours_out_of_the_background() {
+        let params = AdaptiveBackgroundParams {
+            tau: 8,
+            history: 4,
+            ..AdaptiveBackgroundParams::default()
+        };
+        let square = PixelBox {
+            xmin: 48.0,
+            ymin: 28.0,
+            xmax: 64.0,
+            ymax: 56.0,
+        };
+        let red = 1u128 << hsv_bins([200, 30, 40]).0;
+        let parked = |hs_bins: u128| {
+            let mut seg = AdaptiveBackground::new(params.clone());
+            let mut out = Vec::new();
+            seg.process(&scene(0, None), &mut out).unwrap();
+            let mut seen = Vec::new();
+            for t in 1..40 {
+                seg.hold(&[Hold {
+                    bbox: square,
+                    hs_bins,
+                }]);
+                seg.process(&scene(t, Some(50)), &mut out).unwrap();
+                seen.push(out.len());
+            }
+            seen
+        };
+        assert!(parked(red).iter().all(|&n| n == 1), "held: {:?}", parked(red));
+        // Holding other colours than the object's is holding nothing.
+        assert_eq!(*parked(!red).last().unwrap(), 0, "{:?}", parked(!red));
     }
 
     #[test]

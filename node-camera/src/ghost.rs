@@ -106,7 +106,7 @@ pub fn border_contrast(
             .filter(|(_, (l, r))| (**l == 0) != (**r == 0))
             .map(|(i, _)| a + i);
         let first = pairs.next();
-        let last = pairs.last();
+        let last = pairs.next_back();
         for x in first.into_iter().chain(last) {
             let (inside, outside) = if row[x] != 0 { (x, x + 1) } else { (x + 1, x) };
             c.frame += l1(grid.rgb(frame, inside, y), grid.rgb(frame, outside, y));

@@ -12,7 +12,8 @@
 //! refresh. A filter that lost its region at a border it was moving towards (its person
 //! walked out) is not reported, nor, with `report-unsupported = false` (the crowd and the
 //! hall), any filter no region supports this frame. On a [`proto::msg::SampleRequest`] the
-//! camera answers with every filter's sample set, reported or not.
+//! camera answers with every filter's sample set, reported or not. With `hold-still-s`, the
+//! people standing still are kept out of the background model ([`standing`]).
 //!
 //! The measurement-level simulation has no frames: its projected boxes are converted to the
 //! ground plane directly ([`GroundPeople::from_boxes`]), with no spread and no histogram.
@@ -33,6 +34,8 @@ use proto::sensor::{Detection, Frame};
 use proto::{ClusterTime, TargetId};
 use std::collections::BTreeMap;
 
+pub mod standing;
+
 /// Added to each axis of a ground position's variance, m²: the lower corners' rays meet the
 /// floor at the person's near edge, the centre is up to half a body's depth behind it, and the
 /// filter's mean box trails a moving person (model error the sample spread does not show).
@@ -50,6 +53,8 @@ pub struct GroundPeople {
     report_unsupported: bool,
     people: Vec<GroundPoint>,
     captured: Option<ClusterTime>,
+    /// Who stands still, to be kept out of the background (`hold-still-s`).
+    standing: standing::Standing,
 }
 
 impl GroundPeople {
@@ -64,6 +69,7 @@ impl GroundPeople {
             report_unsupported: params.report_unsupported,
             people: Vec::new(),
             captured: None,
+            standing: standing::Standing::new(params.hold_still_s),
         })
     }
 
@@ -80,6 +86,13 @@ impl GroundPeople {
     pub fn clear(&mut self) {
         self.people.clear();
         self.captured = None;
+        self.standing.clear();
+    }
+
+    /// The standing people the background model is to keep out of the background at the next
+    /// frame ([`standing`]; none with `hold-still-s = 0`, the default).
+    pub fn held(&self) -> &[crate::adaptive_background::Hold] {
+        self.standing.held()
     }
 
     /// Track one frame with its foreground `regions` (and the background model's mask) and
@@ -104,6 +117,7 @@ impl GroundPeople {
         })?;
         let captured = frame.captured;
         self.people.clear();
+        self.standing.update(&estimates, captured);
         let edges = feet::lower_edges(&estimates, regions, foreground.as_ref());
         for (person, edge) in estimates.iter().zip(edges) {
             if walked_out_of_view(person, frame)

@@ -48,22 +48,23 @@ impl SegmentParams {
     }
 }
 
-/// The selected pipeline.
+/// The selected pipeline. Both boxed: their bookkeeping differs by hundreds of bytes, and a
+/// camera holds one.
 #[derive(Debug)]
 pub enum Segmenter {
-    ColourDifference(ColourDifference),
-    AdaptiveBackground(AdaptiveBackground),
+    ColourDifference(Box<ColourDifference>),
+    AdaptiveBackground(Box<AdaptiveBackground>),
 }
 
 impl Segmenter {
     pub fn new(params: &SegmentParams) -> Segmenter {
         match params.kind {
             Segmentation::ColourDifference => {
-                Segmenter::ColourDifference(ColourDifference::new(params.colour_difference.clone()))
+                Segmenter::ColourDifference(Box::new(ColourDifference::new(params.colour_difference.clone())))
             }
-            Segmentation::AdaptiveBackground => {
-                Segmenter::AdaptiveBackground(AdaptiveBackground::new(params.adaptive_background.clone()))
-            }
+            Segmentation::AdaptiveBackground => Segmenter::AdaptiveBackground(Box::new(
+                AdaptiveBackground::new(params.adaptive_background.clone()),
+            )),
         }
     }
 

@@ -47,6 +47,10 @@ impl CameraNode {
             self.reject("frame", e.to_string());
             return out;
         }
+        // The people standing still stay in the foreground (`hold-still-s`; none by default).
+        if let Segmenter::AdaptiveBackground(seg) = &mut self.segmenter {
+            seg.hold(people.held());
+        }
         self.counters.frames += 1;
         self.counters.detections += regions.len() as u64;
         self.captured = Some(frame.captured);
