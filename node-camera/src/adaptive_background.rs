@@ -630,8 +630,9 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_parked_object_joins_the_background_after_tau() {
+    /// Regions per frame while the red square stands at x = 50 from frame 1 on, in a model of
+    /// short memory (history 4, τ 8), with `holds` handed over before every frame.
+    fn parked(holds: &[Hold]) -> Vec<usize> {
         let params = AdaptiveBackgroundParams {
             tau: 8,
             history: 4,
@@ -640,47 +641,36 @@ mod tests {
         let mut seg = AdaptiveBackground::new(params);
         let mut out = Vec::new();
         seg.process(&scene(0, None), &mut out).unwrap();
-        let mut seen = Vec::new();
-        for t in 1..40 {
-            seg.process(&scene(t, Some(50)), &mut out).unwrap();
-            seen.push(out.len());
-        }
+        (1..40)
+            .map(|t| {
+                seg.hold(holds);
+                seg.process(&scene(t, Some(50)), &mut out).unwrap();
+                out.len()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_parked_object_joins_the_background_after_tau() {
+        let seen = parked(&[]);
         assert_eq!(seen[0], 1, "the new object is moving at first");
         assert_eq!(*seen.last().unwrap(), 0, "and parked later: {seen:?}");
     }
 
     #[test]
     fn a_held_box_keeps_a_parked_object_of_its_colours_out_of_the_background() {
-        let params = AdaptiveBackgroundParams {
-            tau: 8,
-            history: 4,
-            ..AdaptiveBackgroundParams::default()
-        };
-        let square = PixelBox {
+        let bbox = PixelBox {
             xmin: 48.0,
             ymin: 28.0,
             xmax: 64.0,
             ymax: 56.0,
         };
         let red = 1u128 << hsv_bins([200, 30, 40]).0;
-        let parked = |hs_bins: u128| {
-            let mut seg = AdaptiveBackground::new(params.clone());
-            let mut out = Vec::new();
-            seg.process(&scene(0, None), &mut out).unwrap();
-            let mut seen = Vec::new();
-            for t in 1..40 {
-                seg.hold(&[Hold {
-                    bbox: square,
-                    hs_bins,
-                }]);
-                seg.process(&scene(t, Some(50)), &mut out).unwrap();
-                seen.push(out.len());
-            }
-            seen
-        };
-        assert!(parked(red).iter().all(|&n| n == 1), "held: {:?}", parked(red));
+        let held = parked(&[Hold { bbox, hs_bins: red }]);
+        assert!(held.iter().all(|&n| n == 1), "held: {held:?}");
         // Holding other colours than the object's is holding nothing.
-        assert_eq!(*parked(!red).last().unwrap(), 0, "{:?}", parked(!red));
+        let other = parked(&[Hold { bbox, hs_bins: !red }]);
+        assert_eq!(*other.last().unwrap(), 0, "{other:?}");
     }
 
     #[test]
