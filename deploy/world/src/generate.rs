@@ -81,15 +81,14 @@ fn apart(v: f64, taken: &[f64], range: std::ops::Range<f64>, rng: &mut ChaCha8Rn
 }
 
 /// A particle hall's `[method.particle]`: its cameras' people are fused by the heads, so a
-/// filter no region supports stays home, and a person who stops stays in the foreground
-/// (measured in docs/multi-target.md, "On main since stop 38" and "… stop 40").
+/// filter no region supports stays home (measured in docs/multi-target.md, "On main since stop
+/// 38"). Its people do not stop, so it holds no one in the foreground (`hold-still-s`: it cost
+/// the hall identity, "… stop 40").
 const PARTICLE_SECTION: &str = "
 [method.particle]
 # Only the filters a region supports this frame leave the camera: an unsupported filter's box
 # mostly stands where nobody is, and the heads predict the hidden ones themselves.
 report-unsupported = false
-# A person who stops stays in the foreground for up to 30 s (docs/multi-target.md, stop 40).
-hold-still-s = 30.0
 ";
 
 /// The scenario's TOML text.

@@ -121,7 +121,8 @@ pub struct ParticleParams {
     /// their region fades and a camera that reports only supported filters loses them. A
     /// filter that never moved (one on a ghost, or on someone standing since the model
     /// started) is not held, and a person standing longer than this is taken in as before, so
-    /// a parked object is not foreground for ever. The crowd and the generated hall set 30.
+    /// a parked object is not foreground for ever. The crowd sets 30; the hall, whose people do
+    /// not stop, none (it held filters that had stopped on something else).
     pub hold_still_s: f64,
 }
 
