@@ -13,7 +13,7 @@
 
 use crate::ghost;
 use crate::region::{Grid, erode4, grow_boxes};
-use crate::tracker::histogram::hsv_bins;
+use crate::tracker::histogram::{hsv_bins, table_colour};
 use proto::msg::PixelBox;
 use proto::sensor::Detection;
 use proto::sensor::{Frame, FrameError};
@@ -464,7 +464,8 @@ impl AdaptiveBackground {
             for &((x0, _, x1, _), colours) in held {
                 for x in (x0..=x1).filter(|&x| mask[x] != 0) {
                     let o = x * step3;
-                    let (hs, _) = hsv_bins([src[o], src[o + 1], src[o + 2]]);
+                    // Binned as the filters bin it, or a dark colour falls in a neighbouring bin.
+                    let (hs, _) = hsv_bins(table_colour([src[o], src[o + 1], src[o + 2]]));
                     if colours >> hs & 1 == 1 {
                         take[x] = 0;
                     }
@@ -665,7 +666,7 @@ mod tests {
             xmax: 64.0,
             ymax: 56.0,
         };
-        let red = 1u128 << hsv_bins([200, 30, 40]).0;
+        let red = 1u128 << hsv_bins(table_colour([200, 30, 40])).0;
         let held = parked(&[Hold { bbox, hs_bins: red }]);
         assert!(held.iter().all(|&n| n == 1), "held: {held:?}");
         // Holding other colours than the object's is holding nothing.

@@ -211,6 +211,9 @@ impl CameraNode {
             if let Some(p) = self.people.as_mut() {
                 p.clear();
             }
+            if let Segmenter::AdaptiveBackground(seg) = &mut self.segmenter {
+                seg.hold(&[]);
+            }
         }
         if !mode.radio_on() {
             self.tags.clear();

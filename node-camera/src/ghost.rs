@@ -75,9 +75,9 @@ pub fn grid_box(grid: &Grid, b: &PixelBox) -> (usize, usize, usize, usize) {
 }
 
 /// The border contrast of the moving pixels (`mask` ≠ 0) in the grid box `(x0, y0, x1, y1)`:
-/// along every [`ROW_STEP`]-th row (one pixel beyond the box on either side), the first and
-/// the last pair of horizontal neighbours of which one is moving and the other not. `background` is the model, RGB per
-/// grid pixel.
+/// along every [`ROW_STEP`]-th row (one pixel beyond the box on either side), the first pair
+/// of horizontal neighbours going from still to moving and the last going from moving to
+/// still. `background` is the model, RGB per grid pixel.
 ///
 /// Rows only: a person's border is mostly its two sides, and a row is scanned as one slice
 /// (the pairs found first, colours read only at them). Visiting every moving pixel and its
@@ -105,9 +105,14 @@ pub fn border_contrast(
             .enumerate()
             .filter(|(_, (l, r))| (**l == 0) != (**r == 0))
             .map(|(i, _)| a + i);
+        // The outline's left side is a still→moving change, its right side moving→still; a
+        // region at the image's edge has no such change on that side, and the first change
+        // found there is a hole's.
         let first = pairs.next();
-        let last = pairs.next_back();
-        for x in first.into_iter().chain(last) {
+        let last = pairs.next_back().or(first);
+        let left = first.filter(|&x| row[x] == 0);
+        let right = last.filter(|&x| row[x] != 0);
+        for x in left.into_iter().chain(right) {
             let (inside, outside) = if row[x] != 0 { (x, x + 1) } else { (x + 1, x) };
             c.frame += l1(grid.rgb(frame, inside, y), grid.rgb(frame, outside, y));
             c.model += l1(model(y * w + inside), model(y * w + outside));
@@ -187,6 +192,31 @@ mod tests {
         }
         let c = border_contrast(&grid, &mask, &frame, &model, (15, 10, 24, 19));
         assert_eq!(c.pairs, 10, "the outline only: two pairs in each of 5 rows");
+        assert_eq!(c.frame, 0);
+        assert!(c.is_ghost(), "{c:?}");
+    }
+
+    #[test]
+    fn a_holed_ghost_at_the_images_edge_is_judged_by_its_one_outline_side() {
+        // As above, moved to the image's left edge: the ghost covers columns 0–9, the dark tile
+        // columns 3–6. The row's first change is the hole's left side, which is no outline.
+        let grid = Grid::new(40, 30, 1);
+        let (light, dark, old) = ([150, 150, 150], [60, 60, 60], [62, 58, 60]);
+        let floor = |x: usize| if (3..7).contains(&x) { dark } else { light };
+        let mut frame = Frame::new(40, 30, ClusterTime::ZERO);
+        let mut model = vec![0u8; 40 * 30 * 3];
+        let mut mask = vec![0u8; 40 * 30];
+        for y in 0..30 {
+            for x in 0..40 {
+                let k = y * 40 + x;
+                let in_object = x < 10 && (5..25).contains(&y);
+                frame.data[k * 3..k * 3 + 3].copy_from_slice(&floor(x));
+                model[k * 3..k * 3 + 3].copy_from_slice(&if in_object { old } else { floor(x) });
+                mask[k] = u8::from(in_object && floor(x) == light);
+            }
+        }
+        let c = border_contrast(&grid, &mask, &frame, &model, (0, 5, 9, 24));
+        assert_eq!(c.pairs, 10, "the right side only, in 10 rows");
         assert_eq!(c.frame, 0);
         assert!(c.is_ghost(), "{c:?}");
     }

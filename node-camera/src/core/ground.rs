@@ -43,13 +43,17 @@ impl CameraNode {
             Segmenter::AdaptiveBackground(seg) => Foreground::of(seg),
             Segmenter::ColourDifference(_) => None,
         };
-        if let Err(e) = people.track(&self.cfg.camera, frame, regions, foreground) {
+        let tracked = people
+            .track(&self.cfg.camera, frame, regions, foreground)
+            .map(|_| ());
+        // The people standing still stay in the foreground at the next frame (`hold-still-s`;
+        // none by default), and none after a frame the filters refused.
+        if let Segmenter::AdaptiveBackground(seg) = &mut self.segmenter {
+            seg.hold(if tracked.is_ok() { people.held() } else { &[] });
+        }
+        if let Err(e) = tracked {
             self.reject("frame", e.to_string());
             return out;
-        }
-        // The people standing still stay in the foreground (`hold-still-s`; none by default).
-        if let Segmenter::AdaptiveBackground(seg) = &mut self.segmenter {
-            seg.hold(people.held());
         }
         self.counters.frames += 1;
         self.counters.detections += regions.len() as u64;

@@ -8,8 +8,8 @@
 //! that walked before has stood still, supported by a region, for at least
 //! [`STAND_BEFORE_HOLD_NS`] and less than `hold-still-s`, the background model keeps its box's
 //! moving pixels out of the background — only those with one of the person's colours
-//! ([`HOLD_MIN_BIN_SHARE`]), so a filter stopped on floor or on a ghost does not keep the floor
-//! or the ghost in the foreground. A filter that never moved (one on a ghost, or on someone
+//! ([`HOLD_MIN_BIN_SHARE`]), so a filter stopped on floor or on a ghost keeps less of the floor
+//! or the ghost in the foreground (not none: a person's histogram holds some floor). A filter that never moved (one on a ghost, or on someone
 //! standing since the model started) is never held, and a person standing longer than
 //! `hold-still-s` is taken in as before, so a parked object is not foreground for ever.
 
@@ -127,7 +127,8 @@ mod tests {
         ClusterTime::from_millis(t)
     }
 
-    /// Held ids at each 200 ms frame of `xs` (one box per frame), holding for up to 2 s.
+    /// Whether the one filter is held at each 200 ms frame of `xs` (its box's left edge and
+    /// whether a region supports it), holding for up to 2 s.
     fn held_over(xs: &[(f32, bool)]) -> Vec<bool> {
         let mut s = Standing::new(2.0);
         xs.iter()
@@ -156,7 +157,11 @@ mod tests {
         let mut xs = vec![(10.0, true), (30.0, true)];
         xs.extend([(30.0, false); 8]);
         assert!(held_over(&xs).iter().all(|h| !h), "unsupported");
-        assert!(Standing::new(0.0).held().is_empty());
+        let mut off = Standing::new(0.0);
+        for (k, x) in [10.0, 30.0, 30.0, 30.0, 30.0, 30.0].into_iter().enumerate() {
+            off.update(&[at(1, x, true)], ms(200 * k as i64));
+            assert!(off.held().is_empty(), "hold-still-s = 0 holds no one");
+        }
     }
 
     #[test]

@@ -46,6 +46,13 @@ pub fn hsv_bins(rgb: [u8; 3]) -> (usize, usize) {
     (hs, bin(max / 256.0, VALUE_BINS))
 }
 
+/// The colour the tracker's bin table reads a pixel as: each channel at the centre of its
+/// `TABLE_BITS` cell. Whatever bins pixels as the filters do goes through it.
+pub fn table_colour(rgb: [u8; 3]) -> [u8; 3] {
+    let shift = 8 - TABLE_BITS;
+    rgb.map(|c| (c >> shift << shift) | (1 << (shift - 1)))
+}
+
 /// Kernel-weighted bin sums of one box, not yet normalized: each pixel adds its kernel weight
 /// to one HS bin and one V bin, so both halves sum to `total`.
 #[derive(Clone, Debug, PartialEq)]
