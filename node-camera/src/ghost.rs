@@ -126,6 +126,7 @@ pub fn border_contrast(
 mod tests {
     use super::*;
     use proto::ClusterTime;
+    use std::ops::Range;
 
     /// A 40×30 frame of `floor` with a 10×10 square of `inside` at (15, 10).
     fn picture(floor: [u8; 3], inside: [u8; 3]) -> Frame {
@@ -168,29 +169,35 @@ mod tests {
         assert!(ghost.is_ghost(), "{ghost:?}");
     }
 
-    #[test]
-    fn a_ghost_with_holes_where_the_floor_matches_the_old_object_is_a_ghost() {
-        // A light floor with a dark tile at columns 18–21; the model holds a dark object over
-        // columns 15–24, rows 10–19 that has left. Where the dark tile lies under it, frame and
-        // model agree, so the ghost's mask has a hole there, and across the hole's sides the
-        // *frame* changes (light | dark) while the model does not: counted, they would make the
-        // ghost look like a real object. Only the outline (columns 14|15 and 24|25) is read.
-        let grid = Grid::new(40, 30, 1);
+    /// A 40×30 light floor with a dark tile over the columns `tile`, and a model that holds a
+    /// dark object that has left over `cols` × `rows`. Where the dark tile lies under it,
+    /// frame and model agree, so the ghost's mask has a hole there, and across the hole's
+    /// sides the *frame* changes (light | dark) while the model does not. Returns the frame,
+    /// the model and the mask.
+    fn holed_ghost(cols: Range<usize>, rows: Range<usize>, tile: Range<usize>) -> (Frame, Vec<u8>, Vec<u8>) {
         let (light, dark, old) = ([150, 150, 150], [60, 60, 60], [62, 58, 60]);
-        let floor = |x: usize| if (18..22).contains(&x) { dark } else { light };
+        let floor = |x: usize| if tile.contains(&x) { dark } else { light };
         let mut frame = Frame::new(40, 30, ClusterTime::ZERO);
         let mut model = vec![0u8; 40 * 30 * 3];
         let mut mask = vec![0u8; 40 * 30];
         for y in 0..30 {
             for x in 0..40 {
                 let k = y * 40 + x;
-                let in_object = (15..25).contains(&x) && (10..20).contains(&y);
+                let in_object = cols.contains(&x) && rows.contains(&y);
                 frame.data[k * 3..k * 3 + 3].copy_from_slice(&floor(x));
                 model[k * 3..k * 3 + 3].copy_from_slice(&if in_object { old } else { floor(x) });
                 mask[k] = u8::from(in_object && floor(x) == light);
             }
         }
-        let c = border_contrast(&grid, &mask, &frame, &model, (15, 10, 24, 19));
+        (frame, model, mask)
+    }
+
+    #[test]
+    fn a_ghost_with_holes_where_the_floor_matches_the_old_object_is_a_ghost() {
+        // The hole's sides, counted, would make the ghost look like a real object. Only the
+        // outline (columns 14|15 and 24|25) is read.
+        let (frame, model, mask) = holed_ghost(15..25, 10..20, 18..22);
+        let c = border_contrast(&Grid::new(40, 30, 1), &mask, &frame, &model, (15, 10, 24, 19));
         assert_eq!(c.pairs, 10, "the outline only: two pairs in each of 5 rows");
         assert_eq!(c.frame, 0);
         assert!(c.is_ghost(), "{c:?}");
@@ -198,24 +205,10 @@ mod tests {
 
     #[test]
     fn a_holed_ghost_at_the_images_edge_is_judged_by_its_one_outline_side() {
-        // As above, moved to the image's left edge: the ghost covers columns 0–9, the dark tile
-        // columns 3–6. The row's first change is the hole's left side, which is no outline.
-        let grid = Grid::new(40, 30, 1);
-        let (light, dark, old) = ([150, 150, 150], [60, 60, 60], [62, 58, 60]);
-        let floor = |x: usize| if (3..7).contains(&x) { dark } else { light };
-        let mut frame = Frame::new(40, 30, ClusterTime::ZERO);
-        let mut model = vec![0u8; 40 * 30 * 3];
-        let mut mask = vec![0u8; 40 * 30];
-        for y in 0..30 {
-            for x in 0..40 {
-                let k = y * 40 + x;
-                let in_object = x < 10 && (5..25).contains(&y);
-                frame.data[k * 3..k * 3 + 3].copy_from_slice(&floor(x));
-                model[k * 3..k * 3 + 3].copy_from_slice(&if in_object { old } else { floor(x) });
-                mask[k] = u8::from(in_object && floor(x) == light);
-            }
-        }
-        let c = border_contrast(&grid, &mask, &frame, &model, (0, 5, 9, 24));
+        // At the image's left edge: the row's first change is the hole's left side, which is
+        // no outline.
+        let (frame, model, mask) = holed_ghost(0..10, 5..25, 3..7);
+        let c = border_contrast(&Grid::new(40, 30, 1), &mask, &frame, &model, (0, 5, 9, 24));
         assert_eq!(c.pairs, 10, "the right side only, in 10 rows");
         assert_eq!(c.frame, 0);
         assert!(c.is_ghost(), "{c:?}");
