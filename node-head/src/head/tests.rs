@@ -100,6 +100,16 @@ fn handover(global: u32, to: u32, from: Option<u32>, x: f64) -> Message {
     })
 }
 
+/// Head 2 of the default scenario, every node heard, stepped once, with global 7 handed to it
+/// at x = 3 m.
+fn head_2_with_global_7() -> HeadNode {
+    let s = Scenario::default_scenario();
+    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap()).with_nodes_heard();
+    h.tick(ClusterTime::ZERO);
+    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.0)));
+    h
+}
+
 #[test]
 fn handover_starts_a_track_that_reports_its_global_id_and_leaves_again() {
     let s = Scenario::default_scenario();
@@ -182,10 +192,7 @@ fn a_track_that_leaves_the_world_is_dropped() {
 
 #[test]
 fn duplicate_tracks_on_one_target_are_merged() {
-    let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap()).with_nodes_heard();
-    h.tick(ClusterTime::ZERO);
-    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.0)));
+    let mut h = head_2_with_global_7();
     h.on_message(ClusterTime::ZERO, env(1, handover(8, 2, None, 3.05)));
     h.on_message(ClusterTime::ZERO, env(1, handover(9, 2, None, 5.0)));
     assert_eq!(h.tracks().len(), 3);

@@ -89,10 +89,7 @@ fn a_camera_moved_to_a_head_is_sent_nothing_until_it_is_known_to_run() {
 
 #[test]
 fn assignment_moves_a_camera_out_of_the_cluster() {
-    let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap()).with_nodes_heard();
-    h.tick(ClusterTime::ZERO);
-    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.0)));
+    let mut h = head_2_with_global_7();
     let moved = NodeId(10);
     h.on_message(ClusterTime::ZERO, assignment(10, 3));
     let out = h.tick(ClusterTime::from_millis(200));
@@ -106,10 +103,7 @@ fn assignment_moves_a_camera_out_of_the_cluster() {
 /// of it coming back), then assigned here again, is up here again: it gets priors.
 #[test]
 fn a_camera_assigned_back_is_not_left_down_by_a_stale_liveness() {
-    let s = Scenario::default_scenario();
-    let mut h = HeadNode::new(HeadConfig::from_scenario(&s, 2).unwrap()).with_nodes_heard();
-    h.tick(ClusterTime::ZERO);
-    h.on_message(ClusterTime::ZERO, env(1, handover(7, 2, None, 3.0)));
+    let mut h = head_2_with_global_7();
     let cam = NodeId(10);
     h.on_message(ClusterTime::ZERO, liveness(10, false));
     h.on_message(ClusterTime::ZERO, assignment(10, 3));
