@@ -47,7 +47,8 @@ pub fn hsv_bins(rgb: [u8; 3]) -> (usize, usize) {
 }
 
 /// The colour the tracker's bin table reads a pixel as: each channel at the centre of its
-/// `TABLE_BITS` cell. Whatever bins pixels as the filters do goes through it.
+/// `TABLE_BITS` cell. The table is built through it, and whatever bins pixels as the filters
+/// do (the background model's held colours) goes through it too.
 pub fn table_colour(rgb: [u8; 3]) -> [u8; 3] {
     let shift = 8 - TABLE_BITS;
     rgb.map(|c| (c >> shift << shift) | (1 << (shift - 1)))
@@ -95,12 +96,13 @@ impl BinImage {
     pub fn new() -> BinImage {
         let levels = 1usize << TABLE_BITS;
         let shift = 8 - TABLE_BITS;
-        let centre = |q: usize| ((q << shift) | (1 << (shift - 1))) as u8;
+        // The cell's lowest level; `table_colour` takes it to the cell's centre.
+        let cell = |q: usize| (q << shift) as u8;
         let mut table = Vec::with_capacity(levels * levels * levels);
         for r in 0..levels {
             for g in 0..levels {
                 for b in 0..levels {
-                    let (hs, v) = hsv_bins([centre(r), centre(g), centre(b)]);
+                    let (hs, v) = hsv_bins(table_colour([cell(r), cell(g), cell(b)]));
                     table.push([hs as u8, (HS_BINS + v) as u8]);
                 }
             }
