@@ -308,6 +308,10 @@ pub fn run(
                     Segmenter::ColourDifference(_) => None,
                 };
                 people.track(&camera, &frame, &regions, foreground)?;
+                // As the camera node does (`hold-still-s`; the studies keep the paper's 0).
+                if let Segmenter::AdaptiveBackground(seg) = &mut segmenter {
+                    seg.hold(people.held());
+                }
                 record_people(people, &mut senders, setup.camera, &mut rec)?;
                 if let Some(r) = recorder.as_mut() {
                     r.record(t, &frame, people, &rec.truth, k == n / 2);
