@@ -42,6 +42,16 @@ pub fn column_overlap(a: &PixelBox, b: &PixelBox) -> f32 {
     }
 }
 
+/// The smallest box holding both.
+pub fn union(a: &PixelBox, b: &PixelBox) -> PixelBox {
+    PixelBox {
+        xmin: a.xmin.min(b.xmin),
+        ymin: a.ymin.min(b.ymin),
+        xmax: a.xmax.max(b.xmax),
+        ymax: a.ymax.max(b.ymax),
+    }
+}
+
 pub fn contains(b: &PixelBox, p: [f32; 2]) -> bool {
     (b.xmin..=b.xmax).contains(&p[0]) && (b.ymin..=b.ymax).contains(&p[1])
 }

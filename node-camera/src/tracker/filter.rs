@@ -65,11 +65,7 @@ impl ParticleFilter {
         p: &ParticleParams,
         rng: &mut impl Rng,
     ) -> Option<ParticleFilter> {
-        let start = State::from_box(bbox);
-        let step = sampling_step(start.w, start.h, p.histogram_pixels);
-        let mut counts = KernelCounts::default();
-        bins.kernel_counts(start.centre(), start.half(), step, &mut counts);
-        let target = ColourHistogram::from_counts(&counts)?;
+        let target = box_histogram(bins, bbox, p)?;
         Some(ParticleFilter::with_target(target, bbox, p, rng))
     }
 
@@ -261,6 +257,20 @@ impl ParticleFilter {
         }
         c
     }
+}
+
+/// The appearance inside `bbox` in the bound frame, read as a filter's target is (eq. 4–5,
+/// sub-sampled to `histogram-pixels`); `None` when the box has no pixels in the frame.
+pub fn box_histogram(
+    bins: &mut FrameBins<'_>,
+    bbox: &PixelBox,
+    p: &ParticleParams,
+) -> Option<ColourHistogram> {
+    let start = State::from_box(bbox);
+    let step = sampling_step(start.w, start.h, p.histogram_pixels);
+    let mut counts = KernelCounts::default();
+    bins.kernel_counts(start.centre(), start.half(), step, &mut counts);
+    ColourHistogram::from_counts(&counts)
 }
 
 /// Eq. 9's rate for this iteration (§2.4 "adapt wisely", §3.2.2 (i)): nothing while the

@@ -9,15 +9,21 @@
 //! assigned to a filter shapes its weights; the foreground share under its best box gates its
 //! adaptation.
 //!
+//! Ours, beyond §3.2.1: a region that is a fragment of a person a filter follows (a strip of
+//! them an occluder cut off, or a piece inside their box, in their colours:
+//! [`crate::tracker::fragment`]) starts no filter, and joins that filter's region, so the
+//! person keeps one filter and one id behind a pillar.
+//!
 //! Per frame: the RGB frame, the regions and (optionally) the foreground mask in; per person
 //! out: id, mean state, maximum-likelihood state and confidence, box, sample spread, target
 //! histogram, and on request the sample set.
 
 use crate::adaptive_background::AdaptiveBackground;
 use crate::region::Grid;
-use crate::tracker::boxes::{area, column_overlap, contains, iou, is_finite, overlap_of_smaller};
-use crate::tracker::filter::{ParticleFilter, Sample, adaptation_rate};
-use crate::tracker::histogram::{BinImage, ColourHistogram};
+use crate::tracker::boxes::{area, column_overlap, contains, iou, is_finite, overlap_of_smaller, union};
+use crate::tracker::filter::{ParticleFilter, Sample, adaptation_rate, box_histogram};
+use crate::tracker::fragment::{FRAGMENT_SIMILARITY, is_beside, is_fragment, is_fragment_of};
+use crate::tracker::histogram::{BinImage, ColourHistogram, FrameBins};
 use crate::tracker::motion::State;
 use crate::tracker::params::{ParamsError, ParticleParams};
 use proto::msg::PixelBox;
@@ -218,6 +224,9 @@ pub struct TrackerCounters {
     pub duplicates_eliminated: u64,
     /// Regions that would have started a filter with `max-people` already tracked.
     pub refused_full: u64,
+    /// Regions that would have started a filter but were a fragment of a tracked person
+    /// (`fragment`).
+    pub refused_fragments: u64,
 }
 
 #[derive(Clone, Debug)]
@@ -311,6 +320,40 @@ fn best_region(b: &PixelBox, regions: &[PixelBox], min_iou: f32) -> Option<usize
         .filter(|(_, r)| supports(r, b, min_iou))
         .max_by(|(_, a), (_, c)| iou(a, b).total_cmp(&iou(c, b)))
         .map(|(i, _)| i)
+}
+
+/// A filter's region of interest, with the index of the region it stands for: the region that
+/// best supports its `predicted` box, joined with the fragments of its person at that box
+/// (regions an occluder cut off from it that have its `target`'s colours: `fragment`). So
+/// the filter is weighed against its person's whole outline, not only the larger part. When
+/// no region alone supports the box (a pillar hides the person's middle), the regions in
+/// their colours beside it, joined, stand for them if together they support it.
+fn region_of_interest(
+    predicted: &PixelBox,
+    regions: &[PixelBox],
+    target: &ColourHistogram,
+    bins: &mut FrameBins<'_>,
+    p: &ParticleParams,
+) -> Option<(usize, PixelBox)> {
+    let best = best_region(predicted, regions, p.support_iou);
+    let mut roi = best.map(|i| (i, regions[i]));
+    for (k, r) in regions.iter().enumerate() {
+        let part = if best.is_some() {
+            is_fragment(r, predicted)
+        } else {
+            is_beside(r, predicted)
+        };
+        if Some(k) == best || !part {
+            continue;
+        }
+        let Some(colours) = box_histogram(bins, r, p) else {
+            continue;
+        };
+        if colours.similarity(target, p.hs_weight) >= FRAGMENT_SIMILARITY {
+            roi = Some(roi.map_or((k, *r), |(i, b)| (i, union(&b, r))));
+        }
+    }
+    roi.filter(|(_, b)| best.is_some() || supports(b, predicted, p.support_iou))
 }
 
 impl MultiTracker {
@@ -444,10 +487,16 @@ impl MultiTracker {
                 y: mean.y + mean.vy,
                 ..mean
             };
-            let roi = best_region(&predicted.bbox(), &regions, p.support_iou).map(|i| &regions[i]);
-            person.filter.step(&mut bins, roi, p, &mut self.rng);
+            let roi = region_of_interest(&predicted.bbox(), &regions, person.filter.target(), &mut bins, p);
+            person
+                .filter
+                .step(&mut bins, roi.as_ref().map(|(_, b)| b), p, &mut self.rng);
             let b = person.filter.mean().bbox();
-            person.region = best_region(&b, &regions, p.support_iou);
+            // A box across an occluder, between its person's two parts, is supported by both
+            // together (`region_of_interest`).
+            person.region = best_region(&b, &regions, p.support_iou).or_else(|| {
+                region_of_interest(&b, &regions, person.filter.target(), &mut bins, p).map(|(i, _)| i)
+            });
             person.unsupported = if person.region.is_some() {
                 0
             } else {
@@ -466,10 +515,28 @@ impl MultiTracker {
         if !births.is_empty() {
             // Re-bound after the filters ran: only the new boxes' tiles are looked up again.
             let mut bins = self.image.bind(input.frame)?;
-            let started: Vec<ParticleFilter> = births
-                .iter()
-                .filter_map(|b| ParticleFilter::new(&mut bins, b, &self.params, &mut self.rng))
-                .collect();
+            let (p, people, rng) = (&self.params, &self.people, &mut self.rng);
+            // Largest first, so that of a person and a strip of them both new this frame the
+            // person starts a filter and the strip is its fragment.
+            let mut births = births;
+            births.sort_by(|a, b| area(b).total_cmp(&area(a)));
+            let mut started: Vec<ParticleFilter> = Vec::new();
+            for b in &births {
+                let Some(target) = box_histogram(&mut bins, b, p) else {
+                    continue;
+                };
+                let live = people.iter().map(|q| &q.filter).chain(&started);
+                if is_fragment_of(
+                    b,
+                    &target,
+                    live.map(|f| (f.mean().bbox(), f.target())),
+                    p.hs_weight,
+                ) {
+                    self.counters.refused_fragments += 1;
+                    continue;
+                }
+                started.push(ParticleFilter::with_target(target, b, p, rng));
+            }
             for filter in started {
                 self.add(filter);
             }

@@ -5,7 +5,8 @@
 //!
 //! [`histogram`] is the colour model (eq. 4–8), [`motion`] the prediction step's models,
 //! [`resample`] the choose-samples step, [`filter`] one person's filter (with self-adaptation,
-//! eq. 9), [`manager`] the multi-person tracker, [`feet`] where each person's box meets the
+//! eq. 9), [`manager`] the multi-person tracker (with [`fragment`], the parts of its people that
+//! start no filter), [`feet`] where each person's box meets the
 //! floor in the frame's foreground, [`ground`] the 2D → 3D conversion unit,
 //! [`bayer`] the raw-sensor input, [`params`] the parameters, [`scene`] and [`bench`] the
 //! synthetic frames and the timing function.
@@ -15,6 +16,7 @@ pub mod bench;
 pub mod boxes;
 pub mod feet;
 pub mod filter;
+pub mod fragment;
 pub mod ground;
 pub mod histogram;
 pub mod manager;

@@ -559,3 +559,134 @@ fn of_two_duplicates_the_one_that_drifted_onto_someone_else_gives_way() {
     assert_eq!(tracker.ids(), vec![1]);
     assert_eq!(tracker.counters().duplicates_eliminated, 1);
 }
+
+/// A grey pillar over columns `columns` of every frame.
+fn pillar(frame: &mut Frame, columns: (f32, f32)) {
+    let full = PixelBox {
+        xmin: columns.0,
+        ymin: 0.0,
+        xmax: columns.1,
+        ymax: frame.height as f32,
+    };
+    crate::tracker::scene::fill_box(frame, &full, [128, 128, 128]);
+}
+
+/// The visible parts of `b` on either side of a pillar over `columns`, as regions.
+fn beside_pillar(b: &PixelBox, columns: (f32, f32)) -> Vec<Detection> {
+    let left = PixelBox {
+        xmax: b.xmax.min(columns.0 - 1.0),
+        ..*b
+    };
+    let right = PixelBox {
+        xmin: b.xmin.max(columns.1 + 1.0),
+        ..*b
+    };
+    [left, right]
+        .iter()
+        .filter(|p| p.xmax - p.xmin >= 1.0)
+        .map(detection)
+        .collect()
+}
+
+#[test]
+fn a_person_a_pillar_splits_in_two_keeps_one_filter_on_their_whole_outline() {
+    // Red (20 px wide) walks behind an 8 px pillar from frame 14 to 32: first a strip of them
+    // shows on its far side, then two strips, then one on its near side.
+    const PILLAR: (f32, f32) = (60.0, 68.0);
+    let s = scene(vec![red()]);
+    let mut tracker = MultiTracker::new(ParticleParams::default(), FPS, 11).unwrap();
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    let mut split = 0;
+    for t in 0..45u32 {
+        s.render(t, &mut frame);
+        pillar(&mut frame, PILLAR);
+        let truth = s.box_at(0, t);
+        let regions = beside_pillar(&truth, PILLAR);
+        split += usize::from(regions.len() == 2);
+        let out = tracker.step(&input(&frame, &regions)).unwrap();
+        if t >= 1 {
+            assert_eq!(tracker.ids(), vec![0], "frame {t}: one person, one filter");
+        }
+        // A filter's region is known from its first step after the one that started it.
+        if t >= 2 {
+            let e = &out[0];
+            // Within 0.4 of red's width: on them, though the pillar hides up to 0.4 of them.
+            assert!(
+                distance(e, &truth) < 8.0,
+                "frame {t}: the filter left its person: {e:?}"
+            );
+            assert!(
+                e.region.is_some(),
+                "frame {t}: its parts no longer support the filter"
+            );
+        }
+    }
+    assert!(split >= 5, "the pillar split red in {split} frames");
+    assert!(
+        tracker.counters().refused_fragments > 0,
+        "no strip was taken for a new person"
+    );
+}
+
+#[test]
+fn a_strip_beside_a_person_starts_a_filter_only_in_other_colours() {
+    // Red stands left of a pillar; someone stands behind it, a 7 px strip of them showing
+    // between the two. In green, that is a second person; in red's colours, a part of red.
+    const PILLAR: (f32, f32) = (69.0, 90.0);
+    let still = |p: Drawn, x: f32| Drawn {
+        start: [x, 60.0],
+        velocity: [0.0, 0.0],
+        size: [20.0, 40.0],
+        ..p
+    };
+    for (behind, people) in [(green(), 2), (red(), 1)] {
+        let s = scene(vec![still(red(), 40.0), still(behind, 62.0)]);
+        let mut tracker = MultiTracker::new(ParticleParams::default(), FPS, 12).unwrap();
+        let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+        for t in 0..6u32 {
+            s.render(t, &mut frame);
+            pillar(&mut frame, PILLAR);
+            let mut regions = vec![detection(&s.box_at(0, t))];
+            regions.extend(beside_pillar(&s.box_at(1, t), PILLAR));
+            tracker.step(&input(&frame, &regions)).unwrap();
+        }
+        assert_eq!(tracker.ids().len(), people, "{people} filter(s)");
+        assert_eq!(tracker.counters().refused_fragments > 0, people == 1);
+    }
+}
+
+#[test]
+fn a_person_whose_middle_a_pillar_hides_is_their_two_strips_together() {
+    // Red at rest, 20 px wide; a 16 px pillar leaves 2 px of them on either side, too little
+    // for either strip alone to support their box.
+    let s = scene(vec![Drawn {
+        velocity: [0.0, 0.0],
+        ..red()
+    }]);
+    let person = s.box_at(0, 0);
+    let columns = (person.xmin + 2.0, person.xmin + 18.0);
+    let mut frame = Frame::new(1, 1, ClusterTime::ZERO);
+    s.render(0, &mut frame);
+    let p = ParticleParams::default();
+    let mut image = BinImage::new();
+    let target = box_histogram(&mut image.bind(&frame).unwrap(), &person, &p).unwrap();
+    pillar(&mut frame, columns);
+    let regions: Vec<PixelBox> = beside_pillar(&person, columns).iter().map(region_box).collect();
+    assert_eq!(regions.len(), 2);
+    assert_eq!(best_region(&person, &regions, p.support_iou), None);
+    let mut bins = image.bind(&frame).unwrap();
+    let (i, roi) = region_of_interest(&person, &regions, &target, &mut bins, &p).expect("a region");
+    assert_eq!(roi, union(&regions[0], &regions[1]));
+    assert!(supports(&roi, &person, p.support_iou) && i < 2);
+    // Strips of other colours are no part of them.
+    let mut green_frame = Frame::new(1, 1, ClusterTime::ZERO);
+    let green_there = Drawn {
+        velocity: [0.0, 0.0],
+        start: red().start,
+        size: red().size,
+        ..green()
+    };
+    scene(vec![green_there]).render(0, &mut green_frame);
+    let green = box_histogram(&mut BinImage::new().bind(&green_frame).unwrap(), &person, &p).unwrap();
+    assert_eq!(region_of_interest(&person, &regions, &green, &mut bins, &p), None);
+}
