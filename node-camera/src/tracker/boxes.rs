@@ -60,18 +60,21 @@ pub fn is_finite(b: &PixelBox) -> bool {
     [b.xmin, b.ymin, b.xmax, b.ymax].iter().all(|v| v.is_finite())
 }
 
+/// A box from its sides (tests).
+#[cfg(test)]
+pub(crate) fn from_sides(xmin: f32, ymin: f32, xmax: f32, ymax: f32) -> PixelBox {
+    PixelBox {
+        xmin,
+        ymin,
+        xmax,
+        ymax,
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    use super::from_sides as b;
     use super::*;
-
-    fn b(xmin: f32, ymin: f32, xmax: f32, ymax: f32) -> PixelBox {
-        PixelBox {
-            xmin,
-            ymin,
-            xmax,
-            ymax,
-        }
-    }
 
     #[test]
     fn overlap_by_hand() {

@@ -74,15 +74,7 @@ pub fn is_fragment_of<'a>(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn b(xmin: f32, ymin: f32, xmax: f32, ymax: f32) -> PixelBox {
-        PixelBox {
-            xmin,
-            ymin,
-            xmax,
-            ymax,
-        }
-    }
+    use crate::tracker::boxes::from_sides as b;
 
     #[test]
     fn a_strip_beside_a_person_or_a_piece_inside_is_a_fragment_and_a_person_beside_is_not() {
