@@ -13,9 +13,10 @@ use crate::tracker::boxes::{area, overlap_of_smaller};
 use crate::tracker::histogram::ColourHistogram;
 use proto::msg::PixelBox;
 
-/// A strip is at most this share of its neighbour's aspect (width over height): the strip a
-/// pillar leaves of a person is 0.05–0.15 as wide as tall, the person 0.3; someone standing
-/// further away beside them keeps a person's shape.
+/// A strip is under this share of its neighbour's aspect (width over height): the strip a
+/// pillar leaves of a person is 0.05–0.13 as wide as tall while they stand mostly behind it,
+/// the person about 0.3; someone standing further away beside them keeps a person's shape.
+/// The neighbour is the filter's box, so a box grown wide admits wider strips.
 pub const STRIP_ASPECT: f32 = 0.5;
 /// A strip is at least this share of its neighbour's height (it stands beside them, whole
 /// height; someone further away is smaller).

@@ -12,7 +12,9 @@
 //! Ours, beyond §3.2.1: a region that is a fragment of a person a filter follows (a strip of
 //! them an occluder cut off, or a piece inside their box, in their colours:
 //! [`crate::tracker::fragment`]) starts no filter, and joins that filter's region, so the
-//! person keeps one filter and one id behind a pillar.
+//! person keeps one filter and one id behind a pillar. A filter no region alone supports is
+//! supported by the narrower parts beside it in its colours, joined, when together they
+//! support its box (the pillar hides the person's middle).
 //!
 //! Per frame: the RGB frame, the regions and (optionally) the foreground mask in; per person
 //! out: id, mean state, maximum-likelihood state and confidence, box, sample spread, target
@@ -38,6 +40,10 @@ pub type LocalId = u32;
 
 /// IoU a region needs with a waiting candidate to count as the same new object.
 const CANDIDATE_IOU: f32 = 0.3;
+
+/// The parts of a person an occluder split, joined, are at most this many times as wide as
+/// their filter's box (`region_of_interest`).
+const PARTS_WIDTH: f32 = 2.0;
 
 /// Input the tracker rejects; it changes no state.
 #[derive(Debug, Error, PartialEq)]
@@ -325,9 +331,13 @@ fn best_region(b: &PixelBox, regions: &[PixelBox], min_iou: f32) -> Option<usize
 /// A filter's region of interest, with the index of the region it stands for: the region that
 /// best supports its `predicted` box, joined with the fragments of its person at that box
 /// (regions an occluder cut off from it that have its `target`'s colours: `fragment`). So
-/// the filter is weighed against its person's whole outline, not only the larger part. When
-/// no region alone supports the box (a pillar hides the person's middle), the regions in
-/// their colours beside it, joined, stand for them if together they support it.
+/// the filter is weighed against its person's whole outline, not only the larger part.
+///
+/// When no region alone supports the box (a pillar hides the person's middle), the parts
+/// beside it that are narrower than it and in its colours, joined, stand for the person if
+/// together they support the box and are at most [`PARTS_WIDTH`] times as wide (two people
+/// either side of a lost filter are not its parts); the part overlapping the box most is the
+/// region then.
 fn region_of_interest(
     predicted: &PixelBox,
     regions: &[PixelBox],
@@ -336,24 +346,37 @@ fn region_of_interest(
     p: &ParticleParams,
 ) -> Option<(usize, PixelBox)> {
     let best = best_region(predicted, regions, p.support_iou);
+    let width = predicted.xmax - predicted.xmin;
     let mut roi = best.map(|i| (i, regions[i]));
     for (k, r) in regions.iter().enumerate() {
-        let part = if best.is_some() {
-            is_fragment(r, predicted)
-        } else {
-            is_beside(r, predicted)
+        let part = match best {
+            Some(i) => k != i && is_fragment(r, predicted),
+            None => r.xmax - r.xmin < width && is_beside(r, predicted),
         };
-        if Some(k) == best || !part {
+        if !part {
             continue;
         }
         let Some(colours) = box_histogram(bins, r, p) else {
             continue;
         };
-        if colours.similarity(target, p.hs_weight) >= FRAGMENT_SIMILARITY {
-            roi = Some(roi.map_or((k, *r), |(i, b)| (i, union(&b, r))));
+        if colours.similarity(target, p.hs_weight) < FRAGMENT_SIMILARITY {
+            continue;
         }
+        roi = Some(match roi {
+            None => (k, *r),
+            Some((i, b)) => {
+                let i = if best.is_none() && iou(r, predicted) > iou(&regions[i], predicted) {
+                    k
+                } else {
+                    i
+                };
+                (i, union(&b, r))
+            }
+        });
     }
-    roi.filter(|(_, b)| best.is_some() || supports(b, predicted, p.support_iou))
+    roi.filter(|(_, b)| {
+        best.is_some() || (supports(b, predicted, p.support_iou) && b.xmax - b.xmin <= PARTS_WIDTH * width)
+    })
 }
 
 impl MultiTracker {
@@ -516,10 +539,6 @@ impl MultiTracker {
             // Re-bound after the filters ran: only the new boxes' tiles are looked up again.
             let mut bins = self.image.bind(input.frame)?;
             let (p, people, rng) = (&self.params, &self.people, &mut self.rng);
-            // Largest first, so that of a person and a strip of them both new this frame the
-            // person starts a filter and the strip is its fragment.
-            let mut births = births;
-            births.sort_by(|a, b| area(b).total_cmp(&area(a)));
             let mut started: Vec<ParticleFilter> = Vec::new();
             for b in &births {
                 let Some(target) = box_histogram(&mut bins, b, p) else {
@@ -533,6 +552,10 @@ impl MultiTracker {
                     p.hs_weight,
                 ) {
                     self.counters.refused_fragments += 1;
+                    continue;
+                }
+                if people.len() + started.len() >= p.max_people {
+                    self.counters.refused_full += 1;
                     continue;
                 }
                 started.push(ParticleFilter::with_target(target, b, p, rng));
@@ -604,8 +627,8 @@ impl MultiTracker {
     }
 
     /// Regions no filter explains become (or advance) candidates; returns the boxes of those
-    /// seen for `init-frames` consecutive frames, for which a filter starts (up to
-    /// `max-people`).
+    /// seen for `init-frames` consecutive frames, largest first: each starts a filter unless it
+    /// is a fragment of a tracked person, up to `max-people`.
     fn candidates_ready(&mut self, detections: &[Detection], regions: &[PixelBox]) -> Vec<PixelBox> {
         let p = &self.params;
         let mut next = Vec::new();
@@ -632,9 +655,12 @@ impl MultiTracker {
         let (ready, waiting): (Vec<Candidate>, Vec<Candidate>) =
             next.into_iter().partition(|c| c.seen >= p.init_frames);
         self.candidates = waiting;
-        let room = p.max_people.saturating_sub(self.people.len());
-        self.counters.refused_full += ready.len().saturating_sub(room) as u64;
-        ready.into_iter().take(room).map(|c| c.bbox).collect()
+        // Largest first, so that of a person and a strip of them both ready this frame the
+        // person starts a filter and the strip is its fragment; `step` applies `max-people`
+        // after refusing fragments.
+        let mut ready: Vec<PixelBox> = ready.into_iter().map(|c| c.bbox).collect();
+        ready.sort_by(|a, b| area(b).total_cmp(&area(a)));
+        ready
     }
 
     fn estimates(&self, with_samples: bool) -> Vec<PersonEstimate> {
