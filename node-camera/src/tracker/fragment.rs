@@ -59,6 +59,12 @@ pub fn is_beside(region: &PixelBox, neighbour: &PixelBox) -> bool {
     h > 0.0 && rows >= STRIP_ROWS * h && gap <= neighbour.xmax - neighbour.xmin
 }
 
+/// Whether a region's `colours` are a filter's `target`'s: their blended similarity at least
+/// [`FRAGMENT_SIMILARITY`].
+pub fn same_colours(colours: &ColourHistogram, target: &ColourHistogram, hs_weight: f32) -> bool {
+    colours.similarity(target, hs_weight) >= FRAGMENT_SIMILARITY
+}
+
 /// Whether a region with box `region` and colours `colours` is a fragment of one of the
 /// `filters` (each its box and target): [`is_fragment`] of it, in its colours.
 pub fn is_fragment_of<'a>(
@@ -67,9 +73,9 @@ pub fn is_fragment_of<'a>(
     filters: impl IntoIterator<Item = (PixelBox, &'a ColourHistogram)>,
     hs_weight: f32,
 ) -> bool {
-    filters.into_iter().any(|(b, target)| {
-        is_fragment(region, &b) && colours.similarity(target, hs_weight) >= FRAGMENT_SIMILARITY
-    })
+    filters
+        .into_iter()
+        .any(|(b, target)| is_fragment(region, &b) && same_colours(colours, target, hs_weight))
 }
 
 #[cfg(test)]

@@ -24,7 +24,7 @@ use crate::adaptive_background::AdaptiveBackground;
 use crate::region::Grid;
 use crate::tracker::boxes::{area, column_overlap, contains, iou, is_finite, overlap_of_smaller, union};
 use crate::tracker::filter::{ParticleFilter, Sample, adaptation_rate, box_histogram};
-use crate::tracker::fragment::{FRAGMENT_SIMILARITY, is_beside, is_fragment, is_fragment_of};
+use crate::tracker::fragment::{is_beside, is_fragment, is_fragment_of, same_colours};
 use crate::tracker::histogram::{BinImage, ColourHistogram, FrameBins};
 use crate::tracker::motion::State;
 use crate::tracker::params::{ParamsError, ParticleParams};
@@ -42,7 +42,7 @@ pub type LocalId = u32;
 const CANDIDATE_IOU: f32 = 0.3;
 
 /// The parts of a person an occluder split, joined, are at most this many times as wide as
-/// their filter's box (`region_of_interest`).
+/// their filter's box (`parts_beside`).
 const PARTS_WIDTH: f32 = 2.0;
 
 /// Input the tracker rejects; it changes no state.
@@ -328,55 +328,57 @@ fn best_region(b: &PixelBox, regions: &[PixelBox], min_iou: f32) -> Option<usize
         .map(|(i, _)| i)
 }
 
-/// A filter's region of interest, with the index of the region it stands for: the region that
-/// best supports its `predicted` box, joined with the fragments of its person at that box
-/// (regions an occluder cut off from it that have its `target`'s colours: `fragment`). So
-/// the filter is weighed against its person's whole outline, not only the larger part.
-///
-/// When no region alone supports the box (a pillar hides the person's middle), the parts
-/// beside it that are narrower than it and in its colours, joined, stand for the person if
-/// together they support the box and are at most [`PARTS_WIDTH`] times as wide (two people
-/// either side of a lost filter are not its parts); the part overlapping the box most is the
-/// region then.
-fn region_of_interest(
+/// Whether region `r` has the colours of `target`, its histogram read from the bound frame.
+fn in_colours(r: &PixelBox, target: &ColourHistogram, bins: &mut FrameBins<'_>, p: &ParticleParams) -> bool {
+    box_histogram(bins, r, p).is_some_and(|c| same_colours(&c, target, p.hs_weight))
+}
+
+/// A filter's region of interest: region `i`, the one that best supports its `predicted` box,
+/// joined with the fragments of its person at that box (regions an occluder cut off from it
+/// that have its `target`'s colours: `fragment`). So the filter is weighed against its
+/// person's whole outline, not only the larger part.
+fn with_fragments(
+    i: usize,
+    predicted: &PixelBox,
+    regions: &[PixelBox],
+    target: &ColourHistogram,
+    bins: &mut FrameBins<'_>,
+    p: &ParticleParams,
+) -> PixelBox {
+    regions
+        .iter()
+        .enumerate()
+        .filter(|&(k, r)| k != i && is_fragment(r, predicted) && in_colours(r, target, bins, p))
+        .fold(regions[i], |roi, (_, r)| union(&roi, r))
+}
+
+/// For a filter whose `predicted` box no region alone supports (a pillar hides its person's
+/// middle): the parts beside the box that are narrower than it and in its `target`'s colours,
+/// joined, if together they support the box and are at most [`PARTS_WIDTH`] times as wide
+/// (two people either side of a lost filter are not its parts); with the index of the part
+/// overlapping the box most (the first of equals), which stands for them.
+fn parts_beside(
     predicted: &PixelBox,
     regions: &[PixelBox],
     target: &ColourHistogram,
     bins: &mut FrameBins<'_>,
     p: &ParticleParams,
 ) -> Option<(usize, PixelBox)> {
-    let best = best_region(predicted, regions, p.support_iou);
     let width = predicted.xmax - predicted.xmin;
-    let mut roi = best.map(|i| (i, regions[i]));
-    for (k, r) in regions.iter().enumerate() {
-        let part = match best {
-            Some(i) => k != i && is_fragment(r, predicted),
-            None => r.xmax - r.xmin < width && is_beside(r, predicted),
-        };
-        if !part {
-            continue;
-        }
-        let Some(colours) = box_histogram(bins, r, p) else {
-            continue;
-        };
-        if colours.similarity(target, p.hs_weight) < FRAGMENT_SIMILARITY {
-            continue;
-        }
-        roi = Some(match roi {
-            None => (k, *r),
-            Some((i, b)) => {
-                let i = if best.is_none() && iou(r, predicted) > iou(&regions[i], predicted) {
-                    k
-                } else {
-                    i
-                };
-                (i, union(&b, r))
-            }
-        });
-    }
-    roi.filter(|(_, b)| {
-        best.is_some() || (supports(b, predicted, p.support_iou) && b.xmax - b.xmin <= PARTS_WIDTH * width)
-    })
+    let parts: Vec<usize> = (0..regions.len())
+        .filter(|&k| {
+            let r = &regions[k];
+            r.xmax - r.xmin < width && is_beside(r, predicted) && in_colours(r, target, bins, p)
+        })
+        .collect();
+    let overlap = |k: usize| iou(&regions[k], predicted);
+    let most = parts
+        .iter()
+        .copied()
+        .reduce(|a, b| if overlap(b) > overlap(a) { b } else { a })?;
+    let joined = parts.iter().map(|&k| regions[k]).reduce(|a, b| union(&a, &b))?;
+    (supports(&joined, predicted, p.support_iou) && joined.xmax - joined.xmin <= PARTS_WIDTH * width)
+        .then_some((most, joined))
 }
 
 impl MultiTracker {
@@ -510,16 +512,19 @@ impl MultiTracker {
                 y: mean.y + mean.vy,
                 ..mean
             };
-            let roi = region_of_interest(&predicted.bbox(), &regions, person.filter.target(), &mut bins, p);
-            person
-                .filter
-                .step(&mut bins, roi.as_ref().map(|(_, b)| b), p, &mut self.rng);
+            let predicted = predicted.bbox();
+            let target = person.filter.target();
+            let roi = match best_region(&predicted, &regions, p.support_iou) {
+                Some(i) => Some(with_fragments(i, &predicted, &regions, target, &mut bins, p)),
+                None => parts_beside(&predicted, &regions, target, &mut bins, p).map(|(_, b)| b),
+            };
+            person.filter.step(&mut bins, roi.as_ref(), p, &mut self.rng);
             let b = person.filter.mean().bbox();
             // A box across an occluder, between its person's two parts, is supported by both
-            // together (`region_of_interest`).
-            person.region = best_region(&b, &regions, p.support_iou).or_else(|| {
-                region_of_interest(&b, &regions, person.filter.target(), &mut bins, p).map(|(i, _)| i)
-            });
+            // together (`parts_beside`).
+            let target = person.filter.target();
+            person.region = best_region(&b, &regions, p.support_iou)
+                .or_else(|| parts_beside(&b, &regions, target, &mut bins, p).map(|(i, _)| i));
             person.unsupported = if person.region.is_some() {
                 0
             } else {

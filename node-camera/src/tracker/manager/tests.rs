@@ -676,7 +676,7 @@ fn a_person_whose_middle_a_pillar_hides_is_their_two_strips_together() {
     assert_eq!(regions.len(), 2);
     assert_eq!(best_region(&person, &regions, p.support_iou), None);
     let mut bins = image.bind(&frame).unwrap();
-    let (i, roi) = region_of_interest(&person, &regions, &target, &mut bins, &p).expect("a region");
+    let (i, roi) = parts_beside(&person, &regions, &target, &mut bins, &p).expect("a region");
     assert_eq!(roi, union(&regions[0], &regions[1]));
     // Equal overlaps with the box: the first part stands for them.
     assert_eq!(i, 0);
@@ -697,7 +697,7 @@ fn a_person_whose_middle_a_pillar_hides_is_their_two_strips_together() {
     scene(people.iter().map(at).collect()).render(0, &mut two);
     assert_eq!(best_region(&person, &people, p.support_iou), None);
     let mut bins = image.bind(&two).unwrap();
-    assert_eq!(region_of_interest(&person, &people, &target, &mut bins, &p), None);
+    assert_eq!(parts_beside(&person, &people, &target, &mut bins, &p), None);
     // Strips of other colours are no part of them.
     let mut green_frame = Frame::new(1, 1, ClusterTime::ZERO);
     let green_there = Drawn {
@@ -708,5 +708,5 @@ fn a_person_whose_middle_a_pillar_hides_is_their_two_strips_together() {
     };
     scene(vec![green_there]).render(0, &mut green_frame);
     let green = box_histogram(&mut BinImage::new().bind(&green_frame).unwrap(), &person, &p).unwrap();
-    assert_eq!(region_of_interest(&person, &regions, &green, &mut bins, &p), None);
+    assert_eq!(parts_beside(&person, &regions, &green, &mut bins, &p), None);
 }
