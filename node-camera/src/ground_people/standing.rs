@@ -9,9 +9,10 @@
 //! [`STAND_BEFORE_HOLD_NS`] and less than `hold-still-s`, the background model keeps its box's
 //! moving pixels out of the background — only those with one of the person's colours
 //! ([`HOLD_MIN_BIN_SHARE`]), so a filter stopped on floor or on a ghost keeps less of the floor
-//! or the ghost in the foreground (not none: a person's histogram holds some floor). A filter that never moved (one on a ghost, or on someone
-//! standing since the model started) is never held, and a person standing longer than
-//! `hold-still-s` is taken in as before, so a parked object is not foreground for ever.
+//! or the ghost in the foreground (not none: a person's histogram holds some floor). A filter
+//! that never moved (one on a ghost, or on someone standing since the model started) is never
+//! held, and a person standing longer than `hold-still-s` is taken in as before, so a parked
+//! object is not foreground for ever.
 
 use crate::adaptive_background::Hold;
 use crate::tracker::histogram::{ColourHistogram, HS_BINS};
