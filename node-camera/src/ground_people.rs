@@ -10,7 +10,7 @@
 //! centralized fusion) leave in one [`PeopleFrame`] per head step ([`PeopleSender`]): each
 //! person quantised ([`GroundPerson`]), its histogram only when new, changed or due for a
 //! refresh. A filter that lost its region at a border it was moving towards (its person
-//! walked out) is not reported, nor, with `report-unsupported = false` (the crowd and the
+//! walked out) is not reported until a region supports it again, nor, with `report-unsupported = false` (the crowd and the
 //! hall), any filter no region supports this frame. On a [`proto::msg::SampleRequest`] the
 //! camera answers with every filter's sample set, reported or not. With `hold-still-s`, the
 //! people standing still are kept out of the background model ([`standing`]).
@@ -18,21 +18,21 @@
 //! The measurement-level simulation has no frames: its projected boxes are converted to the
 //! ground plane directly ([`GroundPeople::from_boxes`]), with no spread and no histogram.
 
-use crate::tracker::feet;
 use crate::tracker::ground::{self, GroundObservation};
 use crate::tracker::histogram::{BINS, ColourHistogram, KernelCounts};
 use crate::tracker::manager::{Foreground, MultiTracker, PersonEstimate, TrackerError, TrackerInput};
 use crate::tracker::params::{ParamsError, ParticleParams};
+use crate::tracker::{boxes, feet};
 use nalgebra::{Matrix2, Vector2};
 use proto::camera::CameraModel;
 use proto::models;
-use proto::msg::{Contribution, ImageSample, MAX_SAMPLES, Mode, PeopleFrame, Prior, SampleSet};
+use proto::msg::{Contribution, ImageSample, MAX_SAMPLES, Mode, PeopleFrame, PixelBox, Prior, SampleSet};
 use proto::observation::{
     GroundPerson, GroundPoint, HISTOGRAM_BINS, HISTOGRAM_HS_BINS, Kinds, RssiReading, dequantise_histogram,
 };
 use proto::sensor::{Detection, Frame};
 use proto::{ClusterTime, TargetId};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 pub mod standing;
 
@@ -55,6 +55,11 @@ pub struct GroundPeople {
     captured: Option<ClusterTime>,
     /// Who stands still, to be kept out of the background (`hold-still-s`).
     standing: standing::Standing,
+    /// The filters whose person walked out of view ([`walked_out_of_view`]) and that no
+    /// region has supported since: unreported until one does. Without it, a filter whose box
+    /// diffused back inside the frame, or whose velocity decayed, would come back as a person
+    /// who is not there for the rest of its `destroy-s`.
+    walked_out: BTreeSet<u32>,
 }
 
 impl GroundPeople {
@@ -70,6 +75,7 @@ impl GroundPeople {
             people: Vec::new(),
             captured: None,
             standing: standing::Standing::new(params.hold_still_s),
+            walked_out: BTreeSet::new(),
         })
     }
 
@@ -87,6 +93,7 @@ impl GroundPeople {
         self.people.clear();
         self.captured = None;
         self.standing.clear();
+        self.walked_out.clear();
     }
 
     /// The standing people the background model is to keep out of the background at the next
@@ -118,9 +125,14 @@ impl GroundPeople {
         let captured = frame.captured;
         self.people.clear();
         self.standing.update(&estimates, captured);
+        self.walked_out
+            .retain(|id| estimates.iter().any(|p| p.id == *id && p.unsupported_frames > 0));
         let edges = feet::lower_edges(&estimates, regions, foreground.as_ref());
         for (person, edge) in estimates.iter().zip(edges) {
-            if walked_out_of_view(person, frame)
+            if walked_out_of_view(person, frame) {
+                self.walked_out.insert(person.id);
+            }
+            if self.walked_out.contains(&person.id)
                 || (!self.report_unsupported && person.unsupported_frames > 0)
             {
                 continue;
@@ -218,19 +230,34 @@ const BORDER_PX: f32 = 1.0;
 /// Slowest speed towards a border, pixels per frame, that counts as walking out through it.
 const OUTWARD_PX_PER_FRAME: f32 = 0.25;
 
-/// A filter that lost its region with its box at a border it was moving towards: its person
-/// walked out of view. The filter lives on for `destroy-s` (they may step back in), but
-/// nothing measures where it stands any more, and reported it would be a person at the border
-/// who is not there. A filter that lost its region inside the frame (a person hidden), or at a
-/// border it was not moving towards (someone standing at the edge of the view, faded into the
+/// Share of a box outside the frame from which a filter that lost its region counts as walked
+/// out whatever its velocity: its person was stepping out through the border (the filter's
+/// velocity is often near zero there, its box held by the shrinking part still in view).
+const OUTSIDE_SHARE: f32 = 0.25;
+
+/// A filter that lost its region with its box at a border it was moving towards, or with a
+/// quarter of its box past a border ([`OUTSIDE_SHARE`]): its person walked out of view. The
+/// filter lives on for `destroy-s` (they may step back in), but nothing measures where it
+/// stands any more, and reported it would be a person at the border who is not there: it
+/// stays unreported until a region supports it again ([`GroundPeople::track`]). A filter that
+/// lost its region inside the frame (a person hidden), or at a border it was not moving
+/// towards and not past (someone standing at the edge of the view, faded into the
 /// background), is still reported with `report-unsupported` (the default).
 fn walked_out_of_view(person: &PersonEstimate, frame: &Frame) -> bool {
     let m = &person.mean;
     let b = m.bbox();
     let (w, h) = (frame.width as f32, frame.height as f32);
     let v = OUTWARD_PX_PER_FRAME;
+    let whole = PixelBox {
+        xmin: 0.0,
+        ymin: 0.0,
+        xmax: w,
+        ymax: h,
+    };
+    let outside = 1.0 - boxes::intersection(&b, &whole) / boxes::area(&b).max(f32::EPSILON);
     person.unsupported_frames > 0
-        && ((b.xmin <= BORDER_PX && m.vx < -v)
+        && (outside >= OUTSIDE_SHARE
+            || (b.xmin <= BORDER_PX && m.vx < -v)
             || (b.ymin <= BORDER_PX && m.vy < -v)
             || (b.xmax >= w - BORDER_PX && m.vx > v)
             || (b.ymax >= h - BORDER_PX && m.vy > v))

@@ -111,7 +111,7 @@ fn a_contribution_carries_the_gated_person_for_the_head_to_fold_in() {
 #[test]
 fn projected_boxes_become_ground_points_and_boxes_above_the_horizon_are_dropped() {
     let cam = Scenario::default_scenario().camera_model(10).unwrap();
-    let mut people = GroundPeople::new(&ParticleParams::default(), 15.0, 1).unwrap();
+    let mut people = GroundPeople::new(&ParticleParams::default(), 15.0, 3).unwrap();
     let det = |ymin: f32, ymax: f32| Detection {
         centre: [176.0, 0.5 * (ymin + ymax)],
         foot: [176.0, ymax],
@@ -276,7 +276,7 @@ fn a_frame_carries_every_person_quantised_and_leaves_out_impossible_ones() {
 }
 
 #[test]
-fn a_filter_that_lost_its_region_at_a_border_it_moved_towards_walked_out() {
+fn a_filter_that_lost_its_region_leaving_through_a_border_walked_out() {
     let frame = Frame::new(352, 288, ClusterTime::ZERO);
     let at = |id: u32, xmin: f32, xmax: f32, ymax: f32, v: [f32; 2], region: Option<usize>| {
         let mut p = PersonEstimate::at_box(
@@ -296,6 +296,10 @@ fn a_filter_that_lost_its_region_at_a_border_it_moved_towards_walked_out() {
         at(0, 330.0, 352.0, 200.0, [2.0, 0.0], None),
         at(1, -3.0, 20.0, 200.0, [-1.0, 0.5], None),
         at(2, 150.0, 180.0, 288.0, [0.0, 1.5], None),
+        // A quarter or more of the box past the border, whatever the velocity (held there by
+        // the part of its person still in view while they stepped out).
+        at(7, 330.0, 370.0, 200.0, [0.0, 0.0], None),
+        at(8, -12.0, 28.0, 200.0, [0.5, 0.0], None),
     ];
     for p in &walked {
         assert!(walked_out_of_view(p, &frame), "{}: no region, moving out", p.id);
@@ -308,6 +312,10 @@ fn a_filter_that_lost_its_region_at_a_border_it_moved_towards_walked_out() {
         // No region at the bottom border, standing (faded into the background) or walking in.
         at(5, 150.0, 180.0, 288.0, [0.0, 0.1], None),
         at(6, 330.0, 352.0, 200.0, [-1.0, 0.0], None),
+        // Less than a quarter past the border, standing: someone at the edge of the view.
+        at(9, 320.0, 360.0, 200.0, [0.0, 0.0], None),
+        // Past the border but still supported.
+        at(10, 330.0, 370.0, 200.0, [0.0, 0.0], Some(0)),
     ];
     for p in &stayed {
         assert!(!walked_out_of_view(p, &frame), "{}", p.id);
@@ -410,4 +418,68 @@ fn a_filter_no_region_supports_is_reported_only_with_report_unsupported() {
     };
     assert_eq!(reported(true), vec![0, 1, 1, 1, 1, 1, 1, 1]);
     assert_eq!(reported(false), vec![0, 1, 1, 1, 0, 0, 1, 1]);
+}
+
+/// A red person walks out through the right border: their region shrinks to the part still in
+/// view, then goes. Their filter is not reported after it lost the region, though it lives on
+/// for `destroy-s` and its box, held by nothing, drifts; when the person stands back in view,
+/// a filter is reported once a region supports it.
+#[test]
+fn a_filter_whose_person_walked_out_stays_unreported_until_a_region_supports_it() {
+    let cam = Scenario::default_scenario().camera_model(10).unwrap();
+    let (w, h) = (352u32, 288u32);
+    // Out at 5 px per frame (gone from frame 20), 9 frames gone (under the 10-frame destroy
+    // wait), then standing at the right of the view.
+    let left_edge = |k: i64| if k < 29 { 250.0 + 5.0 * k as f32 } else { 300.0 };
+    for seed in 0..8 {
+        let mut people = GroundPeople::new(&ParticleParams::default(), 15.0, seed).unwrap();
+        let mut frame = Frame::new(w, h, ClusterTime::ZERO);
+        let mut reported_back = false;
+        for k in 0..45i64 {
+            let xmin = left_edge(k);
+            let visible = PixelBox {
+                xmin,
+                ymin: 120.0,
+                xmax: (xmin + 36.0).min(w as f32 - 1.0),
+                ymax: 220.0,
+            };
+            for y in 0..h {
+                for x in 0..w {
+                    let inside =
+                        x as f32 >= visible.xmin && x as f32 <= visible.xmax && (120..=220).contains(&y);
+                    let i = 3 * (y * w + x) as usize;
+                    frame.data[i..i + 3].copy_from_slice(if inside {
+                        &[200, 30, 30]
+                    } else {
+                        &[110, 110, 110]
+                    });
+                }
+            }
+            let in_view = visible.xmax - visible.xmin >= 4.0;
+            let region = in_view.then_some(Detection {
+                centre: [0.5 * (visible.xmin + visible.xmax), 170.0],
+                foot: [0.5 * (visible.xmin + visible.xmax), 220.0],
+                bbox: visible,
+                area: ((visible.xmax - visible.xmin + 1.0) * 101.0) as u32,
+                colour: proto::msg::ColourSignature {
+                    hue: 0.0,
+                    saturation: 0.8,
+                    intensity: 0.5,
+                },
+            });
+            frame.captured = at_ms(k * 67);
+            let reported: Vec<u32> = people
+                .track(&cam, &frame, region.as_slice(), None)
+                .unwrap()
+                .iter()
+                .map(|p| p.local)
+                .collect();
+            match k {
+                1..20 => assert_eq!(reported.len(), 1, "seed {seed}, frame {k}: in view"),
+                20..29 => assert!(reported.is_empty(), "seed {seed}, frame {k}: walked out"),
+                _ => reported_back |= !reported.is_empty(),
+            }
+        }
+        assert!(reported_back, "seed {seed}: reported once back in view");
+    }
 }
