@@ -137,6 +137,27 @@ pub fn mot(run: &CameraRun) -> crate::error::Result<MotMetrics> {
     Ok(metrics::evaluate(&frames, &config)?)
 }
 
+/// Reports that are within [`MATCH_M`] on the floor of a true person whose centre is out of
+/// view and of no one whose centre is in view: people half out of the image, whom the camera
+/// sees but the truth does not count, so that CLEAR MOT scores them false positives (for
+/// both methods alike). Counted so the false positives can be read; the scores stay as the
+/// truth has them.
+pub fn on_people_out_of_view(run: &CameraRun) -> usize {
+    let near = |g: [f64; 2], in_view: bool| {
+        move |p: &TruePerson| p.in_view == in_view && dist(g, p.ground) <= MATCH_M
+    };
+    run.frames
+        .iter()
+        .map(|f| {
+            f.reported
+                .iter()
+                .filter_map(|r| r.ground)
+                .filter(|&g| f.truth.iter().any(near(g, false)) && !f.truth.iter().any(near(g, true)))
+                .count()
+        })
+        .sum()
+}
+
 /// Mean of `xs`; `None` when empty.
 pub fn mean(xs: &[f64]) -> Option<f64> {
     (!xs.is_empty()).then(|| xs.iter().sum::<f64>() / xs.len() as f64)
