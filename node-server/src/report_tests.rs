@@ -33,12 +33,14 @@ fn truth() -> WorldTruth {
 }
 
 /// Record a 10 s run of the test scenario: the owning head reports the truth shifted 0.1 m
-/// in x with two camera and one RSSI-only contributor; heads follow handovers.
-fn record_run(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("ocelli-report-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("run.ocelli");
+/// in x with two camera and one RSSI-only contributor; heads follow handovers. The recording
+/// lies in a scratch folder removed when the returned folder is dropped.
+fn record_run(name: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::Builder::new()
+        .prefix(&format!("ocelli-report-{name}-"))
+        .tempdir()
+        .unwrap();
+    let path = dir.path().join("run.ocelli");
     let sc = crate::testkit::scenario();
     let mut rec = Recorder::create(&path, &sc.name).unwrap();
     rec.append(&Stamped::new(ClusterTime::ZERO, Record::Scenario(sc.to_toml())))
@@ -173,12 +175,12 @@ fn record_run(name: &str) -> PathBuf {
         Message::NodeStatus(head_status),
         0,
     );
-    path
+    (dir, path)
 }
 
 #[test]
 fn report_from_a_recorded_run() {
-    let path = record_run("report");
+    let (_dir, path) = record_run("report");
     let loaded = load(&path, None).unwrap();
     let r = compute(&loaded, Some(&truth()));
     assert!(r.truth);
@@ -259,7 +261,7 @@ fn report_from_a_recorded_run() {
 
 #[test]
 fn without_truth_errors_are_absent_and_power_falls_back_to_reports() {
-    let path = record_run("notruth");
+    let (_dir, path) = record_run("notruth");
     let mut loaded = load(&path, None).unwrap();
     loaded
         .records
@@ -275,7 +277,7 @@ fn without_truth_errors_are_absent_and_power_falls_back_to_reports() {
 
 #[test]
 fn export_writes_csv_and_json_lines() {
-    let path = record_run("export");
+    let (_dir, path) = record_run("export");
     let loaded = load(&path, None).unwrap();
     let rows = crate::export::track_rows(&loaded);
     assert_eq!(rows.len(), 50);
@@ -299,7 +301,7 @@ fn export_writes_csv_and_json_lines() {
 
 #[test]
 fn a_ghost_track_is_a_false_track_not_an_error() {
-    let path = record_run("ghost");
+    let (_dir, path) = record_run("ghost");
     let mut loaded = load(&path, None).unwrap();
     // Head 2 also reports a stationary ghost far from the target's path.
     let mut extra = Vec::new();

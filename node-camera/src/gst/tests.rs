@@ -64,7 +64,7 @@ fn same_colours(got: &[[u8; 3]], want: &[[u8; 3]]) -> bool {
 
 #[test]
 fn avi_mjpeg_file_gives_every_frame_in_order_at_the_camera_size() {
-    let path = tmp("six.avi");
+    let (_dir, path) = tmp("six.avi");
     let tops = [RED, GREEN, BLUE, YELLOW, CYAN, MAGENTA];
     encode(&path, &pictures(96, 64, &tops), 10, "jpegenc quality=95 ! avimux");
     let (mut source, stats) = open_file(&path, false);
@@ -89,7 +89,7 @@ fn avi_mjpeg_file_gives_every_frame_in_order_at_the_camera_size() {
 
 #[test]
 fn webm_vp8_file_starts_over_when_it_loops() {
-    let path = tmp("four.webm");
+    let (_dir, path) = tmp("four.webm");
     let tops = [RED, GREEN, BLUE, YELLOW];
     encode(&path, &pictures(64, 48, &tops), 10, "vp8enc deadline=1 ! webmmux");
     let (mut source, stats) = open_file(&path, true);
@@ -109,7 +109,7 @@ fn webm_vp8_file_starts_over_when_it_loops() {
 #[test]
 fn a_file_whose_frames_change_size_still_gives_the_camera_size() {
     // A multipart JPEG file, the format of an MJPEG camera's stream, three sizes in a row.
-    let path = tmp("sizes.mjpeg");
+    let (_dir, path) = tmp("sizes.mjpeg");
     let frames = [
         Picture {
             width: 96,
@@ -153,7 +153,7 @@ fn missing_and_corrupt_files_are_clear_errors_and_counted() {
             stats.clone(),
         )
     };
-    let missing = tmp("no-such.avi");
+    let (_dir, missing) = tmp("no-such.avi");
     let e = open(&missing).unwrap_err();
     assert!(
         matches!(e, SourceError::Io { .. }) && e.to_string().contains("no-such.avi"),
@@ -161,7 +161,7 @@ fn missing_and_corrupt_files_are_clear_errors_and_counted() {
     );
     assert_eq!(stats.snapshot().stream_errors, 1);
 
-    let garbage = tmp("garbage.avi");
+    let (_dir, garbage) = tmp("garbage.avi");
     let bytes: Vec<u8> = (0..20_000u32)
         .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
         .collect();
@@ -175,7 +175,7 @@ fn missing_and_corrupt_files_are_clear_errors_and_counted() {
 
     // A good file damaged in the middle: the frames around the damage arrive, the frames it
     // destroyed are counted, the file then ends; nothing panics.
-    let damaged = tmp("damaged.avi");
+    let (_dir, damaged) = tmp("damaged.avi");
     let tops = [RED, GREEN, BLUE, YELLOW, CYAN, MAGENTA, RED, GREEN];
     encode(
         &damaged,
@@ -382,7 +382,7 @@ fn a_missing_element_names_its_package() {
 
 #[test]
 fn open_source_plays_a_file_spec_and_its_stats_come_along() {
-    let path = tmp("spec.avi");
+    let (_dir, path) = tmp("spec.avi");
     let tops = [GREEN, BLUE, RED];
     encode(&path, &pictures(64, 48, &tops), 10, "jpegenc quality=95 ! avimux");
     let spec = crate::source_spec::SourceSpec::parse(&format!("file:{}", path.display())).unwrap();
@@ -408,7 +408,7 @@ fn open_source_plays_a_file_spec_and_its_stats_come_along() {
 
 #[test]
 fn a_file_played_newest_first_keeps_its_order_and_ends() {
-    let path = tmp("newest.avi");
+    let (_dir, path) = tmp("newest.avi");
     let tops = [RED, GREEN, BLUE, YELLOW, CYAN, MAGENTA];
     encode(&path, &pictures(64, 48, &tops), 20, "jpegenc quality=95 ! avimux");
     let input = GstInput::File {

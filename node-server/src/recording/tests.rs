@@ -7,11 +7,14 @@ use crate::record::Record;
 use proptest::prelude::*;
 use proto::{ClusterTime, NodeId};
 
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("ocelli-rec-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join("rec.ocelli")
+/// A recording's path in a scratch folder of its own, removed when the folder is dropped.
+fn tmp(name: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::Builder::new()
+        .prefix(&format!("ocelli-rec-{name}-"))
+        .tempdir()
+        .unwrap();
+    let path = dir.path().join("rec.ocelli");
+    (dir, path)
 }
 
 fn sample(n: i64) -> Vec<Stamped> {
@@ -48,7 +51,7 @@ const HEADER: u64 = 12 + 4; // magic, version, name length, "test"
 
 #[test]
 fn records_read_back_in_order() {
-    let path = tmp("order");
+    let (_dir, path) = tmp("order");
     let recs = sample(5);
     write(&path, &recs);
     let back = read_all(&path).unwrap();
@@ -60,7 +63,7 @@ fn records_read_back_in_order() {
 
 #[test]
 fn truncation_at_every_offset_of_the_last_record_keeps_the_rest() {
-    let path = tmp("trunc");
+    let (_dir, path) = tmp("trunc");
     let recs = sample(4);
     let frames = write(&path, &recs);
     let full = std::fs::read(&path).unwrap();
@@ -82,7 +85,7 @@ fn truncation_at_every_offset_of_the_last_record_keeps_the_rest() {
 /// damaged one and reports exactly that record's bytes as skipped.
 #[test]
 fn a_flipped_bit_at_28_percent_loses_only_its_record() {
-    let path = tmp("flip28");
+    let (_dir, path) = tmp("flip28");
     let recs = sample(50);
     let frames = write(&path, &recs);
     let mut bytes = std::fs::read(&path).unwrap();
@@ -107,7 +110,7 @@ fn a_flipped_bit_at_28_percent_loses_only_its_record() {
 /// nothing before or after the damage is lost, and the damaged bytes stay where they were.
 #[test]
 fn resume_after_mid_file_damage_appends_and_loses_nothing_else() {
-    let path = tmp("resume-mid");
+    let (_dir, path) = tmp("resume-mid");
     let recs = sample(20);
     let frames = write(&path, &recs[..10]);
     let mut bytes = std::fs::read(&path).unwrap();
@@ -139,7 +142,7 @@ fn resume_after_mid_file_damage_appends_and_loses_nothing_else() {
 /// and the records on both sides read back.
 #[test]
 fn a_torn_tail_is_kept_and_skipped_after_resume() {
-    let path = tmp("resume-torn");
+    let (_dir, path) = tmp("resume-torn");
     let recs = sample(6);
     let frames = write(&path, &recs[..3]);
     let full = std::fs::read(&path).unwrap();
@@ -173,7 +176,7 @@ fn a_torn_tail_is_kept_and_skipped_after_resume() {
 
 #[test]
 fn a_second_recorder_on_the_same_file_is_refused() {
-    let path = tmp("lock");
+    let (_dir, path) = tmp("lock");
     let first = Recorder::create(&path, "test").unwrap();
     let err = Recorder::open(&path, "test").unwrap_err();
     assert!(
@@ -205,7 +208,7 @@ fn umask() -> u32 {
 #[test]
 fn a_new_recording_is_not_world_readable() {
     use std::os::unix::fs::PermissionsExt;
-    let path = tmp("mode");
+    let (_dir, path) = tmp("mode");
     drop(Recorder::create(&path, "test").unwrap());
     let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
     assert_eq!(mode, FILE_MODE & !umask());
@@ -214,7 +217,7 @@ fn a_new_recording_is_not_world_readable() {
 
 #[test]
 fn an_oversized_payload_is_refused_and_writes_nothing() {
-    let path = tmp("oversized");
+    let (_dir, path) = tmp("oversized");
     let mut rec = Recorder::create(&path, "test").unwrap();
     let before = std::fs::read(&path).unwrap();
     let big = vec![0u8; MAX_RECORD_BYTES as usize + 1];
@@ -232,7 +235,7 @@ fn an_oversized_payload_is_refused_and_writes_nothing() {
 
 #[test]
 fn not_a_recording_is_a_clear_error() {
-    let path = tmp("magic");
+    let (_dir, path) = tmp("magic");
     std::fs::write(&path, b"hello world, not a recording").unwrap();
     assert!(matches!(read_all(&path), Err(RecordingError::BadMagic { .. })));
     assert!(matches!(
@@ -245,7 +248,7 @@ fn not_a_recording_is_a_clear_error() {
 /// A header cut short is completed when it is the start of ours ...
 #[test]
 fn a_torn_header_of_ours_is_completed() {
-    let path = tmp("torn-header");
+    let (_dir, path) = tmp("torn-header");
     std::fs::write(&path, b"OCEL").unwrap();
     assert!(matches!(
         read_all(&path),
@@ -262,7 +265,7 @@ fn a_torn_header_of_ours_is_completed() {
 /// ... and renamed aside, untouched, when it is not.
 #[test]
 fn a_torn_header_not_ours_is_moved_aside() {
-    let path = tmp("torn-other");
+    let (_dir, path) = tmp("torn-other");
     let torn = [
         &MAGIC[..],
         &FORMAT_VERSION.to_le_bytes(),
@@ -281,7 +284,7 @@ fn a_torn_header_not_ours_is_moved_aside() {
 
 #[test]
 fn create_refuses_to_clobber() {
-    let path = tmp("clobber");
+    let (_dir, path) = tmp("clobber");
     write(&path, &sample(1));
     assert!(matches!(
         Recorder::create(&path, "x"),
@@ -292,7 +295,7 @@ fn create_refuses_to_clobber() {
 /// A file larger than one read-ahead with damage across a read-ahead boundary.
 #[test]
 fn damage_across_the_read_ahead_is_skipped() {
-    let path = tmp("big");
+    let (_dir, path) = tmp("big");
     let recs = sample(12_000);
     let frames = write(&path, &recs);
     let mut bytes = std::fs::read(&path).unwrap();
@@ -382,7 +385,7 @@ fn is_subsequence(small: &[Stamped], big: &[Stamped]) -> bool {
 fn prop_file() -> &'static (Vec<u8>, Vec<std::ops::Range<u64>>) {
     static FILE: std::sync::OnceLock<(Vec<u8>, Vec<std::ops::Range<u64>>)> = std::sync::OnceLock::new();
     FILE.get_or_init(|| {
-        let path = tmp("prop-source");
+        let (_dir, path) = tmp("prop-source");
         let frames = write(&path, &sample(PROP_RECORDS));
         let bytes = std::fs::read(&path).unwrap();
         let _ = std::fs::remove_dir_all(path.parent().unwrap());
@@ -457,7 +460,7 @@ proptest! {
 /// its `Resumed` decision, and keeps every record on both sides of the damage.
 #[test]
 fn the_server_resumes_a_damaged_recording_and_records_the_skip() {
-    let path = tmp("server-start");
+    let (_dir, path) = tmp("server-start");
     let scenario = crate::testkit::scenario();
     let id = NodeId(1);
     let cfg = crate::process::ProcessConfig {

@@ -11,12 +11,12 @@ fn multiviewx() -> PathBuf {
     dir
 }
 
-/// A scratch directory unique to one test.
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("ocelli-opencv-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A scratch directory unique to one test, removed when it is dropped.
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("ocelli-opencv-{name}-"))
+        .tempdir()
+        .unwrap()
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
@@ -41,7 +41,8 @@ const INTR: &str = r#"<?xml version="1.0"?>
 
 #[test]
 fn reads_intrinsics_with_image_size() {
-    let dir = scratch("intr");
+    let scratch_dir = scratch("intr");
+    let dir = scratch_dir.path();
     let p = write(&dir, "intr.xml", INTR);
     let (k, d) = read_intrinsics(&p).unwrap();
     assert_eq!(
@@ -70,7 +71,8 @@ fn reads_intrinsics_with_image_size() {
 /// Each broken file is rejected with the file name and what is wrong.
 #[test]
 fn broken_intrinsics_name_file_and_problem() {
-    let dir = scratch("broken");
+    let scratch_dir = scratch("broken");
+    let dir = scratch_dir.path();
     let cases: [(&str, String, &str); 7] = [
         (
             "no_matrix",
@@ -123,7 +125,8 @@ fn broken_intrinsics_name_file_and_problem() {
 
 #[test]
 fn missing_image_size_uses_option_then_estimate() {
-    let dir = scratch("size");
+    let scratch_dir = scratch("size");
+    let dir = scratch_dir.path();
     let text = INTR
         .replace("<image_width>640</image_width>", "")
         .replace("<image_height>480</image_height>", "");
@@ -135,7 +138,8 @@ fn missing_image_size_uses_option_then_estimate() {
 
 #[test]
 fn extrinsics_missing_tvec_is_named() {
-    let dir = scratch("extr");
+    let scratch_dir = scratch("extr");
+    let dir = scratch_dir.path();
     let p = write(
         &dir,
         "extr_A.xml",
@@ -147,7 +151,8 @@ fn extrinsics_missing_tvec_is_named() {
 
 #[test]
 fn calibration_dir_without_partner_file_fails_naming_it() {
-    let dir = scratch("dir");
+    let scratch_dir = scratch("dir");
+    let dir = scratch_dir.path();
     std::fs::create_dir_all(dir.join("intrinsic")).unwrap();
     write(&dir.join("intrinsic"), "intr_Cam9.xml", INTR);
     let e = read_calibration_dir(&dir).unwrap_err().to_string();

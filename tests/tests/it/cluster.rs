@@ -3,7 +3,7 @@
 //! reads the launch's final JSON report and the server's recording (through `ocelli export`),
 //! and checks that no process and no `/dev/shm` file is left behind.
 
-use crate::harness::{EXE, alive, cluster_now_s, now, owner_rows, scratch, signal, wait_exit};
+use crate::harness::{EXE, Scratch, alive, cluster_now_s, now, owner_rows, scratch, signal, wait_exit};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -18,7 +18,7 @@ const MEAN_ERROR_BOUND_M: f64 = 1.0;
 /// A running `ocelli launch`, killed on drop.
 pub(crate) struct Launch {
     child: Option<Child>,
-    pub(crate) dir: PathBuf,
+    pub(crate) dir: Scratch,
     pub(crate) domain: String,
 }
 

@@ -2,7 +2,7 @@
 //! recording's tracks back through `ocelli export`.
 
 use serde_json::Value;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, ExitStatus};
 use std::time::Duration;
 
@@ -54,12 +54,42 @@ pub fn owner_rows(record: &Path) -> Vec<Value> {
         .collect()
 }
 
-/// A fresh, empty scratch folder for one test, named for it and this process.
-pub fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("ocelli-e2e-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
+/// A fresh, empty scratch folder for one test, named for it: removed when dropped, kept (and
+/// its path printed) when the test is failing, for its logs and recording.
+pub fn scratch(name: &str) -> Scratch {
+    let dir = tempfile::Builder::new()
+        .prefix(&format!("ocelli-e2e-{name}-"))
+        .tempdir()
+        .expect("scratch dir");
+    Scratch(Some(dir))
+}
+
+/// See [`scratch`].
+#[derive(Debug)]
+pub struct Scratch(Option<tempfile::TempDir>);
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+
+    fn deref(&self) -> &Path {
+        self.0.as_ref().expect("a scratch folder until dropped").path()
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        self
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        if std::thread::panicking()
+            && let Some(dir) = self.0.take()
+        {
+            eprintln!("kept for the failing test: {}", dir.keep().display());
+        }
+    }
 }
 
 /// Whether process `pid` still exists.

@@ -10,7 +10,7 @@
 
 use crate::harness::{EXE, now, owner_rows, signal};
 use proto::scenario::{NodeRole, Scenario, TransportKind};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
@@ -175,11 +175,8 @@ fn scenario() -> Scenario {
     s
 }
 
-fn scratch() -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("ocelli-e2e-netns-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
+fn scratch() -> crate::harness::Scratch {
+    crate::harness::scratch("netns")
 }
 
 fn logs(dir: &Path) -> String {

@@ -5,7 +5,7 @@
 //! A small scenario (a server, a head, four cameras) keeps each launch cheap: these tests are
 //! about operations, not tracking quality.
 
-use crate::harness::{EXE, alive, now, scratch, signal, wait_exit};
+use crate::harness::{EXE, Scratch, alive, now, scratch, signal, wait_exit};
 use proto::scenario::{NodeRole, Scenario};
 use serde_json::Value;
 use std::os::unix::fs::PermissionsExt;
@@ -41,7 +41,7 @@ fn wait_for(within: Duration, what: &str, mut done: impl FnMut() -> bool) {
 /// directory, so default run folders land there), killed on drop.
 struct Run {
     child: Option<Child>,
-    dir: PathBuf,
+    dir: Scratch,
 }
 
 impl Run {

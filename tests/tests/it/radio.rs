@@ -22,9 +22,7 @@ fn ocelli(args: &[&str]) -> std::process::Output {
 
 #[test]
 fn ble_dataset_through_real_processes_tracks_the_beacon() {
-    let dir = std::env::temp_dir().join(format!("ocelli-e2e-ble-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
+    let dir = crate::harness::scratch("ble");
     let made = ocelli(&["scenario", "ble-rssi", "--trajectory", "straight_01"]);
     assert!(
         made.status.success(),

@@ -511,8 +511,7 @@ fn tcp_dialer_survives_a_listener_crash_and_restart() {
 fn tcp_with_tls_delivers_and_refuses_a_certificate_of_another_ca() {
     use proto::{NodeId, Role};
     use runtime::transport::{ClusterCa, TlsFiles};
-    let dir = std::env::temp_dir().join(format!("ocelli-e2e-peer-tls-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = crate::harness::scratch("peer-tls");
     let ca = ClusterCa::generate("e2e").unwrap();
     for id in [1, 2] {
         TlsFiles::in_dir(&dir.join("ours"), NodeId(id))

@@ -19,7 +19,7 @@ use std::time::Duration;
 /// A running `ocelli launch`, stopped (SIGINT, then killed) on drop.
 struct Cluster {
     child: Child,
-    dir: PathBuf,
+    dir: crate::harness::Scratch,
 }
 
 impl Drop for Cluster {
@@ -135,9 +135,7 @@ fn has_track_label(dom: &str, label: &str) -> bool {
 #[test]
 fn launch_serves_a_live_map_and_3d_view_with_tracks_in_a_real_browser() {
     let chromium_path = chromium();
-    let dir = std::env::temp_dir().join(format!("ocelli-e2e-viewer-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
+    let dir = crate::harness::scratch("viewer");
     let child = Command::new(EXE)
         .args(["launch", "--duration", "300", "--quiet", "--view", "127.0.0.1:0"])
         .arg("--run-dir")

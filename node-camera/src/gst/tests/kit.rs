@@ -62,10 +62,11 @@ pub fn near(a: [u8; 3], b: [u8; 3]) -> bool {
     a.iter().zip(b).all(|(&x, y)| x.abs_diff(y) <= 28)
 }
 
-pub fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("ocelli-gst-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+/// A path named `name` in a scratch folder of its own, removed when the folder is dropped.
+pub fn tmp(name: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::Builder::new().prefix("ocelli-gst-").tempdir().unwrap();
+    let path = dir.path().join(name);
+    (dir, path)
 }
 
 /// Encode `pictures` at `fps` into `path` with `encoder` (e.g. `jpegenc ! avimux`): appsrc →
