@@ -43,7 +43,7 @@ const INTR: &str = r#"<?xml version="1.0"?>
 fn reads_intrinsics_with_image_size() {
     let scratch_dir = scratch("intr");
     let dir = scratch_dir.path();
-    let p = write(&dir, "intr.xml", INTR);
+    let p = write(dir, "intr.xml", INTR);
     let (k, d) = read_intrinsics(&p).unwrap();
     assert_eq!(
         k,
@@ -108,7 +108,7 @@ fn broken_intrinsics_name_file_and_problem() {
         ),
     ];
     for (name, text, want) in cases {
-        let p = write(&dir, &format!("{name}.xml"), &text);
+        let p = write(dir, &format!("{name}.xml"), &text);
         let e = read_intrinsics(&p).unwrap_err().to_string();
         assert!(
             e.contains(&format!("{name}.xml")),
@@ -130,7 +130,7 @@ fn missing_image_size_uses_option_then_estimate() {
     let text = INTR
         .replace("<image_width>640</image_width>", "")
         .replace("<image_height>480</image_height>", "");
-    let p = write(&dir, "intr.xml", &text);
+    let p = write(dir, "intr.xml", &text);
     assert_eq!(read_intrinsics_with(&p, Some((800, 600))).unwrap().0.width, 800);
     let (k, _) = read_intrinsics(&p).unwrap();
     assert_eq!((k.width, k.height), (641, 481));
@@ -141,7 +141,7 @@ fn extrinsics_missing_tvec_is_named() {
     let scratch_dir = scratch("extr");
     let dir = scratch_dir.path();
     let p = write(
-        &dir,
+        dir,
         "extr_A.xml",
         "<?xml version=\"1.0\"?><opencv_storage><rvec type_id=\"opencv-matrix\"><rows>3</rows><cols>1</cols><dt>d</dt><data>0 0 0</data></rvec></opencv_storage>",
     );
@@ -155,7 +155,7 @@ fn calibration_dir_without_partner_file_fails_naming_it() {
     let dir = scratch_dir.path();
     std::fs::create_dir_all(dir.join("intrinsic")).unwrap();
     write(&dir.join("intrinsic"), "intr_Cam9.xml", INTR);
-    let e = read_calibration_dir(&dir).unwrap_err().to_string();
+    let e = read_calibration_dir(dir).unwrap_err().to_string();
     assert!(e.contains("extr_Cam9.xml") && e.contains("Cam9"), "{e}");
 }
 
