@@ -9,10 +9,11 @@
 //! `Contribution` (the head folds it in, [`contribution`]); the others (all of them, in
 //! centralized fusion) leave in one [`PeopleFrame`] per head step ([`PeopleSender`]): each
 //! person quantised ([`GroundPerson`]), its histogram only when new, changed or due for a
-//! refresh. A filter that lost its region at a border it was moving towards (its person
-//! walked out) is not reported until a region supports it again, nor, with `report-unsupported = false` (the crowd and the
-//! hall), any filter no region supports this frame. On a [`proto::msg::SampleRequest`] the
-//! camera answers with every filter's sample set, reported or not. With `hold-still-s`, the
+//! refresh. A filter that lost its region at a border it was moving towards, or a quarter
+//! past one (its person walked out), is not reported until a region supports it again, nor,
+//! with `report-unsupported = false` (the crowd and the hall), any filter no region supports
+//! this frame. On a [`proto::msg::SampleRequest`] the camera answers with every filter's
+//! sample set, reported or not. With `hold-still-s`, the
 //! people standing still are kept out of the background model ([`standing`]).
 //!
 //! The measurement-level simulation has no frames: its projected boxes are converted to the
