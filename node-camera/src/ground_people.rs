@@ -9,8 +9,8 @@
 //! `Contribution` (the head folds it in, [`contribution`]); the others (all of them, in
 //! centralized fusion) leave in one [`PeopleFrame`] per head step ([`PeopleSender`]): each
 //! person quantised ([`GroundPerson`]), its histogram only when new, changed or due for a
-//! refresh. A filter that lost its region at a border it was moving towards, or a quarter
-//! past one (its person walked out), is not reported until a region supports it again, nor,
+//! refresh. A filter that lost its region at a border it was moving towards, or with a
+//! quarter of its box outside the frame (its person walked out), is not reported until a region supports it again, nor,
 //! with `report-unsupported = false` (the crowd and the hall), any filter no region supports
 //! this frame. On a [`proto::msg::SampleRequest`] the camera answers with every filter's
 //! sample set, reported or not. With `hold-still-s`, the
@@ -94,7 +94,7 @@ impl GroundPeople {
         self.people.clear();
         self.captured = None;
         self.standing.clear();
-        self.walked_out.clear();
+        // `walked_out` stays: the filters it names live on in the tracker.
     }
 
     /// The standing people the background model is to keep out of the background at the next
@@ -232,12 +232,14 @@ const BORDER_PX: f32 = 1.0;
 const OUTWARD_PX_PER_FRAME: f32 = 0.25;
 
 /// Share of a box outside the frame from which a filter that lost its region counts as walked
-/// out whatever its velocity: its person was stepping out through the border (the filter's
-/// velocity is often near zero there, its box held by the shrinking part still in view).
+/// out whatever its velocity: its person was stepping out through a border (the filter's
+/// velocity is often near zero there, its box held by the shrinking part still in view). At
+/// the top border too: someone near the camera, hidden or faded, with a quarter of their box
+/// above the image is no longer reported (nothing measures them there either).
 const OUTSIDE_SHARE: f32 = 0.25;
 
 /// A filter that lost its region with its box at a border it was moving towards, or with a
-/// quarter of its box past a border ([`OUTSIDE_SHARE`]): its person walked out of view. The
+/// quarter or more of its box outside the frame ([`OUTSIDE_SHARE`]): its person walked out of view. The
 /// filter lives on for `destroy-s` (they may step back in), but nothing measures where it
 /// stands any more, and reported it would be a person at the border who is not there: it
 /// stays unreported until a region supports it again ([`GroundPeople::track`]). A filter that
@@ -255,7 +257,12 @@ fn walked_out_of_view(person: &PersonEstimate, frame: &Frame) -> bool {
         xmax: w,
         ymax: h,
     };
-    let outside = 1.0 - boxes::intersection(&b, &whole) / boxes::area(&b).max(f32::EPSILON);
+    let area = boxes::area(&b);
+    let outside = if area > 0.0 {
+        1.0 - boxes::intersection(&b, &whole) / area
+    } else {
+        0.0
+    };
     person.unsupported_frames > 0
         && (outside >= OUTSIDE_SHARE
             || (b.xmin <= BORDER_PX && m.vx < -v)

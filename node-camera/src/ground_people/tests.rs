@@ -111,7 +111,7 @@ fn a_contribution_carries_the_gated_person_for_the_head_to_fold_in() {
 #[test]
 fn projected_boxes_become_ground_points_and_boxes_above_the_horizon_are_dropped() {
     let cam = Scenario::default_scenario().camera_model(10).unwrap();
-    let mut people = GroundPeople::new(&ParticleParams::default(), 15.0, 3).unwrap();
+    let mut people = GroundPeople::new(&ParticleParams::default(), 15.0, 1).unwrap();
     let det = |ymin: f32, ymax: f32| Detection {
         centre: [176.0, 0.5 * (ymin + ymax)],
         foot: [176.0, ymax],

@@ -139,9 +139,9 @@ pub fn mot(run: &CameraRun) -> crate::error::Result<MotMetrics> {
 
 /// Reports that are within [`MATCH_M`] on the floor of a true person whose centre is out of
 /// view and of no one whose centre is in view: people half out of the image, whom the camera
-/// sees but the truth does not count, so that CLEAR MOT scores them false positives (for
-/// both methods alike). Counted so the false positives can be read; the scores stay as the
-/// truth has them.
+/// sees but the truth does not count, or people who just left it (a filter reported after its
+/// person), so that CLEAR MOT scores them false positives (for both methods alike). Counted so
+/// the false positives can be read; the scores stay as the truth has them.
 pub fn on_people_out_of_view(run: &CameraRun) -> usize {
     let near = |g: [f64; 2], in_view: bool| {
         move |p: &TruePerson| p.in_view == in_view && dist(g, p.ground) <= MATCH_M
