@@ -388,7 +388,6 @@ fn prop_file() -> &'static (Vec<u8>, Vec<std::ops::Range<u64>>) {
         let (_dir, path) = tmp("prop-source");
         let frames = write(&path, &sample(PROP_RECORDS));
         let bytes = std::fs::read(&path).unwrap();
-        let _ = std::fs::remove_dir_all(path.parent().unwrap());
         (bytes, frames)
     })
 }

@@ -61,18 +61,18 @@ pub fn scratch(name: &str) -> Scratch {
         .prefix(&format!("ocelli-e2e-{name}-"))
         .tempdir()
         .expect("scratch dir");
-    Scratch(Some(dir))
+    Scratch(dir)
 }
 
 /// See [`scratch`].
 #[derive(Debug)]
-pub struct Scratch(Option<tempfile::TempDir>);
+pub struct Scratch(tempfile::TempDir);
 
 impl std::ops::Deref for Scratch {
     type Target = Path;
 
     fn deref(&self) -> &Path {
-        self.0.as_ref().expect("a scratch folder until dropped").path()
+        self.0.path()
     }
 }
 
@@ -84,10 +84,9 @@ impl AsRef<Path> for Scratch {
 
 impl Drop for Scratch {
     fn drop(&mut self) {
-        if std::thread::panicking()
-            && let Some(dir) = self.0.take()
-        {
-            eprintln!("kept for the failing test: {}", dir.keep().display());
+        if std::thread::panicking() {
+            self.0.disable_cleanup(true);
+            eprintln!("kept for the failing test: {}", self.0.path().display());
         }
     }
 }

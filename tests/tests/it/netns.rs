@@ -318,5 +318,4 @@ fn nodes_in_separate_network_namespaces_track_the_robot_over_tcp() {
         "no global track followed the robot for ≥ 30 steps within a mean {MEAN_ERROR_BOUND_M} m; (global, rows, mean error m): {summary:?}"
     );
     drop(net);
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -75,5 +75,4 @@ fn ble_dataset_through_real_processes_tracks_the_beacon() {
         report["rssi_nodes_mean"].as_f64().unwrap_or(0.0) >= 3.0,
         "{report}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -214,6 +214,4 @@ fn launch_serves_a_live_map_and_3d_view_with_tracks_in_a_real_browser() {
             bytes.len()
         );
     }
-    let _ = std::fs::remove_dir_all(&profile);
-    let _ = std::fs::remove_dir_all(profile.with_extension("shots"));
 }
