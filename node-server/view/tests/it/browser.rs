@@ -1,7 +1,8 @@
 //! The pages as a person sees them: a viewer serving a small synthetic cluster, loaded in
 //! headless Chromium (Debian's `chromium`). The map's and the 3D view's DOM must show the
-//! tracks' ids once their scripts ran, and screenshots of both go to `docs/view-map.png` and
-//! `docs/view-3d.png`.
+//! tracks' ids once their scripts ran, and screenshots of both go to a scratch folder; with
+//! `OCELLI_WRITE_SCREENSHOTS=1` they replace `docs/view-map.png` and `docs/view-3d.png` (a test
+//! run never touches the tree otherwise).
 //!
 //! Without Chromium this test fails and says which package to install: it never passes
 //! silently.
@@ -298,8 +299,19 @@ fn post_playback(addr: std::net::SocketAddr, action: &str) {
     assert!(answer.starts_with("HTTP/1.1 2"), "{action}: {answer}");
 }
 
-fn docs() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs")
+/// Where the screenshots go: the docs when asked for (`OCELLI_WRITE_SCREENSHOTS=1`), otherwise
+/// a scratch folder, so that running the tests leaves the checkout as it was.
+fn screenshot_folder() -> (Option<tempfile::TempDir>, PathBuf) {
+    if std::env::var_os("OCELLI_WRITE_SCREENSHOTS").is_some_and(|v| v == "1") {
+        (None, Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs"))
+    } else {
+        let dir = tempfile::Builder::new()
+            .prefix("ocelli-view-shots-")
+            .tempdir()
+            .expect("scratch folder");
+        let path = dir.path().to_path_buf();
+        (Some(dir), path)
+    }
 }
 
 #[test]
@@ -342,7 +354,7 @@ fn the_pages_show_tracks_in_a_real_browser() {
         &view3d[view3d.len().saturating_sub(3000)..]
     );
 
-    let docs = docs();
+    let (_scratch, docs) = screenshot_folder();
     std::fs::create_dir_all(&docs).unwrap();
     for (path, file) in [("/", "view-map.png"), ("/3d", "view-3d.png")] {
         let png = docs.join(file);
