@@ -184,6 +184,24 @@ pub fn compute(loaded: &Loaded, truth: Option<&dyn Truth>) -> Report {
     compute_with(loaded, truth, ASSOCIATION_GATE_M)
 }
 
+/// Every scored frame of `loaded` against `truth` with what CLEAR MOT counted in it: the
+/// frames and the rule [`compute`]'s `mot` metrics come from (`mot::frame_events`).
+pub fn frame_events(
+    loaded: &Loaded,
+    truth: &dyn Truth,
+) -> Vec<(crate::metrics::Frame<2>, crate::metrics::FrameEvents)> {
+    let rows: Vec<TrackRow> = track_rows(loaded).into_iter().filter(|r| r.owner).collect();
+    let start = loaded.records.first().map_or(0.0, |s| s.at.as_secs_f64());
+    let end = loaded.records.last().map_or(0.0, |s| s.at.as_secs_f64());
+    mot::frame_events(
+        &rows,
+        truth,
+        start,
+        end,
+        &mot::Scoring::for_scenario(&loaded.scenario),
+    )
+}
+
 /// Compute the report with an association gate (m).
 pub fn compute_with(loaded: &Loaded, truth_of: Option<&dyn Truth>, gate_m: f64) -> Report {
     let sc = &loaded.scenario;

@@ -88,21 +88,96 @@ pub fn of_recording(
 ) -> Result<RecordingReport, ReportError> {
     let loaded = load(path, scenario)?;
     let scoring = Scoring::of(&loaded, t0);
-    let report = match (scoring.truth(&loaded.scenario)?, scoring.t0()) {
-        (Some(t), _) => report::compute(&loaded, Some(&t as &dyn Truth)),
+    let report = match truth_of(&loaded, scoring)? {
+        Some(Known::World(t)) => report::compute(&loaded, Some(&t as &dyn Truth)),
         // Radio-only nodes replaying a recorded file: its positions are the truth, and
         // RSSI-only tracks err metres, so a track is the beacon's within a wider gate.
-        (None, Some(t0)) => match RecordedTruth::of(&loaded.scenario, t0)? {
-            Some(t) => report::compute_with(&loaded, Some(&t), sim::recorded_truth::ASSOCIATION_GATE_M),
-            None => report::compute(&loaded, None),
-        },
-        (None, None) => report::compute(&loaded, None),
+        Some(Known::Recorded(t)) => {
+            report::compute_with(&loaded, Some(&t), sim::recorded_truth::ASSOCIATION_GATE_M)
+        }
+        None => report::compute(&loaded, None),
     };
     Ok(RecordingReport {
         loaded,
         report,
         scoring,
     })
+}
+
+/// The truth a recording is scored against.
+enum Known {
+    /// The simulated world's targets.
+    World(WorldTruth),
+    /// The positions a replayed radio file recorded.
+    Recorded(RecordedTruth),
+}
+
+impl Known {
+    fn as_truth(&self) -> &dyn Truth {
+        match self {
+            Known::World(t) => t,
+            Known::Recorded(t) => t,
+        }
+    }
+}
+
+/// The truth `scoring` scores `loaded` against, if any (see [`of_recording`]).
+fn truth_of(loaded: &Loaded, scoring: Scoring) -> Result<Option<Known>, ReportError> {
+    Ok(match (scoring.truth(&loaded.scenario)?, scoring.t0()) {
+        (Some(t), _) => Some(Known::World(t)),
+        (None, Some(t0)) => RecordedTruth::of(&loaded.scenario, t0)?.map(Known::Recorded),
+        (None, None) => None,
+    })
+}
+
+/// One scored frame as `ocelli report --events` writes it: the truth and the global tracks on
+/// the floor, and what CLEAR MOT counted (py-motmetrics' events, grouped by frame).
+#[derive(Debug, serde::Serialize)]
+pub struct ScoredFrame {
+    pub t: f64,
+    pub truth: Vec<Placed>,
+    pub tracks: Vec<Placed>,
+    /// By truth id; `hypothesis` is the global track's id.
+    pub matches: Vec<node_server::metrics::Match>,
+    /// Truth ids.
+    pub misses: Vec<u32>,
+    /// Global track ids.
+    pub false_positives: Vec<u32>,
+}
+
+/// An id at a floor position, metres.
+#[derive(Debug, serde::Serialize)]
+pub struct Placed {
+    pub id: u32,
+    pub x: f64,
+    pub y: f64,
+}
+
+/// The scored frames of a recording's report, in order; `None` when it was not scored (no
+/// truth: see [`Scoring`]).
+///
+/// # Errors
+/// The scenario's targets, or the recorded truth, do not parse.
+pub fn scored_frames(r: &RecordingReport) -> Result<Option<Vec<ScoredFrame>>, ReportError> {
+    let Some(truth) = truth_of(&r.loaded, r.scoring)? else {
+        return Ok(None);
+    };
+    let placed = |l: &[(u32, [f64; 2])]| -> Vec<Placed> {
+        l.iter().map(|&(id, [x, y])| Placed { id, x, y }).collect()
+    };
+    Ok(Some(
+        report::frame_events(&r.loaded, truth.as_truth())
+            .into_iter()
+            .map(|(f, events)| ScoredFrame {
+                t: f.t,
+                truth: placed(&f.truth),
+                tracks: placed(&f.hyps),
+                matches: events.matches,
+                misses: events.misses,
+                false_positives: events.false_positives,
+            })
+            .collect(),
+    ))
 }
 
 /// What a reader of `loaded` skipped, in words, one line each (empty when it read everything):

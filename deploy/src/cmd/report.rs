@@ -28,6 +28,12 @@ pub struct Args {
     /// score at all for a real deployment's recording).
     #[arg(long, value_name = "NS")]
     pub t0_ns: Option<i64>,
+    /// Also write every scored frame to this file as JSON Lines (`-`: standard output, instead
+    /// of the report): the truth and the global tracks on the floor, and what CLEAR MOT counted
+    /// in it — the pairs (`switch` when the person was last paired with another track), the
+    /// misses and the false positives. Where MOTA and the id switches come from.
+    #[arg(long, value_name = "FILE")]
+    pub events: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -41,6 +47,25 @@ pub fn run(args: Args) -> Result<ExitCode> {
         ),
         Scoring::Given(t0) => tracing::info!(t0_ns = t0.0, "scored from the given time origin"),
         _ => {}
+    }
+    if let Some(path) = &args.events {
+        let Some(frames) = lab::report::scored_frames(&r)? else {
+            anyhow::bail!(
+                "no events: the report is not scored (the recording does not say its world was \
+                 simulated; --t0-ns scores it against the scenario's targets)"
+            );
+        };
+        let mut text = String::new();
+        for f in &frames {
+            text += &serde_json::to_string(f)?;
+            text.push('\n');
+        }
+        if path.as_os_str() == "-" {
+            print!("{text}");
+            return Ok(ExitCode::SUCCESS);
+        }
+        std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+        eprintln!("{} scored frames written to {}", frames.len(), path.display());
     }
     let json = serde_json::to_string_pretty(&crate::launch::latency::report_json(&r.report, &r.loaded)?)?;
     if let Some(p) = &args.write {

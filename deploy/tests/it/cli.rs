@@ -229,6 +229,93 @@ fn binary_replays_a_sim_recording_to_its_own_estimates() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `ocelli report REC --events FILE`: every scored frame of a simulated run as JSON Lines, whose
+/// pairs, switches, misses and false positives add up to the report's own counts, with the
+/// truth and the tracks it compared; `--events -` prints the frames instead of the report.
+#[test]
+fn report_writes_the_scored_frames_that_make_its_counts() {
+    let dir = tempfile::Builder::new()
+        .prefix("ocelli-events-")
+        .tempdir()
+        .unwrap();
+    let rec = dir.path().join("run.ocrec");
+    let events = dir.path().join("events.jsonl");
+    let ocelli = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_ocelli"))
+            .args(args)
+            .output()
+            .expect("ocelli runs");
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).expect("utf-8")
+    };
+    let (rec_s, events_s) = (rec.to_str().unwrap(), events.to_str().unwrap());
+    ocelli(&[
+        "sim",
+        "--seed",
+        "3",
+        "--duration",
+        "8",
+        "--level",
+        "measurement",
+        "--json",
+        "--record",
+        rec_s,
+    ]);
+    let report: serde_json::Value =
+        serde_json::from_str(&ocelli(&["report", rec_s, "--json", "--events", events_s]))
+            .expect("the report");
+    let mot = &report["mot"];
+    let frames: Vec<serde_json::Value> = std::fs::read_to_string(&events)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("each line is JSON"))
+        .collect();
+    assert_eq!(frames.len() as u64, mot["frames"].as_u64().unwrap());
+    let count = |key: &str| -> u64 {
+        frames
+            .iter()
+            .map(|f| f[key].as_array().unwrap().len() as u64)
+            .sum()
+    };
+    let pairs: Vec<&serde_json::Value> = frames
+        .iter()
+        .flat_map(|f| f["matches"].as_array().unwrap())
+        .collect();
+    let switches = pairs.iter().filter(|p| p["switch"] == true).count() as u64;
+    assert_eq!(switches, mot["id_switches"].as_u64().unwrap());
+    assert_eq!(pairs.len() as u64 - switches, mot["matches"].as_u64().unwrap());
+    assert_eq!(count("misses"), mot["misses"].as_u64().unwrap());
+    assert_eq!(count("false_positives"), mot["false_positives"].as_u64().unwrap());
+    assert!(!pairs.is_empty(), "the run tracked its target: {mot}");
+    // Each pair names a truth and a track of its frame, as far apart as it says.
+    for f in &frames {
+        for p in f["matches"].as_array().unwrap() {
+            let find = |list: &str, id: &serde_json::Value| {
+                f[list]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .find(|e| e["id"] == *id)
+                    .cloned()
+                    .expect("listed")
+            };
+            let (t, h) = (find("truth", &p["truth"]), find("tracks", &p["hypothesis"]));
+            let d = (t["x"].as_f64().unwrap() - h["x"].as_f64().unwrap())
+                .hypot(t["y"].as_f64().unwrap() - h["y"].as_f64().unwrap());
+            assert!((d - p["distance_m"].as_f64().unwrap()).abs() < 1e-9, "{f}");
+        }
+    }
+    // To standard output: the frames alone.
+    assert_eq!(
+        ocelli(&["report", rec_s, "--events", "-"]),
+        std::fs::read_to_string(&events).unwrap()
+    );
+}
+
 /// Piped, a long command stays quiet: no progress bar, no colour codes.
 #[test]
 fn piped_output_has_no_progress_bar_and_no_colour_codes() {

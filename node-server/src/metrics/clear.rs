@@ -8,7 +8,7 @@
 //! fragmentations are the times it went from tracked to missed and was tracked again later
 //! (motmetrics counts tracked → missed transitions between its first and last tracked frame).
 
-use super::Frame;
+use super::{Frame, FrameEvents, Match};
 use assign::max_weight_matching;
 use std::collections::{BTreeMap, HashMap};
 
@@ -43,11 +43,15 @@ pub(super) struct Target {
 }
 
 impl Clear {
-    /// Counts one frame; `d` is its truth-major distance matrix.
-    pub fn frame<const D: usize>(&mut self, frame: &Frame<D>, d: &[f64], threshold: f64) {
+    /// Counts one frame; `d` is its truth-major distance matrix. Returns what it counted.
+    pub fn frame<const D: usize>(&mut self, frame: &Frame<D>, d: &[f64], threshold: f64) -> FrameEvents {
         let (nt, nh) = (frame.truth.len(), frame.hyps.len());
         let mut hyp_of: Vec<Option<usize>> = vec![None; nt];
         let mut claimed = vec![false; nh];
+        let mut events = FrameEvents {
+            t: frame.t,
+            ..FrameEvents::default()
+        };
         let index: HashMap<u32, usize> = frame
             .hyps
             .iter()
@@ -63,6 +67,12 @@ impl Clear {
                 claimed[j] = true;
                 hyp_of[i] = Some(j);
                 self.matches += 1;
+                events.matches.push(Match {
+                    truth: *oid,
+                    hypothesis: frame.hyps[j].0,
+                    distance_m: d[i * nh + j],
+                    switch: false,
+                });
                 self.distance_sum += d[i * nh + j];
                 self.targets.entry(*oid).or_default().distance_sum += d[i * nh + j];
             }
@@ -82,17 +92,28 @@ impl Clear {
             claimed[j] = true;
             self.distance_sum += d[i * nh + j];
             self.targets.entry(oid).or_default().distance_sum += d[i * nh + j];
-            if self.last_match.insert(oid, hid).is_some_and(|prev| prev != hid) {
+            let switch = self.last_match.insert(oid, hid).is_some_and(|prev| prev != hid);
+            if switch {
                 self.switches += 1;
                 self.targets.entry(oid).or_default().switches += 1;
             } else {
                 self.matches += 1;
             }
+            events.matches.push(Match {
+                truth: oid,
+                hypothesis: hid,
+                distance_m: d[i * nh + j],
+                switch,
+            });
         }
         // (3) Misses, false positives, and each truth's tallies.
         self.objects += nt;
         self.predictions += nh;
         self.false_positives += claimed.iter().filter(|c| !**c).count();
+        events.false_positives = (0..nh)
+            .filter(|&j| !claimed[j])
+            .map(|j| frame.hyps[j].0)
+            .collect();
         for (i, (oid, _)) in frame.truth.iter().enumerate() {
             let t = self.targets.entry(*oid).or_default();
             t.frames += 1;
@@ -111,8 +132,11 @@ impl Clear {
                 None => {
                     self.misses += 1;
                     t.interrupted = t.tracked > 0;
+                    events.misses.push(*oid);
                 }
             }
         }
+        events.matches.sort_by_key(|m| m.truth);
+        events
     }
 }

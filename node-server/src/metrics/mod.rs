@@ -38,6 +38,29 @@ pub struct Frame<const D: usize> {
     pub hyps: Vec<(u32, [f64; D])>,
 }
 
+/// What CLEAR MOT counted in one frame (py-motmetrics' `mot_events`, grouped by frame): the
+/// pairs it made, each a match or an identity switch, the truths it missed and the hypotheses
+/// it counted as false positives. Summed over a run they give [`MotMetrics`]' `matches`,
+/// `id_switches`, `misses` and `false_positives`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FrameEvents {
+    pub t: f64,
+    /// By truth id.
+    pub matches: Vec<Match>,
+    pub misses: Vec<u32>,
+    pub false_positives: Vec<u32>,
+}
+
+/// A truth and the hypothesis CLEAR MOT paired it with in a frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Match {
+    pub truth: u32,
+    pub hypothesis: u32,
+    pub distance_m: f64,
+    /// The truth was last paired with another hypothesis.
+    pub switch: bool,
+}
+
 /// How pairs are scored.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MetricsConfig {
@@ -172,6 +195,22 @@ impl std::fmt::Display for Side {
     }
 }
 
+/// CLEAR MOT's events of every frame of a run: where [`evaluate`]'s counts come from.
+///
+/// # Errors
+/// As [`evaluate`].
+pub fn events<const D: usize>(
+    frames: &[Frame<D>],
+    config: &MetricsConfig,
+) -> Result<Vec<FrameEvents>, MetricsError> {
+    validate(frames, config)?;
+    let mut clear = clear::Clear::default();
+    Ok(frames
+        .iter()
+        .map(|frame| clear.frame(frame, &distances(frame), config.threshold_m))
+        .collect())
+}
+
 /// Computes every metric of a run.
 ///
 /// # Errors
@@ -189,7 +228,7 @@ pub fn evaluate<const D: usize>(
     let mut gospa = gospa::Gospa::new(config.gospa_c_m, config.gospa_p);
     for frame in frames {
         let d = distances(frame);
-        clear.frame(frame, &d, config.threshold_m);
+        let _ = clear.frame(frame, &d, config.threshold_m);
         identity.frame(frame, &d, config.threshold_m);
         gospa.frame(frame.truth.len(), frame.hyps.len(), &d);
     }

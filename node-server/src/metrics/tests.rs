@@ -310,6 +310,80 @@ fn frame2(t: f64, truth: &[(u32, [f64; 2])], hyps: &[(u32, [f64; 2])]) -> Frame<
 }
 
 #[test]
+fn events_say_which_pairs_switched_and_who_was_missed() {
+    // Truth 1 is followed by 101, then 102 takes it over (a switch) while 101 drifts off
+    // (a false positive); truth 2 is missed throughout.
+    let frames = [
+        frame2(0.0, &[(1, [0.0, 0.0]), (2, [5.0, 5.0])], &[(101, [0.2, 0.0])]),
+        frame2(
+            0.2,
+            &[(1, [0.1, 0.0]), (2, [5.0, 5.0])],
+            &[(101, [3.0, 0.0]), (102, [0.4, 0.0])],
+        ),
+    ];
+    let ev = events(&frames, &MetricsConfig::default()).unwrap();
+    assert_eq!(ev.len(), 2);
+    assert_eq!(ev[0].matches.len(), 1);
+    let m = &ev[0].matches[0];
+    assert_eq!((m.truth, m.hypothesis, m.switch), (1, 101, false));
+    assert!((m.distance_m - 0.2).abs() < 1e-12);
+    assert_eq!(
+        (ev[0].misses.clone(), ev[0].false_positives.clone()),
+        (vec![2], vec![])
+    );
+    let m = &ev[1].matches[0];
+    assert_eq!((m.truth, m.hypothesis, m.switch), (1, 102, true));
+    assert_eq!(
+        (ev[1].misses.clone(), ev[1].false_positives.clone()),
+        (vec![2], vec![101])
+    );
+    assert_eq!(ev[1].t, 0.2);
+}
+
+/// The events of a run add up to its counts.
+fn assert_events_sum_to<const D: usize>(name: &str, frames: &[Frame<D>], config: &MetricsConfig) {
+    let m = evaluate(frames, config).unwrap();
+    let ev = events(frames, config).unwrap();
+    let pairs: Vec<&Match> = ev.iter().flat_map(|e| &e.matches).collect();
+    let switches = pairs.iter().filter(|p| p.switch).count();
+    assert_eq!(switches, m.id_switches, "{name}: switches");
+    assert_eq!(pairs.len() - switches, m.matches, "{name}: matches");
+    assert_eq!(
+        ev.iter().map(|e| e.misses.len()).sum::<usize>(),
+        m.misses,
+        "{name}: misses"
+    );
+    assert_eq!(
+        ev.iter().map(|e| e.false_positives.len()).sum::<usize>(),
+        m.false_positives,
+        "{name}: false positives"
+    );
+    if let Some(motp) = m.motp_m {
+        let mean = pairs.iter().map(|p| p.distance_m).sum::<f64>() / pairs.len() as f64;
+        assert!(
+            (mean - motp).abs() < 1e-9,
+            "{name}: MOTP {motp}, events' mean {mean}"
+        );
+    }
+}
+
+#[test]
+fn events_of_the_reference_scenarios_add_up_to_their_counts() {
+    for s in scenarios() {
+        let config = MetricsConfig {
+            threshold_m: s.threshold,
+            gospa_c_m: s.gospa_c,
+            gospa_p: s.gospa_p,
+        };
+        match s.dim {
+            2 => assert_events_sum_to(&s.name, &frames::<2>(&s), &config),
+            3 => assert_events_sum_to(&s.name, &frames::<3>(&s), &config),
+            d => panic!("dimension {d}"),
+        }
+    }
+}
+
+#[test]
 fn gospa_by_hand() {
     // Frame 0: truth A at the origin matched 0.5 m off; truth B at (10, 0) missed; a false
     // hypothesis at (3, 4), 5 m from A. Frame 1 is empty (not scored); frame 2 has one false
@@ -517,6 +591,11 @@ proptest! {
         }
         // GOSPA with p = 1 adds up, and is at most c/2 per present target.
         prop_assert!((m.gospa_localisation + m.gospa_missed + m.gospa_false - m.gospa_m).abs() < 1e-9);
+    }
+
+    #[test]
+    fn events_add_up_to_the_counts(frames in random_run()) {
+        assert_events_sum_to("random run", &frames, &MetricsConfig::default());
     }
 
     #[test]

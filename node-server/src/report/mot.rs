@@ -11,7 +11,7 @@
 
 use super::Truth;
 use crate::export::TrackRow;
-use crate::metrics::{Frame, MetricsConfig, MotMetrics, evaluate};
+use crate::metrics::{Frame, FrameEvents, MetricsConfig, MotMetrics, evaluate};
 use proto::scenario::Scenario;
 use std::collections::BTreeMap;
 
@@ -50,6 +50,21 @@ pub fn score(rows: &[TrackRow], truth: &dyn Truth, start: f64, end: f64, s: &Sco
         return None;
     }
     evaluate(&frames, &s.metrics).ok()
+}
+
+/// The frames (see the module docs) with what CLEAR MOT counted in each
+/// ([`crate::metrics::events`]): where [`score`]'s counts come from. Empty when no frame fits.
+pub fn frame_events(
+    rows: &[TrackRow],
+    truth: &dyn Truth,
+    start: f64,
+    end: f64,
+    s: &Scoring,
+) -> Vec<(Frame<2>, FrameEvents)> {
+    let frames = frames(rows, truth, start, end, s);
+    // The frames are built on an increasing grid of finite positions, which `events` accepts.
+    let events = crate::metrics::events(&frames, &s.metrics).unwrap_or_default();
+    frames.into_iter().zip(events).collect()
 }
 
 /// The frames (see the module docs).
