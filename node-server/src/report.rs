@@ -184,33 +184,33 @@ pub fn compute(loaded: &Loaded, truth: Option<&dyn Truth>) -> Report {
     compute_with(loaded, truth, ASSOCIATION_GATE_M)
 }
 
-/// Every scored frame of `loaded` against `truth` with what CLEAR MOT counted in it: the
-/// frames and the rule [`compute`]'s `mot` metrics come from (`mot::frame_events`).
-pub fn frame_events(
-    loaded: &Loaded,
-    truth: &dyn Truth,
-) -> Vec<(crate::metrics::Frame<2>, crate::metrics::FrameEvents)> {
+/// What the run's MOT metrics are computed from: its owner track rows, in recording order, and
+/// the span of the recording, seconds of cluster time. One place, so that [`compute_with`]'s
+/// counts and [`frame_events`]' frames come from the same rows and frames.
+fn mot_input(loaded: &Loaded) -> (Vec<TrackRow>, f64, f64, mot::Scoring) {
     let rows: Vec<TrackRow> = track_rows(loaded).into_iter().filter(|r| r.owner).collect();
     let start = loaded.records.first().map_or(0.0, |s| s.at.as_secs_f64());
     let end = loaded.records.last().map_or(0.0, |s| s.at.as_secs_f64());
-    mot::frame_events(
-        &rows,
-        truth,
-        start,
-        end,
-        &mot::Scoring::for_scenario(&loaded.scenario),
-    )
+    (rows, start, end, mot::Scoring::for_scenario(&loaded.scenario))
+}
+
+/// Every scored frame of `loaded` against `truth` with what CLEAR MOT counted in it: the frames
+/// [`compute`]'s `mot` metrics come from (`mot::frame_events`). `None` when the report's `mot`
+/// is (no frame fits).
+pub fn frame_events(
+    loaded: &Loaded,
+    truth: &dyn Truth,
+) -> Option<Vec<(crate::metrics::Frame<2>, crate::metrics::FrameEvents)>> {
+    let (rows, start, end, scoring) = mot_input(loaded);
+    mot::frame_events(&rows, truth, start, end, &scoring)
 }
 
 /// Compute the report with an association gate (m).
 pub fn compute_with(loaded: &Loaded, truth_of: Option<&dyn Truth>, gate_m: f64) -> Report {
     let sc = &loaded.scenario;
-    let rows: Vec<TrackRow> = track_rows(loaded).into_iter().filter(|r| r.owner).collect();
+    let (rows, start, end, scoring) = mot_input(loaded);
     let truth = truth_of.filter(|t| !t.ids().is_empty());
     let scored = truth.map(|t| score_errors(&rows, t, gate_m)).unwrap_or_default();
-    let start = loaded.records.first().map_or(0.0, |s| s.at.as_secs_f64());
-    let end = loaded.records.last().map_or(0.0, |s| s.at.as_secs_f64());
-    let scoring = mot::Scoring::for_scenario(sc);
     let mot = truth.and_then(|t| mot::score(&rows, t, start, end, &scoring));
     let tally = tally_records(loaded);
     let mut msgs = tally.messages.clone();

@@ -74,6 +74,8 @@ pub struct RecordingReport {
     pub loaded: Loaded,
     pub report: Report,
     pub scoring: Scoring,
+    /// What it was scored against, kept for its frames ([`scored_frames`]).
+    truth: Option<TruthSource>,
 }
 
 /// The report of the recording at `path` (`scenario` replaces the recorded one; `t0` scores
@@ -88,12 +90,13 @@ pub fn of_recording(
 ) -> Result<RecordingReport, ReportError> {
     let loaded = load(path, scenario)?;
     let scoring = Scoring::of(&loaded, t0);
-    let report = match truth_of(&loaded, scoring)? {
-        Some(Known::World(t)) => report::compute(&loaded, Some(&t as &dyn Truth)),
+    let truth = truth_of(&loaded, scoring)?;
+    let report = match &truth {
+        Some(TruthSource::World(t)) => report::compute(&loaded, Some(t as &dyn Truth)),
         // Radio-only nodes replaying a recorded file: its positions are the truth, and
         // RSSI-only tracks err metres, so a track is the beacon's within a wider gate.
-        Some(Known::Recorded(t)) => {
-            report::compute_with(&loaded, Some(&t), sim::recorded_truth::ASSOCIATION_GATE_M)
+        Some(TruthSource::Recorded(t)) => {
+            report::compute_with(&loaded, Some(t), sim::recorded_truth::ASSOCIATION_GATE_M)
         }
         None => report::compute(&loaded, None),
     };
@@ -101,31 +104,33 @@ pub fn of_recording(
         loaded,
         report,
         scoring,
+        truth,
     })
 }
 
 /// The truth a recording is scored against.
-enum Known {
+#[derive(Debug)]
+enum TruthSource {
     /// The simulated world's targets.
     World(WorldTruth),
     /// The positions a replayed radio file recorded.
     Recorded(RecordedTruth),
 }
 
-impl Known {
+impl TruthSource {
     fn as_truth(&self) -> &dyn Truth {
         match self {
-            Known::World(t) => t,
-            Known::Recorded(t) => t,
+            TruthSource::World(t) => t,
+            TruthSource::Recorded(t) => t,
         }
     }
 }
 
 /// The truth `scoring` scores `loaded` against, if any (see [`of_recording`]).
-fn truth_of(loaded: &Loaded, scoring: Scoring) -> Result<Option<Known>, ReportError> {
+fn truth_of(loaded: &Loaded, scoring: Scoring) -> Result<Option<TruthSource>, ReportError> {
     Ok(match (scoring.truth(&loaded.scenario)?, scoring.t0()) {
-        (Some(t), _) => Some(Known::World(t)),
-        (None, Some(t0)) => RecordedTruth::of(&loaded.scenario, t0)?.map(Known::Recorded),
+        (Some(t), _) => Some(TruthSource::World(t)),
+        (None, Some(t0)) => RecordedTruth::of(&loaded.scenario, t0)?.map(TruthSource::Recorded),
         (None, None) => None,
     })
 }
@@ -134,11 +139,12 @@ fn truth_of(loaded: &Loaded, scoring: Scoring) -> Result<Option<Known>, ReportEr
 /// the floor, and what CLEAR MOT counted (py-motmetrics' events, grouped by frame).
 #[derive(Debug, serde::Serialize)]
 pub struct ScoredFrame {
+    /// Seconds of cluster time (the recording's clock: scenario time plus the run's origin).
     pub t: f64,
     pub truth: Vec<Placed>,
     pub tracks: Vec<Placed>,
-    /// By truth id; `hypothesis` is the global track's id.
-    pub matches: Vec<node_server::metrics::Match>,
+    /// Sorted by truth id; each a match, or an identity switch (`switch`).
+    pub pairs: Vec<ScoredPair>,
     /// Truth ids.
     pub misses: Vec<u32>,
     /// Global track ids.
@@ -153,31 +159,47 @@ pub struct Placed {
     pub y: f64,
 }
 
-/// The scored frames of a recording's report, in order; `None` when it was not scored (no
-/// truth: see [`Scoring`]).
-///
-/// # Errors
-/// The scenario's targets, or the recorded truth, do not parse.
-pub fn scored_frames(r: &RecordingReport) -> Result<Option<Vec<ScoredFrame>>, ReportError> {
-    let Some(truth) = truth_of(&r.loaded, r.scoring)? else {
-        return Ok(None);
-    };
+/// A person and the global track CLEAR MOT paired them with in a frame.
+#[derive(Debug, serde::Serialize)]
+pub struct ScoredPair {
+    pub truth: u32,
+    pub track: u32,
+    pub distance_m: f64,
+    /// The person was last paired with another track.
+    pub switch: bool,
+}
+
+/// The frames a recording's report scored, in order, with what each counted; `None` when the
+/// report has no MOT metrics (no truth: see [`Scoring`]; nobody to track; a run shorter than
+/// the warm-up).
+pub fn scored_frames(r: &RecordingReport) -> Option<Vec<ScoredFrame>> {
+    r.report.mot.as_ref()?;
+    let frames = report::frame_events(&r.loaded, r.truth.as_ref()?.as_truth())?;
     let placed = |l: &[(u32, [f64; 2])]| -> Vec<Placed> {
         l.iter().map(|&(id, [x, y])| Placed { id, x, y }).collect()
     };
-    Ok(Some(
-        report::frame_events(&r.loaded, truth.as_truth())
+    Some(
+        frames
             .into_iter()
             .map(|(f, events)| ScoredFrame {
                 t: f.t,
                 truth: placed(&f.truth),
                 tracks: placed(&f.hyps),
-                matches: events.matches,
+                pairs: events
+                    .pairs
+                    .into_iter()
+                    .map(|p| ScoredPair {
+                        truth: p.truth,
+                        track: p.hypothesis,
+                        distance_m: p.distance_m,
+                        switch: p.switch,
+                    })
+                    .collect(),
                 misses: events.misses,
                 false_positives: events.false_positives,
             })
             .collect(),
-    ))
+    )
 }
 
 /// What a reader of `loaded` skipped, in words, one line each (empty when it read everything):

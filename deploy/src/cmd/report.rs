@@ -6,6 +6,7 @@ use super::common::{ScenarioArg, warn_damage};
 use anyhow::{Context, Result};
 use lab::report::{Scoring, of_recording};
 use proto::ClusterTime;
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -29,14 +30,21 @@ pub struct Args {
     #[arg(long, value_name = "NS")]
     pub t0_ns: Option<i64>,
     /// Also write every scored frame to this file as JSON Lines (`-`: standard output, instead
-    /// of the report): the truth and the global tracks on the floor, and what CLEAR MOT counted
-    /// in it — the pairs (`switch` when the person was last paired with another track), the
-    /// misses and the false positives. Where MOTA and the id switches come from.
+    /// of the report; not with --json or --write): the truth and the global tracks on the
+    /// floor, and what CLEAR MOT counted in it — the pairs (`switch` when the person was last
+    /// paired with another track), the misses and the false positives. Where MOTA and the id
+    /// switches come from.
     #[arg(long, value_name = "FILE")]
     pub events: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
+    if args.events.as_ref().is_some_and(|p| p.as_os_str() == "-") && (args.json || args.write.is_some()) {
+        anyhow::bail!(
+            "--events - prints the scored frames instead of the report: give --events a file to \
+             have both"
+        );
+    }
     let scenario = args.scenario.load_given()?;
     let r = of_recording(&args.recording, scenario, args.t0_ns.map(ClusterTime))?;
     warn_damage(&args.recording, &r.loaded);
@@ -49,22 +57,17 @@ pub fn run(args: Args) -> Result<ExitCode> {
         _ => {}
     }
     if let Some(path) = &args.events {
-        let Some(frames) = lab::report::scored_frames(&r)? else {
-            anyhow::bail!(
-                "no events: the report is not scored (the recording does not say its world was \
-                 simulated; --t0-ns scores it against the scenario's targets)"
-            );
+        let Some(frames) = lab::report::scored_frames(&r) else {
+            anyhow::bail!("no events: {}", why_unscored(&r));
         };
-        let mut text = String::new();
-        for f in &frames {
-            text += &serde_json::to_string(f)?;
-            text.push('\n');
-        }
         if path.as_os_str() == "-" {
-            print!("{text}");
+            write_frames(&frames, &mut std::io::stdout().lock())?;
             return Ok(ExitCode::SUCCESS);
         }
-        std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+        let mut f = std::io::BufWriter::new(
+            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
+        );
+        write_frames(&frames, &mut f).with_context(|| format!("writing {}", path.display()))?;
         eprintln!("{} scored frames written to {}", frames.len(), path.display());
     }
     let json = serde_json::to_string_pretty(&crate::launch::latency::report_json(&r.report, &r.loaded)?)?;
@@ -80,4 +83,26 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// One JSON line per frame.
+fn write_frames(frames: &[lab::report::ScoredFrame], out: &mut impl Write) -> Result<()> {
+    for f in frames {
+        serde_json::to_writer(&mut *out, f)?;
+        out.write_all(b"\n")?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+/// Why a recording's report has no MOT metrics, in words.
+fn why_unscored(r: &lab::report::RecordingReport) -> &'static str {
+    match r.scoring {
+        Scoring::NoTruth => {
+            "the report is not scored (the recording does not say its world was simulated; \
+             --t0-ns scores it against the scenario's targets)"
+        }
+        _ if !r.report.truth => "there is nobody to score against (the scenario has no targets)",
+        _ => "no frame was scored (the run is shorter than the scoring's warm-up)",
+    }
 }

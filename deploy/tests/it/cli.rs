@@ -231,7 +231,8 @@ fn binary_replays_a_sim_recording_to_its_own_estimates() {
 
 /// `ocelli report REC --events FILE`: every scored frame of a simulated run as JSON Lines, whose
 /// pairs, switches, misses and false positives add up to the report's own counts, with the
-/// truth and the tracks it compared; `--events -` prints the frames instead of the report.
+/// truth and the tracks it compared; `--events -` prints the frames instead of the report. The
+/// crowd at measurement level has all four kinds within 30 s.
 #[test]
 fn report_writes_the_scored_frames_that_make_its_counts() {
     let dir = tempfile::Builder::new()
@@ -240,25 +241,16 @@ fn report_writes_the_scored_frames_that_make_its_counts() {
         .unwrap();
     let rec = dir.path().join("run.ocrec");
     let events = dir.path().join("events.jsonl");
-    let ocelli = |args: &[&str]| {
-        let out = Command::new(env!("CARGO_BIN_EXE_ocelli"))
-            .args(args)
-            .output()
-            .expect("ocelli runs");
-        assert!(
-            out.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8(out.stdout).expect("utf-8")
-    };
+    let crowd = concat!(env!("CARGO_MANIFEST_DIR"), "/../proto/scenarios/crowd.toml");
     let (rec_s, events_s) = (rec.to_str().unwrap(), events.to_str().unwrap());
-    ocelli(&[
+    ocelli_ok(&[
         "sim",
+        "-s",
+        crowd,
         "--seed",
         "3",
         "--duration",
-        "8",
+        "30",
         "--level",
         "measurement",
         "--json",
@@ -266,7 +258,7 @@ fn report_writes_the_scored_frames_that_make_its_counts() {
         rec_s,
     ]);
     let report: serde_json::Value =
-        serde_json::from_str(&ocelli(&["report", rec_s, "--json", "--events", events_s]))
+        serde_json::from_str(&ocelli_ok(&["report", rec_s, "--json", "--events", events_s]))
             .expect("the report");
     let mot = &report["mot"];
     let frames: Vec<serde_json::Value> = std::fs::read_to_string(&events)
@@ -283,17 +275,24 @@ fn report_writes_the_scored_frames_that_make_its_counts() {
     };
     let pairs: Vec<&serde_json::Value> = frames
         .iter()
-        .flat_map(|f| f["matches"].as_array().unwrap())
+        .flat_map(|f| f["pairs"].as_array().unwrap())
         .collect();
     let switches = pairs.iter().filter(|p| p["switch"] == true).count() as u64;
-    assert_eq!(switches, mot["id_switches"].as_u64().unwrap());
-    assert_eq!(pairs.len() as u64 - switches, mot["matches"].as_u64().unwrap());
-    assert_eq!(count("misses"), mot["misses"].as_u64().unwrap());
-    assert_eq!(count("false_positives"), mot["false_positives"].as_u64().unwrap());
-    assert!(!pairs.is_empty(), "the run tracked its target: {mot}");
+    let got = [
+        pairs.len() as u64 - switches,
+        switches,
+        count("misses"),
+        count("false_positives"),
+    ];
+    let want = ["matches", "id_switches", "misses", "false_positives"].map(|k| mot[k].as_u64().unwrap());
+    assert_eq!(got, want, "matches, switches, misses, false positives");
+    assert!(
+        got.iter().all(|&n| n > 0),
+        "the run has every kind of event: {got:?}"
+    );
     // Each pair names a truth and a track of its frame, as far apart as it says.
     for f in &frames {
-        for p in f["matches"].as_array().unwrap() {
+        for p in f["pairs"].as_array().unwrap() {
             let find = |list: &str, id: &serde_json::Value| {
                 f[list]
                     .as_array()
@@ -303,17 +302,72 @@ fn report_writes_the_scored_frames_that_make_its_counts() {
                     .cloned()
                     .expect("listed")
             };
-            let (t, h) = (find("truth", &p["truth"]), find("tracks", &p["hypothesis"]));
+            let (t, h) = (find("truth", &p["truth"]), find("tracks", &p["track"]));
             let d = (t["x"].as_f64().unwrap() - h["x"].as_f64().unwrap())
                 .hypot(t["y"].as_f64().unwrap() - h["y"].as_f64().unwrap());
             assert!((d - p["distance_m"].as_f64().unwrap()).abs() < 1e-9, "{f}");
         }
     }
-    // To standard output: the frames alone.
+    // To standard output: the frames alone, and so not with the report's own options.
     assert_eq!(
-        ocelli(&["report", rec_s, "--events", "-"]),
+        ocelli_ok(&["report", rec_s, "--events", "-"]),
         std::fs::read_to_string(&events).unwrap()
     );
+    let err = ocelli_err(&["report", rec_s, "--events", "-", "--json"]);
+    assert!(err.contains("give --events a file"), "{err}");
+}
+
+/// A run too short to score has no events, and `report --events` says why.
+#[test]
+fn report_events_of_an_unscored_run_is_an_error_that_says_why() {
+    let dir = tempfile::Builder::new()
+        .prefix("ocelli-events-")
+        .tempdir()
+        .unwrap();
+    let rec = dir.path().join("short.ocrec");
+    let rec_s = rec.to_str().unwrap();
+    ocelli_ok(&[
+        "sim",
+        "--duration",
+        "1",
+        "--level",
+        "measurement",
+        "--json",
+        "--record",
+        rec_s,
+    ]);
+    let err = ocelli_err(&[
+        "report",
+        rec_s,
+        "--events",
+        dir.path().join("e.jsonl").to_str().unwrap(),
+    ]);
+    assert!(err.contains("no events") && err.contains("warm-up"), "{err}");
+    assert!(!dir.path().join("e.jsonl").exists(), "no file written");
+}
+
+/// `ocelli ARGS`' standard output; it must succeed.
+fn ocelli_ok(args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_ocelli"))
+        .args(args)
+        .output()
+        .expect("ocelli runs");
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).expect("utf-8")
+}
+
+/// `ocelli ARGS`' standard error; it must fail.
+fn ocelli_err(args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_ocelli"))
+        .args(args)
+        .output()
+        .expect("ocelli runs");
+    assert!(!out.status.success(), "{args:?} succeeded");
+    String::from_utf8(out.stderr).expect("utf-8")
 }
 
 /// Piped, a long command stays quiet: no progress bar, no colour codes.

@@ -8,7 +8,7 @@
 //! fragmentations are the times it went from tracked to missed and was tracked again later
 //! (motmetrics counts tracked → missed transitions between its first and last tracked frame).
 
-use super::{Frame, FrameEvents, Match};
+use super::{Frame, FrameEvents, Pair};
 use assign::max_weight_matching;
 use std::collections::{BTreeMap, HashMap};
 
@@ -67,7 +67,7 @@ impl Clear {
                 claimed[j] = true;
                 hyp_of[i] = Some(j);
                 self.matches += 1;
-                events.matches.push(Match {
+                events.pairs.push(Pair {
                     truth: *oid,
                     hypothesis: frame.hyps[j].0,
                     distance_m: d[i * nh + j],
@@ -99,7 +99,7 @@ impl Clear {
             } else {
                 self.matches += 1;
             }
-            events.matches.push(Match {
+            events.pairs.push(Pair {
                 truth: oid,
                 hypothesis: hid,
                 distance_m: d[i * nh + j],
@@ -136,7 +136,9 @@ impl Clear {
                 }
             }
         }
-        events.matches.sort_by_key(|m| m.truth);
+        // Kept pairs (1) were made before assigned ones (2): by truth id the order says nothing
+        // of how a pair was made, and a frame's pairs read the same run to run.
+        events.pairs.sort_by_key(|m| m.truth);
         events
     }
 }

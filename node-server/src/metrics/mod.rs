@@ -40,24 +40,25 @@ pub struct Frame<const D: usize> {
 
 /// What CLEAR MOT counted in one frame (py-motmetrics' `mot_events`, grouped by frame): the
 /// pairs it made, each a match or an identity switch, the truths it missed and the hypotheses
-/// it counted as false positives. Summed over a run they give [`MotMetrics`]' `matches`,
-/// `id_switches`, `misses` and `false_positives`.
+/// it counted as false positives. Summed over a run they give [`MotMetrics`]' `matches` plus
+/// `id_switches` (the pairs), `misses` and `false_positives`.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct FrameEvents {
     pub t: f64,
-    /// By truth id.
-    pub matches: Vec<Match>,
+    /// Sorted by truth id.
+    pub pairs: Vec<Pair>,
     pub misses: Vec<u32>,
     pub false_positives: Vec<u32>,
 }
 
-/// A truth and the hypothesis CLEAR MOT paired it with in a frame.
+/// A truth and the hypothesis CLEAR MOT paired it with in a frame: a match, or an identity
+/// switch.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Match {
+pub struct Pair {
     pub truth: u32,
     pub hypothesis: u32,
     pub distance_m: f64,
-    /// The truth was last paired with another hypothesis.
+    /// The truth was last paired with another hypothesis: an identity switch.
     pub switch: bool,
 }
 

@@ -323,15 +323,15 @@ fn events_say_which_pairs_switched_and_who_was_missed() {
     ];
     let ev = events(&frames, &MetricsConfig::default()).unwrap();
     assert_eq!(ev.len(), 2);
-    assert_eq!(ev[0].matches.len(), 1);
-    let m = &ev[0].matches[0];
+    assert_eq!(ev[0].pairs.len(), 1);
+    let m = &ev[0].pairs[0];
     assert_eq!((m.truth, m.hypothesis, m.switch), (1, 101, false));
     assert!((m.distance_m - 0.2).abs() < 1e-12);
     assert_eq!(
         (ev[0].misses.clone(), ev[0].false_positives.clone()),
         (vec![2], vec![])
     );
-    let m = &ev[1].matches[0];
+    let m = &ev[1].pairs[0];
     assert_eq!((m.truth, m.hypothesis, m.switch), (1, 102, true));
     assert_eq!(
         (ev[1].misses.clone(), ev[1].false_positives.clone()),
@@ -340,11 +340,28 @@ fn events_say_which_pairs_switched_and_who_was_missed() {
     assert_eq!(ev[1].t, 0.2);
 }
 
+#[test]
+fn a_frames_pairs_are_listed_by_truth_id_however_they_were_made() {
+    // Truth 2 keeps its pair of frame 0 (made first, CLEAR MOT's step 1); truth 1 is paired in
+    // frame 1's assignment (step 2).
+    let frames = [
+        frame2(0.0, &[(2, [5.0, 0.0])], &[(102, [5.1, 0.0])]),
+        frame2(
+            0.2,
+            &[(2, [5.0, 0.0]), (1, [0.0, 0.0])],
+            &[(102, [5.1, 0.0]), (101, [0.1, 0.0])],
+        ),
+    ];
+    let ev = events(&frames, &MetricsConfig::default()).unwrap();
+    let got: Vec<(u32, u32)> = ev[1].pairs.iter().map(|p| (p.truth, p.hypothesis)).collect();
+    assert_eq!(got, vec![(1, 101), (2, 102)]);
+}
+
 /// The events of a run add up to its counts.
 fn assert_events_sum_to<const D: usize>(name: &str, frames: &[Frame<D>], config: &MetricsConfig) {
     let m = evaluate(frames, config).unwrap();
     let ev = events(frames, config).unwrap();
-    let pairs: Vec<&Match> = ev.iter().flat_map(|e| &e.matches).collect();
+    let pairs: Vec<&Pair> = ev.iter().flat_map(|e| &e.pairs).collect();
     let switches = pairs.iter().filter(|p| p.switch).count();
     assert_eq!(switches, m.id_switches, "{name}: switches");
     assert_eq!(pairs.len() - switches, m.matches, "{name}: matches");

@@ -53,18 +53,21 @@ pub fn score(rows: &[TrackRow], truth: &dyn Truth, start: f64, end: f64, s: &Sco
 }
 
 /// The frames (see the module docs) with what CLEAR MOT counted in each
-/// ([`crate::metrics::events`]): where [`score`]'s counts come from. Empty when no frame fits.
+/// ([`crate::metrics::events`]): where [`score`]'s counts come from. `None` exactly when
+/// [`score`] is: no frame fits, or the metrics refuse the frames.
 pub fn frame_events(
     rows: &[TrackRow],
     truth: &dyn Truth,
     start: f64,
     end: f64,
     s: &Scoring,
-) -> Vec<(Frame<2>, FrameEvents)> {
+) -> Option<Vec<(Frame<2>, FrameEvents)>> {
     let frames = frames(rows, truth, start, end, s);
-    // The frames are built on an increasing grid of finite positions, which `events` accepts.
-    let events = crate::metrics::events(&frames, &s.metrics).unwrap_or_default();
-    frames.into_iter().zip(events).collect()
+    if frames.is_empty() {
+        return None;
+    }
+    let events = crate::metrics::events(&frames, &s.metrics).ok()?;
+    Some(frames.into_iter().zip(events).collect())
 }
 
 /// The frames (see the module docs).

@@ -354,10 +354,10 @@ fn the_pages_show_tracks_in_a_real_browser() {
         &view3d[view3d.len().saturating_sub(3000)..]
     );
 
-    let (_scratch, docs) = screenshot_folder();
-    std::fs::create_dir_all(&docs).unwrap();
+    let (_scratch, shots) = screenshot_folder();
+    std::fs::create_dir_all(&shots).unwrap();
     for (path, file) in [("/", "view-map.png"), ("/3d", "view-3d.png")] {
-        let png = docs.join(file);
+        let png = shots.join(file);
         let _ = std::fs::remove_file(&png);
         run_chromium(
             &format!("http://{addr}{path}"),
