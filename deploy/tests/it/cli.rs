@@ -160,21 +160,12 @@ fn binary_fuses_json_lines_and_names_a_bad_line() {
 /// reads from F) and, with `--json`, the report; `--activation all-on` keeps more cameras on.
 #[test]
 fn binary_replays_a_sim_recording_to_its_own_estimates() {
-    let dir = std::env::temp_dir().join(format!("ocelli-rerun-bin-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let rec = dir.join("run.ocrec");
-    let ocelli = |args: &[&str]| {
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_ocelli"))
-            .args(args)
-            .output()
-            .expect("ocelli runs");
-        assert!(
-            out.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8(out.stdout).expect("utf-8")
-    };
+    let dir = tempfile::Builder::new()
+        .prefix("ocelli-rerun-bin-")
+        .tempdir()
+        .unwrap();
+    let rec = dir.path().join("run.ocrec");
+    let ocelli = ocelli_ok;
     let rec_s = rec.to_str().unwrap();
     ocelli(&[
         "sim",
