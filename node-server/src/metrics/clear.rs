@@ -136,8 +136,8 @@ impl Clear {
                 }
             }
         }
-        // Kept pairs (1) were made before assigned ones (2): by truth id the order says nothing
-        // of how a pair was made, and a frame's pairs read the same run to run.
+        // Step (1)'s kept pairs were listed before step (2)'s: by truth id instead, so a reader
+        // finds a person in the same place whichever step paired them.
         events.pairs.sort_by_key(|m| m.truth);
         events
     }
