@@ -10,11 +10,11 @@
 //! centralized fusion) leave in one [`PeopleFrame`] per head step ([`PeopleSender`]): each
 //! person quantised ([`GroundPerson`]), its histogram only when new, changed or due for a
 //! refresh. A filter that lost its region at a border it was moving towards, or with a
-//! quarter of its box outside the frame (its person walked out), is not reported until a region supports it again, nor,
-//! with `report-unsupported = false` (the crowd and the hall), any filter no region supports
-//! this frame. On a [`proto::msg::SampleRequest`] the camera answers with every filter's
-//! sample set, reported or not. With `hold-still-s`, the
-//! people standing still are kept out of the background model ([`standing`]).
+//! quarter of its box outside the frame (its person walked out), is not reported until a
+//! region supports it again, nor, with `report-unsupported = false` (the crowd and the hall),
+//! any filter no region supports this frame. On a [`proto::msg::SampleRequest`] the camera
+//! answers with every filter's sample set, reported or not. With `hold-still-s`, the people
+//! standing still are kept out of the background model ([`standing`]).
 //!
 //! The measurement-level simulation has no frames: its projected boxes are converted to the
 //! ground plane directly ([`GroundPeople::from_boxes`]), with no spread and no histogram.
@@ -239,8 +239,8 @@ const OUTWARD_PX_PER_FRAME: f32 = 0.25;
 const OUTSIDE_SHARE: f32 = 0.25;
 
 /// A filter that lost its region with its box at a border it was moving towards, or with a
-/// quarter or more of its box outside the frame ([`OUTSIDE_SHARE`]): its person walked out of view. The
-/// filter lives on for `destroy-s` (they may step back in), but nothing measures where it
+/// quarter or more of its box outside the frame ([`OUTSIDE_SHARE`]): its person walked out of
+/// view. The filter lives on for `destroy-s` (they may step back in), but nothing measures where it
 /// stands any more, and reported it would be a person at the border who is not there: it
 /// stays unreported until a region supports it again ([`GroundPeople::track`]). A filter that
 /// lost its region inside the frame (a person hidden), or at a border it was not moving
