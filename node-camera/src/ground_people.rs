@@ -12,7 +12,8 @@
 //! refresh. A filter that lost its region at a border it was moving towards, or with a
 //! quarter of its box outside the frame (its person walked out), is not reported until a
 //! region supports it again, nor, with `report-unsupported = false` (the crowd and the hall),
-//! any filter no region supports this frame. On a [`proto::msg::SampleRequest`] the camera
+//! any filter no region supports this frame, nor a person whose feet someone in front hides
+//! (their lowest foreground is the other's feet, [`feet::anothers_feet`]). On a [`proto::msg::SampleRequest`] the camera
 //! answers with every filter's sample set, reported or not. With `hold-still-s`, the people
 //! standing still are kept out of the background model ([`standing`]).
 //!
@@ -61,6 +62,8 @@ pub struct GroundPeople {
     /// diffused back inside the frame, or whose velocity decayed, would come back as a person
     /// who is not there for the rest of its `destroy-s`.
     walked_out: BTreeSet<u32>,
+    /// Reports left out because their feet were someone else's (`feet::anothers_feet`).
+    hidden_feet: u64,
 }
 
 impl GroundPeople {
@@ -77,11 +80,18 @@ impl GroundPeople {
             captured: None,
             standing: standing::Standing::new(params.hold_still_s),
             walked_out: BTreeSet::new(),
+            hidden_feet: 0,
         })
     }
 
     pub fn tracker(&self) -> &MultiTracker {
         &self.tracker
+    }
+
+    /// How many reports were left out since the start because someone in front hid the
+    /// person's feet ([`feet::anothers_feet`]).
+    pub fn hidden_feet(&self) -> u64 {
+        self.hidden_feet
     }
 
     /// The newest frame's people.
@@ -105,8 +115,8 @@ impl GroundPeople {
 
     /// Track one frame with its foreground `regions` (and the background model's mask) and
     /// convert each person to the ground plane; people whose box is above the horizon, who
-    /// walked out of view, or (without `report-unsupported`) whom no region supports this
-    /// frame are not reported.
+    /// walked out of view, whose feet someone in front hides, or (without
+    /// `report-unsupported`) whom no region supports this frame are not reported.
     ///
     /// # Errors
     /// The tracker refused the frame or a region; nothing changes then.
@@ -129,13 +139,19 @@ impl GroundPeople {
         self.walked_out
             .retain(|id| estimates.iter().any(|p| p.id == *id && p.unsupported_frames > 0));
         let edges = feet::lower_edges(&estimates, regions, foreground.as_ref());
-        for (person, edge) in estimates.iter().zip(edges) {
+        for (i, (person, edge)) in estimates.iter().zip(edges).enumerate() {
             if walked_out_of_view(person, frame) {
                 self.walked_out.insert(person.id);
             }
             if self.walked_out.contains(&person.id)
                 || (!self.report_unsupported && person.unsupported_frames > 0)
             {
+                continue;
+            }
+            // Hidden from the knees down by someone in front: this frame does not measure
+            // where they stand, and their feet would be the other's (`feet::anothers_feet`).
+            if edge.is_some_and(|e| feet::anothers_feet(&estimates, i, e)) {
+                self.hidden_feet += 1;
                 continue;
             }
             if let Some(obs) = ground::observe(camera, person, edge, 1.0, self.corner_sigma_px, captured) {

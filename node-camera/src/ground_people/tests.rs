@@ -483,3 +483,91 @@ fn a_filter_whose_person_walked_out_stays_unreported_until_a_region_supports_it(
         assert!(reported_back, "seed {seed}: reported once back in view");
     }
 }
+
+/// A region over the inclusive pixel box `b`.
+fn region_over(b: PixelBox) -> Detection {
+    Detection {
+        centre: [0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax)],
+        foot: [0.5 * (b.xmin + b.xmax), b.ymax],
+        bbox: b,
+        area: ((b.xmax - b.xmin + 1.0) * (b.ymax - b.ymin + 1.0)) as u32,
+        colour: proto::msg::ColourSignature {
+            hue: 0.0,
+            saturation: 0.8,
+            intensity: 0.5,
+        },
+    }
+}
+
+/// A far person's blue legs at the top of the view, a red person near the camera below them:
+/// apart, each is reported; once the near one's head reaches the legs, their foreground is
+/// one region and the lowest foreground under the legs is the near person's feet. The legs'
+/// filter lives on, unreported (nothing measures where the far person stands), and the near
+/// person is still reported where they stand.
+#[test]
+fn a_person_whose_feet_someone_in_front_hides_is_not_reported() {
+    let cam = Scenario::default_scenario().camera_model(10).unwrap();
+    let (w, h) = (352u32, 288u32);
+    let b = |xmin: f32, ymin: f32, xmax: f32, ymax: f32| PixelBox {
+        xmin,
+        ymin,
+        xmax,
+        ymax,
+    };
+    let near = b(140.0, 110.0, 180.0, 250.0);
+    let grid = crate::region::Grid::new(w, h, 1);
+    let mut people = GroundPeople::new(&ParticleParams::default(), 15.0, 3).unwrap();
+    let mut frame = Frame::new(w, h, ClusterTime::ZERO);
+    let mut near_alone = None;
+    for k in 0..12i64 {
+        // Frames 0–5 the legs end at row 60, then at row 112, inside the near person's head.
+        let legs = b(150.0, 0.0, 166.0, if k < 6 { 60.0 } else { 112.0 });
+        let mut mask = vec![0u8; grid.len()];
+        for y in 0..h {
+            for x in 0..w {
+                let (xf, yf) = (x as f32, y as f32);
+                let inside = |r: &PixelBox| xf >= r.xmin && xf <= r.xmax && yf >= r.ymin && yf <= r.ymax;
+                let i = (y * w + x) as usize;
+                let colour: &[u8; 3] = if inside(&near) {
+                    &[200, 30, 30]
+                } else if inside(&legs) {
+                    &[30, 40, 200]
+                } else {
+                    &[110, 110, 110]
+                };
+                frame.data[3 * i..3 * i + 3].copy_from_slice(colour);
+                mask[i] = u8::from(inside(&near) || inside(&legs));
+            }
+        }
+        let regions = if k < 6 {
+            vec![region_over(near), region_over(legs)]
+        } else {
+            vec![region_over(b(140.0, 0.0, 180.0, 250.0))]
+        };
+        frame.captured = at_ms(k * 67);
+        let fg = Foreground::new(&mask, grid).unwrap();
+        let reported = people.track(&cam, &frame, &regions, Some(fg)).unwrap().to_vec();
+        match k {
+            0 => assert!(reported.is_empty(), "filters start on a region's second frame"),
+            1..6 => {
+                assert_eq!(reported.len(), 2, "frame {k}: two people apart");
+                near_alone = reported
+                    .iter()
+                    .max_by(|a, c| a.height_m.total_cmp(&c.height_m))
+                    .cloned();
+            }
+            _ => {
+                assert_eq!(people.tracker().ids().len(), 2, "frame {k}: both filters live on");
+                assert_eq!(reported.len(), 1, "frame {k}: only the near person is measured");
+                let near = near_alone.as_ref().unwrap();
+                let d = (reported[0].position[0] - near.position[0])
+                    .hypot(reported[0].position[1] - near.position[1]);
+                assert!(
+                    d < 0.3,
+                    "frame {k}: the near person stands where they stood, {d:.2} m off"
+                );
+            }
+        }
+    }
+    assert_eq!(people.hidden_feet(), 6, "one report left out per merged frame");
+}

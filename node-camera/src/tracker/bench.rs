@@ -28,7 +28,8 @@ const WARMUP_FRAMES: u32 = 5;
 pub struct BenchResult {
     pub median_ms: f64,
     pub p90_ms: f64,
-    /// Median microseconds per frame of the people's lower edges ([`feet::lower_edges`]).
+    /// Median microseconds per frame of the people's lower edges ([`feet::lower_edges`]) and
+    /// whose they are ([`feet::anothers_feet`]).
     pub feet_median_us: f64,
     /// Filters running at the end (should equal the people drawn).
     pub filters: usize,
@@ -116,7 +117,13 @@ pub fn bench_timed(
         let elapsed = now_ms() - start;
         let people = std::hint::black_box(out).unwrap_or_default();
         let start = now_ms();
-        std::hint::black_box(feet::lower_edges(&people, &regions, foreground.as_ref()));
+        let edges = feet::lower_edges(&people, &regions, foreground.as_ref());
+        let theirs = edges
+            .iter()
+            .enumerate()
+            .filter(|&(i, e)| e.is_some_and(|e| feet::anothers_feet(&people, i, e)))
+            .count();
+        std::hint::black_box((edges, theirs));
         let feet_elapsed = now_ms() - start;
         if t >= WARMUP_FRAMES {
             times.push(elapsed);

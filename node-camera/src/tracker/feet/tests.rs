@@ -105,3 +105,64 @@ fn a_filter_without_a_region_keeps_its_own_box() {
     let regions = [region(bbox(2.0, 6.0, 9.0, 27.0))];
     assert_eq!(lower_edges(&people, &regions, Some(&fg)), vec![None]);
 }
+
+#[test]
+fn feet_below_a_box_in_the_box_of_someone_in_front_are_theirs() {
+    // A far person's legs at the top of the image, near person walking in front of them
+    // below: one region, the legs' foreground running on into the near person's.
+    let near = bbox(2.0, 10.0, 12.0, 28.0);
+    let legs = bbox(4.0, 0.0, 9.0, 10.0);
+    let (m, grid) = mask(&[near, legs]);
+    let fg = Foreground::new(&m, grid).unwrap();
+    let regions = [region(bbox(2.0, 0.0, 12.0, 28.0))];
+    let people = [
+        PersonEstimate::at_box(0, bbox(1.5, 9.5, 12.5, 28.5), Some(0)),
+        PersonEstimate::at_box(1, bbox(3.5, -0.5, 9.5, 8.0), Some(0)),
+    ];
+    let edges = lower_edges(&people, &regions, Some(&fg));
+    assert_eq!(
+        edges,
+        vec![Some(28.5), Some(28.5)],
+        "the legs' lowest foreground is the near feet"
+    );
+    assert!(
+        !anothers_feet(&people, 0, 28.5),
+        "the near person's feet are their own"
+    );
+    assert!(anothers_feet(&people, 1, 28.5), "the legs' are the near person's");
+    // Not in another region, nor with no region: nobody stands in front.
+    let apart = [
+        people[0].clone(),
+        PersonEstimate::at_box(1, bbox(3.5, -0.5, 9.5, 8.0), Some(1)),
+    ];
+    assert!(!anothers_feet(&apart, 1, 28.5));
+    let lost = [
+        people[0].clone(),
+        PersonEstimate::at_box(1, bbox(3.5, -0.5, 9.5, 8.0), None),
+    ];
+    assert!(!anothers_feet(&lost, 1, 28.5));
+    // Beside, not in front: the other's box spans under half the filter's columns.
+    let beside = [
+        PersonEstimate::at_box(0, bbox(8.0, 9.5, 18.0, 28.5), Some(0)),
+        people[1].clone(),
+    ];
+    assert!(!anothers_feet(&beside, 1, 28.5));
+    // Far below the other's box (beyond a quarter of its height): not their feet.
+    assert!(!anothers_feet(&people, 1, 28.5 + 0.3 * 19.0));
+    assert!(anothers_feet(&people, 1, 28.5 + 0.2 * 19.0));
+}
+
+#[test]
+fn a_box_on_the_upper_body_alone_in_its_region_keeps_its_measured_feet() {
+    // The mean box ends on the person's chest (the colour likelihood does not pin its lower
+    // edge); the feet found below it are theirs: nobody else's box is there.
+    let person = bbox(5.0, 4.0, 12.0, 24.0);
+    let (m, grid) = mask(&[person]);
+    let fg = Foreground::new(&m, grid).unwrap();
+    let regions = [region(person)];
+    let people = [PersonEstimate::at_box(0, bbox(4.5, 3.5, 12.5, 14.0), Some(0))];
+    assert_eq!(lower_edges(&people, &regions, Some(&fg)), vec![Some(24.5)]);
+    assert!(!anothers_feet(&people, 0, 24.5));
+    // An index past the people is nobody's.
+    assert!(!anothers_feet(&people, 3, 24.5));
+}
