@@ -77,7 +77,7 @@ pub fn anothers_feet(people: &[PersonEstimate], i: usize, edge: f32) -> bool {
         return false;
     };
     let b = me.mean.bbox();
-    if me.region.is_none() || !(edge > b.ymax) {
+    if me.region.is_none() || edge.partial_cmp(&b.ymax) != Some(std::cmp::Ordering::Greater) {
         return false;
     }
     people.iter().enumerate().any(|(j, other)| {
