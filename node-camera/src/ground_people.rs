@@ -13,9 +13,10 @@
 //! quarter of its box outside the frame (its person walked out), is not reported until a
 //! region supports it again, nor, with `report-unsupported = false` (the crowd and the hall),
 //! any filter no region supports this frame, nor a person whose feet someone in front hides
-//! (their lowest foreground is the other's feet, [`feet::anothers_feet`]). On a [`proto::msg::SampleRequest`] the camera
-//! answers with every filter's sample set, reported or not. With `hold-still-s`, the people
-//! standing still are kept out of the background model ([`standing`]).
+//! (their lowest foreground is the other's feet, [`feet::anothers_feet`]). On a
+//! [`proto::msg::SampleRequest`] the camera answers with every filter's sample set, reported
+//! or not. With `hold-still-s`, the people standing still are kept out of the background
+//! model ([`standing`]).
 //!
 //! The measurement-level simulation has no frames: its projected boxes are converted to the
 //! ground plane directly ([`GroundPeople::from_boxes`]), with no spread and no histogram.

@@ -65,9 +65,6 @@ pub fn lower_edges(
         .collect()
 }
 
-#[cfg(test)]
-mod tests;
-
 /// Whether the lower edge `edge` measured for `people[i]` ([`lower_edges`]) is the feet of
 /// someone in front of them: it lies below the filter's box, in (or just below,
 /// [`OTHER_BOX_SLACK`]) the box of another filter of the same region that reaches lower and
@@ -91,3 +88,6 @@ pub fn anothers_feet(people: &[PersonEstimate], i: usize, edge: f32) -> bool {
             && shared >= SHARED_COLUMNS * (b.xmax - b.xmin)
     })
 }
+
+#[cfg(test)]
+mod tests;
