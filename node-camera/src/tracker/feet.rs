@@ -74,13 +74,17 @@ pub fn anothers_feet(people: &[PersonEstimate], i: usize, edge: f32) -> bool {
         return false;
     };
     let b = me.mean.bbox();
-    if me.region.is_none() || edge.partial_cmp(&b.ymax) != Some(std::cmp::Ordering::Greater) {
+    if me.region.is_none()
+        || !(b.xmax > b.xmin)
+        || edge.partial_cmp(&b.ymax) != Some(std::cmp::Ordering::Greater)
+    {
         return false;
     }
     people.iter().enumerate().any(|(j, other)| {
         let o = other.mean.bbox();
         let shared = (b.xmax.min(o.xmax) - b.xmin.max(o.xmin)).max(0.0);
         j != i
+            && crate::tracker::boxes::is_finite(&o)
             && other.region == me.region
             && o.ymax > b.ymax
             && o.ymin < edge
