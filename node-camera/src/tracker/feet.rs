@@ -75,7 +75,7 @@ pub fn anothers_feet(people: &[PersonEstimate], i: usize, edge: f32) -> bool {
     };
     let b = me.mean.bbox();
     if me.region.is_none()
-        || !(b.xmax > b.xmin)
+        || b.xmax.partial_cmp(&b.xmin) != Some(std::cmp::Ordering::Greater)
         || edge.partial_cmp(&b.ymax) != Some(std::cmp::Ordering::Greater)
     {
         return false;
