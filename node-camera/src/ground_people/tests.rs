@@ -484,21 +484,6 @@ fn a_filter_whose_person_walked_out_stays_unreported_until_a_region_supports_it(
     }
 }
 
-/// A region over the inclusive pixel box `b`.
-fn region_over(b: PixelBox) -> Detection {
-    Detection {
-        centre: [0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax)],
-        foot: [0.5 * (b.xmin + b.xmax), b.ymax],
-        bbox: b,
-        area: ((b.xmax - b.xmin + 1.0) * (b.ymax - b.ymin + 1.0)) as u32,
-        colour: proto::msg::ColourSignature {
-            hue: 0.0,
-            saturation: 0.8,
-            intensity: 0.5,
-        },
-    }
-}
-
 /// A far person's blue legs at the top of the view, a red person near the camera below them:
 /// apart, each is reported; once the near one's head reaches the legs, their foreground is
 /// one region and the lowest foreground under the legs is the near person's feet. The legs'
@@ -540,9 +525,12 @@ fn a_person_whose_feet_someone_in_front_hides_is_not_reported() {
             }
         }
         let regions = if k < 6 {
-            vec![region_over(near), region_over(legs)]
+            vec![
+                crate::tracker::feet::tests::region(near),
+                crate::tracker::feet::tests::region(legs),
+            ]
         } else {
-            vec![region_over(b(140.0, 0.0, 180.0, 250.0))]
+            vec![crate::tracker::feet::tests::region(b(140.0, 0.0, 180.0, 250.0))]
         };
         frame.captured = at_ms(k * 67);
         let fg = Foreground::new(&mask, grid).unwrap();

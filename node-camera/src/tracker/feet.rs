@@ -94,4 +94,4 @@ pub fn anothers_feet(people: &[PersonEstimate], i: usize, edge: f32) -> bool {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -12,8 +12,9 @@ fn bbox(xmin: f32, ymin: f32, xmax: f32, ymax: f32) -> PixelBox {
     }
 }
 
-/// A region over the inclusive pixel box `b` (as segmentation reports it).
-fn region(b: PixelBox) -> Detection {
+/// A region over the inclusive pixel box `b` (as segmentation reports it); the camera tests
+/// share it.
+pub(crate) fn region(b: PixelBox) -> Detection {
     Detection {
         centre: [0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax)],
         foot: [0.5 * (b.xmin + b.xmax), b.ymax],
