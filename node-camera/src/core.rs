@@ -85,6 +85,8 @@ pub struct Counters {
     pub tag_readings: u64,
     /// Ground-plane people not sent because a number of theirs was not finite.
     pub people_unsendable: u64,
+    /// The particle filters' counters (all zero without them).
+    pub particle: crate::ground_people::ParticleCounters,
 }
 
 /// The camera node core.
@@ -164,6 +166,11 @@ impl CameraNode {
         Counters {
             // The segmenter keeps the count; read, not copied every frame.
             ghosts: self.segmenter.ghosts(),
+            particle: self
+                .people
+                .as_ref()
+                .map(GroundPeople::counters)
+                .unwrap_or_default(),
             ..self.counters
         }
     }

@@ -23,7 +23,9 @@
 
 use crate::tracker::ground::{self, GroundObservation};
 use crate::tracker::histogram::{BINS, ColourHistogram, KernelCounts};
-use crate::tracker::manager::{Foreground, MultiTracker, PersonEstimate, TrackerError, TrackerInput};
+use crate::tracker::manager::{
+    Foreground, MultiTracker, PersonEstimate, TrackerCounters, TrackerError, TrackerInput,
+};
 use crate::tracker::params::{ParamsError, ParticleParams};
 use crate::tracker::{boxes, feet};
 use nalgebra::{Matrix2, Vector2};
@@ -63,8 +65,30 @@ pub struct GroundPeople {
     /// diffused back inside the frame, or whose velocity decayed, would come back as a person
     /// who is not there for the rest of its `destroy-s`.
     walked_out: BTreeSet<u32>,
-    /// Reports left out because their feet were someone else's (`feet::anothers_feet`).
-    hidden_feet: u64,
+    withheld: Withheld,
+}
+
+/// Frames' reports the camera left out since the start, per person and frame, by why.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Withheld {
+    /// The filter's person walked out of view and no region has supported it since
+    /// ([`walked_out_of_view`]).
+    pub walked_out: u64,
+    /// No region supported the filter this frame (`report-unsupported = false`).
+    pub unsupported: u64,
+    /// Someone in front hid the person's feet ([`feet::anothers_feet`]).
+    pub hidden_feet: u64,
+    /// The rays of the person's lower corners missed the floor (a box above the horizon), or
+    /// their height could not be found.
+    pub off_the_floor: u64,
+}
+
+/// What a camera's particle filters did since the start: the tracker's filters, and the
+/// reports left out.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ParticleCounters {
+    pub tracker: TrackerCounters,
+    pub withheld: Withheld,
 }
 
 impl GroundPeople {
@@ -81,7 +105,7 @@ impl GroundPeople {
             captured: None,
             standing: standing::Standing::new(params.hold_still_s),
             walked_out: BTreeSet::new(),
-            hidden_feet: 0,
+            withheld: Withheld::default(),
         })
     }
 
@@ -89,10 +113,17 @@ impl GroundPeople {
         &self.tracker
     }
 
-    /// How many reports were left out since the start because someone in front hid the
-    /// person's feet ([`feet::anothers_feet`]).
-    pub fn hidden_feet(&self) -> u64 {
-        self.hidden_feet
+    /// The reports left out since the start, by why.
+    pub fn withheld(&self) -> Withheld {
+        self.withheld
+    }
+
+    /// The tracker's counters and the reports left out.
+    pub fn counters(&self) -> ParticleCounters {
+        ParticleCounters {
+            tracker: self.tracker.counters(),
+            withheld: self.withheld,
+        }
     }
 
     /// The newest frame's people.
@@ -144,21 +175,27 @@ impl GroundPeople {
             if walked_out_of_view(person, frame) {
                 self.walked_out.insert(person.id);
             }
-            if self.walked_out.contains(&person.id)
-                || (!self.report_unsupported && person.unsupported_frames > 0)
-            {
+            if self.walked_out.contains(&person.id) {
+                self.withheld.walked_out += 1;
+                continue;
+            }
+            if !self.report_unsupported && person.unsupported_frames > 0 {
+                self.withheld.unsupported += 1;
                 continue;
             }
             // Hidden from the knees down by someone in front: this frame does not measure
             // where they stand, and their feet would be the other's (`feet::anothers_feet`).
             if edge.is_some_and(|e| feet::anothers_feet(&estimates, i, e)) {
-                self.hidden_feet += 1;
+                self.withheld.hidden_feet += 1;
                 continue;
             }
-            if let Some(obs) = ground::observe(camera, person, edge, 1.0, self.corner_sigma_px, captured) {
-                let ml = ml_position(camera, person).unwrap_or(obs.position);
-                self.people
-                    .push(to_point(person.id, person.ml_confidence, obs, ml));
+            match ground::observe(camera, person, edge, 1.0, self.corner_sigma_px, captured) {
+                Some(obs) => {
+                    let ml = ml_position(camera, person).unwrap_or(obs.position);
+                    self.people
+                        .push(to_point(person.id, person.ml_confidence, obs, ml));
+                }
+                None => self.withheld.off_the_floor += 1,
             }
         }
         self.captured = Some(captured);

@@ -201,6 +201,7 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
             "rejected": summary.counters.rejected,
             "still_unassociated": summary.counters.still_unassociated,
             "ghosts": summary.counters.ghosts,
+            "particle": particle_json(&summary.counters.particle),
             "frames_lost": summary.frames_lost,
             "send_failures": summary.run.send_failures,
             "measured_frames": summary.logged.frames,
@@ -210,4 +211,21 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
         })
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// The particle filters' counters for the stop line: what the filters did and the reports the
+/// camera left out, by why (all zero for a segmentation camera).
+fn particle_json(c: &node_camera::ground_people::ParticleCounters) -> serde_json::Value {
+    let (t, w) = (&c.tracker, &c.withheld);
+    serde_json::json!({
+        "filters_started": t.started,
+        "filters_destroyed": t.destroyed,
+        "duplicates_eliminated": t.duplicates_eliminated,
+        "refused_full": t.refused_full,
+        "refused_fragments": t.refused_fragments,
+        "withheld_walked_out": w.walked_out,
+        "withheld_unsupported": w.unsupported,
+        "withheld_hidden_feet": w.hidden_feet,
+        "withheld_off_the_floor": w.off_the_floor,
+    })
 }

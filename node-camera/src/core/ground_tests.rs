@@ -76,6 +76,13 @@ fn people_leave_as_ground_points_near_the_robot() {
         .flat_map(|f| f.people.iter().map(|p| p.point(f.captured)).collect::<Vec<_>>())
         .collect();
     assert!(grounds.len() >= 5, "{} ground points", grounds.len());
+    // The node's counters carry its filters'.
+    assert!(
+        node.counters().particle.tracker.started >= 1,
+        "{:?}",
+        node.counters().particle
+    );
+    assert_eq!(node.counters().particle.tracker.frames, node.counters().frames);
     // Of the last frame's people, one is the robot (another may be the first frame's ghost in
     // the background model, where the robot stood).
     let last_t = grounds.last().unwrap().captured;
