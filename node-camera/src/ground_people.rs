@@ -113,12 +113,7 @@ impl GroundPeople {
         &self.tracker
     }
 
-    /// The reports left out since the start, by why.
-    pub fn withheld(&self) -> Withheld {
-        self.withheld
-    }
-
-    /// The tracker's counters and the reports left out.
+    /// The tracker's counters and the reports left out since the start, by why.
     pub fn counters(&self) -> ParticleCounters {
         ParticleCounters {
             tracker: self.tracker.counters(),

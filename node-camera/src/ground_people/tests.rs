@@ -414,7 +414,7 @@ fn a_filter_no_region_supports_is_reported_only_with_report_unsupported() {
             counts.push(people.track(&cam, &frame, regions, None).unwrap().len());
         }
         assert_eq!(people.tracker().ids().len(), 1, "one filter throughout");
-        let withheld = people.withheld();
+        let withheld = people.counters().withheld;
         assert_eq!(withheld.unsupported, if report_unsupported { 0 } else { 2 });
         assert_eq!(people.counters().tracker.started, 1);
         counts
@@ -484,7 +484,7 @@ fn a_filter_whose_person_walked_out_stays_unreported_until_a_region_supports_it(
             }
         }
         assert!(reported_back, "seed {seed}: reported once back in view");
-        let withheld = people.withheld();
+        let withheld = people.counters().withheld;
         assert!(withheld.walked_out >= 9, "seed {seed}: {withheld:?}");
         assert_eq!(withheld.hidden_feet, 0, "seed {seed}");
     }
@@ -564,7 +564,7 @@ fn a_person_whose_feet_someone_in_front_hides_is_not_reported() {
         }
     }
     assert_eq!(
-        people.withheld().hidden_feet,
+        people.counters().withheld.hidden_feet,
         6,
         "one report left out per merged frame"
     );
