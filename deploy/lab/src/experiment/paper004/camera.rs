@@ -144,6 +144,25 @@ pub struct FrameRecord {
     pub jpeg_bytes: Option<usize>,
 }
 
+impl FrameRecord {
+    /// A frame at `t` with its `truth`, nothing reported or sent yet.
+    pub fn new(t: f64, truth: Vec<TruePerson>) -> FrameRecord {
+        FrameRecord {
+            t,
+            truth,
+            reported: Vec::new(),
+            observation_bytes: 0,
+            people_sent: 0,
+            histograms_sent: 0,
+            every_frame_bytes: 0,
+            wall_clock_bytes: 0,
+            sample_set_bytes: 0,
+            sample_sets: 0,
+            jpeg_bytes: None,
+        }
+    }
+}
+
 /// A camera run.
 #[derive(Clone, Debug)]
 pub struct CameraRun {
@@ -286,21 +305,10 @@ pub fn run(
             light.apply(t, &mut frame);
         }
         segmenter.process(&frame, &mut regions)?;
-        let mut rec = FrameRecord {
-            t,
-            truth: present.iter().map(|p| truth_of(s, &camera, p, t)).collect(),
-            reported: Vec::new(),
-            observation_bytes: 0,
-            people_sent: 0,
-            histograms_sent: 0,
-            every_frame_bytes: 0,
-            wall_clock_bytes: 0,
-            sample_set_bytes: 0,
-            sample_sets: 0,
-            jpeg_bytes: (jpeg_every > 0 && k % jpeg_every == 0)
-                .then(|| jpeg_size(&frame))
-                .transpose()?,
-        };
+        let mut rec = FrameRecord::new(t, present.iter().map(|p| truth_of(s, &camera, p, t)).collect());
+        rec.jpeg_bytes = (jpeg_every > 0 && k % jpeg_every == 0)
+            .then(|| jpeg_size(&frame))
+            .transpose()?;
         match people.as_mut() {
             Some(people) => {
                 let foreground = match &segmenter {

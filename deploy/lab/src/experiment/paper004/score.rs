@@ -229,17 +229,8 @@ mod tests {
     fn run(truth: Vec<TruePerson>, reported: Vec<Reported>) -> CameraRun {
         CameraRun {
             frames: vec![FrameRecord {
-                t: 0.0,
-                truth,
                 reported,
-                observation_bytes: 0,
-                people_sent: 0,
-                histograms_sent: 0,
-                every_frame_bytes: 0,
-                wall_clock_bytes: 0,
-                sample_set_bytes: 0,
-                sample_sets: 0,
-                jpeg_bytes: None,
+                ..FrameRecord::new(0.0, truth)
             }],
             width: 320,
             height: 240,

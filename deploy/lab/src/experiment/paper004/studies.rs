@@ -414,6 +414,9 @@ fn mot_row(
         let v: Vec<f64> = mots.iter().filter_map(f).collect();
         mean(&v)
     };
+    // A count of each run's, averaged over the runs.
+    let per_run =
+        |count: &dyn Fn(&CameraRun) -> usize| mean(&runs.iter().map(|r| count(r) as f64).collect::<Vec<_>>());
     let row = Row {
         method,
         extra: vec![
@@ -424,26 +427,8 @@ fn mot_row(
             Extra::new("id switches", avg(&|m| Some(m.id_switches as f64)), 2),
             Extra::new("misses", avg(&|m| Some(m.misses as f64)), 1),
             Extra::new("false pos", avg(&|m| Some(m.false_positives as f64)), 1),
-            Extra::new(
-                "on people out of view",
-                mean(
-                    &runs
-                        .iter()
-                        .map(|r| score::on_people_out_of_view(r) as f64)
-                        .collect::<Vec<_>>(),
-                ),
-                1,
-            ),
-            Extra::new(
-                "second reports",
-                mean(
-                    &runs
-                        .iter()
-                        .map(|r| score::second_reports(r) as f64)
-                        .collect::<Vec<_>>(),
-                ),
-                1,
-            ),
+            Extra::new("on people out of view", per_run(&score::on_people_out_of_view), 1),
+            Extra::new("second reports", per_run(&score::second_reports), 1),
             Extra::new("mostly lost", avg(&|m| Some(m.mostly_lost as f64)), 2),
             Extra::new(
                 "live at end",
