@@ -85,7 +85,8 @@ pub struct Counters {
     pub tag_readings: u64,
     /// Ground-plane people not sent because a number of theirs was not finite.
     pub people_unsendable: u64,
-    /// The particle filters' counters (all zero without them).
+    /// The particle filters' counters (all zero without them, and at measurement level or in
+    /// a replay, where the filters do not run).
     pub particle: crate::ground_people::ParticleCounters,
 }
 

@@ -65,6 +65,7 @@ pub struct GroundPeople {
     /// diffused back inside the frame, or whose velocity decayed, would come back as a person
     /// who is not there for the rest of its `destroy-s`.
     walked_out: BTreeSet<u32>,
+    /// The reports left out since the start, by why.
     withheld: Withheld,
 }
 
@@ -74,12 +75,14 @@ pub struct Withheld {
     /// The filter's person walked out of view and no region has supported it since
     /// ([`walked_out_of_view`]).
     pub walked_out: u64,
-    /// No region supported the filter this frame (`report-unsupported = false`).
+    /// No region supported the filter this frame (`report-unsupported = false`), and it had
+    /// not walked out.
     pub unsupported: u64,
     /// Someone in front hid the person's feet ([`feet::anothers_feet`]).
     pub hidden_feet: u64,
-    /// The rays of the person's lower corners missed the floor (a box above the horizon), or
-    /// their height could not be found.
+    /// The box could not be put on the floor: a lower corner's ray (or a half-pixel
+    /// neighbour's) misses it, above the horizon; a corner cannot be undistorted; the camera
+    /// is not above the floor; or the height could not be found.
     pub off_the_floor: u64,
 }
 
@@ -87,7 +90,9 @@ pub struct Withheld {
 /// reports left out.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ParticleCounters {
+    /// Filters started, destroyed, eliminated as duplicates; births refused.
     pub tracker: TrackerCounters,
+    /// Reports left out, by why.
     pub withheld: Withheld,
 }
 

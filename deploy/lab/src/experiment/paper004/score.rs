@@ -161,8 +161,8 @@ pub fn on_people_out_of_view(run: &CameraRun) -> usize {
 /// Reports beyond the first near one true person in view: each report with a floor position
 /// goes to the nearest true person in view within [`MATCH_M`], and every report a person gets
 /// after their first is counted. Those are the camera's second reports of someone (two filters
-/// on one person, or a filter whose person left sitting on another), which CLEAR MOT scores as
-/// false positives; counted so the false positives can be read (two people closer than the
+/// on one person, or a filter whose person left sitting on another), most of which CLEAR MOT
+/// scores as false positives (it matches one to one, this gives each report to its nearest); counted so the false positives can be read (two people closer than the
 /// threshold, each reported once, can show as one person reported twice).
 pub fn second_reports(run: &CameraRun) -> usize {
     run.frames
@@ -241,8 +241,8 @@ mod tests {
 
     #[test]
     fn a_person_reported_three_times_has_two_second_reports() {
-        // Person 1 at x = 1 reported three times, person 2 at x = 5 once; a report 3 m from
-        // anyone, and one at a person out of view, are not second reports.
+        // Person 1 at x = 1 reported three times, person 2 at x = 5 once; a report more than
+        // 1 m from anyone, and one at a person out of view, are not second reports.
         let r = run(
             vec![truth(1, 1.0, true), truth(2, 5.0, true), truth(3, 9.0, false)],
             vec![

@@ -430,11 +430,7 @@ fn mot_row(
             Extra::new("on people out of view", per_run(&score::on_people_out_of_view), 1),
             Extra::new("second reports", per_run(&score::second_reports), 1),
             Extra::new("mostly lost", avg(&|m| Some(m.mostly_lost as f64)), 2),
-            Extra::new(
-                "live at end",
-                mean(&runs.iter().map(|r| r.live_at_end as f64).collect::<Vec<_>>()),
-                2,
-            ),
+            Extra::new("live at end", per_run(&|r| r.live_at_end), 2),
         ],
         ..Row::default()
     };
