@@ -8,9 +8,13 @@ pub fn area(b: &PixelBox) -> f32 {
 }
 
 pub fn intersection(a: &PixelBox, b: &PixelBox) -> f32 {
-    let w = a.xmax.min(b.xmax) - a.xmin.max(b.xmin);
     let h = a.ymax.min(b.ymax) - a.ymin.max(b.ymin);
-    w.max(0.0) * h.max(0.0)
+    shared_width(a, b) * h.max(0.0)
+}
+
+/// The width of the columns two boxes share, 0 when they share none.
+pub fn shared_width(a: &PixelBox, b: &PixelBox) -> f32 {
+    (a.xmax.min(b.xmax) - a.xmin.max(b.xmin)).max(0.0)
 }
 
 /// Intersection over union, 0 for boxes without area.
@@ -36,7 +40,7 @@ pub fn overlap_of_smaller(a: &PixelBox, b: &PixelBox) -> f32 {
 pub fn column_overlap(a: &PixelBox, b: &PixelBox) -> f32 {
     let narrower = (a.xmax - a.xmin).min(b.xmax - b.xmin);
     if narrower > 0.0 {
-        (a.xmax.min(b.xmax) - a.xmin.max(b.xmin)).max(0.0) / narrower
+        shared_width(a, b) / narrower
     } else {
         0.0
     }

@@ -26,6 +26,7 @@
 //! Measured in `ocelli experiment paper004` (docs/paper004.md, "Where the feet are", "Feet that
 //! are another's").
 
+use crate::tracker::boxes;
 use crate::tracker::manager::{Foreground, PersonEstimate, region_box};
 use proto::sensor::Detection;
 
@@ -82,14 +83,13 @@ pub fn anothers_feet(people: &[PersonEstimate], i: usize, edge: f32) -> bool {
     }
     people.iter().enumerate().any(|(j, other)| {
         let o = other.mean.bbox();
-        let shared = (b.xmax.min(o.xmax) - b.xmin.max(o.xmin)).max(0.0);
         j != i
-            && crate::tracker::boxes::is_finite(&o)
+            && boxes::is_finite(&o)
             && other.region == me.region
             && o.ymax > b.ymax
             && o.ymin < edge
             && edge <= o.ymax + OTHER_BOX_SLACK * (o.ymax - o.ymin)
-            && shared >= SHARED_COLUMNS * (b.xmax - b.xmin)
+            && boxes::shared_width(&b, &o) >= SHARED_COLUMNS * (b.xmax - b.xmin)
     })
 }
 
