@@ -38,13 +38,21 @@ fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - b[0]).hypot(a[1] - b[1])
 }
 
-/// The reported person nearest `truth` on the floor within [`MATCH_M`], with its distance.
-fn nearest<'a>(truth: &TruePerson, reported: &'a [Reported]) -> Option<(&'a Reported, f64)> {
-    reported
-        .iter()
-        .filter_map(|r| r.ground.map(|g| (r, dist(g, truth.ground))))
+/// Of `items` with their floor positions, the one nearest `at` within [`MATCH_M`], with its
+/// distance.
+fn nearest_within<T>(at: [f64; 2], items: impl Iterator<Item = (T, [f64; 2])>) -> Option<(T, f64)> {
+    items
+        .map(|(item, g)| (item, dist(g, at)))
         .filter(|(_, d)| *d <= MATCH_M)
         .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+/// The reported person nearest `truth` on the floor within [`MATCH_M`], with its distance.
+fn nearest<'a>(truth: &TruePerson, reported: &'a [Reported]) -> Option<(&'a Reported, f64)> {
+    nearest_within(
+        truth.ground,
+        reported.iter().filter_map(|r| r.ground.map(|g| (r, g))),
+    )
 }
 
 /// Score a single-person run: every frame with the person in view.
@@ -171,13 +179,9 @@ pub fn second_reports(run: &CameraRun) -> usize {
             let in_view: Vec<&TruePerson> = f.truth.iter().filter(|p| p.in_view).collect();
             let mut reports = vec![0usize; in_view.len()];
             for g in f.reported.iter().filter_map(|r| r.ground) {
-                let nearest = in_view
-                    .iter()
-                    .enumerate()
-                    .map(|(k, p)| (k, dist(g, p.ground)))
-                    .filter(|&(_, d)| d <= MATCH_M)
-                    .min_by(|a, b| a.1.total_cmp(&b.1));
-                if let Some((k, _)) = nearest {
+                if let Some((k, _)) =
+                    nearest_within(g, in_view.iter().enumerate().map(|(k, p)| (k, p.ground)))
+                {
                     reports[k] += 1;
                 }
             }
