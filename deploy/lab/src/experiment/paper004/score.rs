@@ -170,8 +170,9 @@ pub fn on_people_out_of_view(run: &CameraRun) -> usize {
 /// goes to the nearest true person in view within [`MATCH_M`], and every report a person gets
 /// after their first is counted. Those are the camera's second reports of someone (two filters
 /// on one person, or a filter whose person left sitting on another), most of which CLEAR MOT
-/// scores as false positives (it matches one to one, this gives each report to its nearest); counted so the false positives can be read (two people closer than the
-/// threshold, each reported once, can show as one person reported twice).
+/// scores as false positives (it matches one to one; this gives each report to its nearest).
+/// Counted so the false positives can be read (two people closer than the threshold, each
+/// reported once, can show as one person reported twice).
 pub fn second_reports(run: &CameraRun) -> usize {
     run.frames
         .iter()
