@@ -91,6 +91,24 @@ const PARTICLE_SECTION: &str = "
 report-unsupported = false
 ";
 
+/// A particle hall's planner weight and motion model, tuned on the 100-camera hall
+/// (docs/multi-target-hall.md, stop 47). A segmenting hall keeps paper 002's room values: with
+/// these its false positives rose by a third and its MOTA fell (same document).
+const PARTICLE_ENERGY_WEIGHT: &str = "\
+# A hall is watched for everyone in it, so a camera's power weighs less than in paper 002's
+# room (0.001): measured on the 100-camera hall (docs/multi-target-hall.md, stop 47), people
+# are covered more of the time for a few per cent more power.
+energy-weight = 0.0001
+";
+const PARTICLE_MOTION: &str = "\
+# People crossing a hall keep their pace between turns. Measured on the 100-camera hall, a
+# smaller acceleration density than the robot room's 0.25 covers people more of the time with
+# fewer global ids, for some more false positives (docs/multi-target-hall.md, stop 47).
+motion = { accel-psd = [0.05, 0.05, 0.01] }
+";
+const ROOM_ENERGY_WEIGHT: &str = "energy-weight = 0.001\n";
+const ROOM_MOTION: &str = "motion = { accel-psd = [0.25, 0.25, 0.01] }\n";
+
 /// The scenario's TOML text.
 pub fn generate_toml(spec: &HallSpec) -> String {
     let [w, d] = spec.size;
@@ -123,22 +141,14 @@ deadline-ms = 80
 pixel-sigma = 18.0
 rssi-window = 20
 rssi-epsilon = 0.001
-# A hall is watched for everyone in it, so a camera's power weighs less than in paper 002's
-# room (0.001): measured on the 100-camera hall (docs/multi-target-hall.md, stop 47), people
-# are covered more of the time for a few per cent more power.
-energy-weight = 0.0001
-previous-point = false
+{energy_weight}previous-point = false
 # A camera that is on but delivered nothing last step (a person it was woken for walked out
 # of its view, or another track took the detection) is not counted as watching: the planner
 # wakes another (measured in docs/multi-target.md).
 drop-lost-cameras = true
 track-timeout-ms = 3000
 gate-chi2 = 13.8
-# People crossing a hall keep their pace between turns. Measured on the 100-camera hall, a
-# smaller acceleration density than the robot room's 0.25 covers people more of the time with
-# fewer global ids, for some more false positives (docs/multi-target-hall.md, stop 47).
-motion = {{ accel-psd = [0.05, 0.05, 0.01] }}
-rssi-default = {{ kind = "log-distance", a = -22.0, b = -45.0, variance = 16.0 }}
+{motion}rssi-default = {{ kind = "log-distance", a = -22.0, b = -45.0, variance = 16.0 }}
 {particle}
 [power]
 camera-mw = 650.0
@@ -160,6 +170,14 @@ rssi = false
         particle = match spec.camera_tracker {
             CameraTracker::Segmentation => "",
             CameraTracker::Particle => PARTICLE_SECTION,
+        },
+        energy_weight = match spec.camera_tracker {
+            CameraTracker::Segmentation => ROOM_ENERGY_WEIGHT,
+            CameraTracker::Particle => PARTICLE_ENERGY_WEIGHT,
+        },
+        motion = match spec.camera_tracker {
+            CameraTracker::Segmentation => ROOM_MOTION,
+            CameraTracker::Particle => PARTICLE_MOTION,
         },
     );
     // Heads: the floor cut into `heads` strips along its longer side.
@@ -417,6 +435,14 @@ mod tests {
             };
             let (s, _) = generate(&spec).unwrap();
             assert_eq!(s.method.camera_tracker, tracker);
+            // The planner weight and motion model tuned on particle halls; a segmenting hall
+            // keeps paper 002's room values.
+            let (energy_weight, psd) = match tracker {
+                CameraTracker::Particle => (1e-4, 0.05),
+                CameraTracker::Segmentation => (1e-3, 0.25),
+            };
+            assert_eq!(s.method.energy_weight, energy_weight);
+            assert_eq!(s.method.motion.accel_psd, [psd, psd, 0.01]);
         }
         assert_eq!(HallSpec::default().camera_tracker, CameraTracker::Particle);
     }
