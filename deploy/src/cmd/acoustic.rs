@@ -8,7 +8,9 @@
 //!   [--scenario FILE]`: the grid estimator on the acoustic likelihood alone, one line per
 //!   frame (`{"t", "x", "y", "sigma_m"}` with `--json`).
 
-use super::common::{SecurityArgs, TransportArg, load_scenario, run_node, transport_or_scenario};
+use super::common::{
+    ExitSummaryArg, SecurityArgs, TransportArg, load_scenario, run_node, transport_or_scenario,
+};
 use anyhow::{Context, Result, bail};
 use node_acoustic::process::{OpenAudio, ProcessConfig, run};
 use node_acoustic::source::WavSource;
@@ -53,6 +55,8 @@ pub struct NodeArgs {
     pub transport: Option<TransportArg>,
     #[command(flatten)]
     pub security: SecurityArgs,
+    #[command(flatten)]
+    pub exit: ExitSummaryArg,
     /// Audio: `synthetic` (the scenario's simulated room), `wav:FILE` (played in real time,
     /// looping) or `live:DEVICE` (`live:default`; needs the `cpal` feature).
     #[arg(long, default_value = "synthetic")]
@@ -178,6 +182,7 @@ fn node(args: NodeArgs) -> Result<ExitCode> {
         scenario,
     };
     let summary = run_node(|shutdown| async move { Ok(run(cfg, clock, shutdown).await?) })?;
+    args.exit.write(&summary.run);
     let c = summary.counters;
     println!(
         "{}",

@@ -5,7 +5,9 @@
 //! agree without sync; the synthetic world's t = 0 is `--epoch-ns` (default: start of this
 //! process), which `launch` sets to the same value for every camera.
 
-use super::common::{ScenarioArg, SecurityArgs, TransportArg, node_of_role, run_node, transport_or_scenario};
+use super::common::{
+    ExitSummaryArg, ScenarioArg, SecurityArgs, TransportArg, node_of_role, run_node, transport_or_scenario,
+};
 use anyhow::{Result, bail};
 use node_camera::process::{OpenFrames, ProcessConfig, run};
 use node_camera::source_spec::{Count, SharedStats, SourceSpec, SourceStats, SpecError, open_source};
@@ -33,6 +35,8 @@ pub struct Args {
     pub transport: Option<TransportArg>,
     #[command(flatten)]
     pub security: SecurityArgs,
+    #[command(flatten)]
+    pub exit: ExitSummaryArg,
     /// Frame source (see `node_camera::source_spec`): `synthetic`, `images:DIR[?manifest=FILE][&loop]`, `v4l2:/dev/videoN`,
     /// `file:PATH[?loop]`, `rtsp://…`, `http://…` (MJPEG) or `libcamera[:NAME]` (the last four
     /// need the `gstreamer` feature).
@@ -189,6 +193,7 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
         scenario,
     };
     let summary = run_node(|shutdown| async move { Ok(run(cfg, clock, shutdown).await?) })?;
+    args.exit.write(&summary.run);
     println!(
         "{}",
         serde_json::json!({

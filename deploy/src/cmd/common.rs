@@ -144,6 +144,38 @@ impl SecurityArgs {
     }
 }
 
+/// `--exit-summary FILE`: where a node process appends its links' account when it stops.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct ExitSummaryArg {
+    /// When the node stops, append what its links delivered and what not (by kind, recipient
+    /// and time) to FILE as one JSON line. `ocelli launch` gives each node its own file in the
+    /// run folder, and its report tells what the cluster's stop left undelivered from what the
+    /// run lost.
+    #[arg(long, value_name = "FILE")]
+    pub exit_summary: Option<PathBuf>,
+}
+
+impl ExitSummaryArg {
+    /// Append `run` to the file, if one was given. A file that cannot be written is logged, not
+    /// fatal: the node's work is done by now.
+    pub fn write(&self, run: &runtime::RunSummary) {
+        let Some(path) = &self.exit_summary else {
+            return;
+        };
+        let written = serde_json::to_string(run)
+            .map_err(std::io::Error::other)
+            .and_then(|line| {
+                use std::io::Write;
+                let mut f = std::fs::OpenOptions::new().create(true).append(true).open(path)?;
+                // One write per line: a restarted node's lines follow its previous runs'.
+                f.write_all(format!("{line}\n").as_bytes())
+            });
+        if let Err(e) = written {
+            tracing::warn!(path = %path.display(), error = %e, "cannot write the exit summary");
+        }
+    }
+}
+
 /// The simulated network of `ocelli sim` and `ocelli replay RECORDING`.
 #[derive(clap::Args, Debug, Clone)]
 #[command(next_help_heading = "Simulated network")]

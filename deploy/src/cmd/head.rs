@@ -2,7 +2,9 @@
 //! own process until SIGINT/SIGTERM (a second signal aborts). Prints a JSON summary of what
 //! it did on standard output when it stops.
 
-use super::common::{ScenarioArg, SecurityArgs, TransportArg, node_of_role, run_node, transport_or_scenario};
+use super::common::{
+    ExitSummaryArg, ScenarioArg, SecurityArgs, TransportArg, node_of_role, run_node, transport_or_scenario,
+};
 use anyhow::Result;
 use node_head::HeadConfig;
 use node_head::process::run as run_head;
@@ -25,6 +27,8 @@ pub struct Args {
     pub transport: Option<TransportArg>,
     #[command(flatten)]
     pub security: SecurityArgs,
+    #[command(flatten)]
+    pub exit: ExitSummaryArg,
     /// TCP: listen here instead of the scenario's address (port 0 picks one).
     #[arg(long)]
     pub listen: Option<SocketAddr>,
@@ -46,6 +50,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     )?;
     let summary =
         run_node(|shutdown| async move { Ok(run_head(head_cfg, transport, clock, shutdown).await?) })?;
+    args.exit.write(&summary.run);
     let c = summary.counters;
     let out = json!({
         "head": args.id,

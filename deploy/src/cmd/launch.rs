@@ -105,13 +105,17 @@ pub fn run(args: Args, log_json: bool) -> Result<ExitCode> {
     }
     let report = &launched.report.report;
     if args.json {
-        let json = crate::launch::latency::report_json(report, &launched.report.loaded)?;
+        let mut json = crate::launch::latency::report_json(report, &launched.report.loaded)?;
+        if let Some(map) = json.as_object_mut() {
+            map.insert("undelivered".into(), serde_json::to_value(&launched.undelivered)?);
+        }
         println!("{}", serde_json::to_string_pretty(&json)?);
     } else {
         print!("{}", report.to_table());
         if let Some(age) = crate::launch::latency::of(&launched.report.loaded) {
             print!("{}", crate::launch::latency::to_line(&age));
         }
+        print!("{}", launched.undelivered.to_line());
         print!(
             "{}",
             crate::launch::usage::to_table(&launched.usage, launched.wall_s)

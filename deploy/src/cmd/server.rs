@@ -1,7 +1,9 @@
 //! `ocelli server`: run the server process (membership, handover, global ids, time leader,
 //! recording) from a scenario, over iceoryx2 or TCP. Restarting it on the same recording resumes.
 
-use super::common::{ScenarioArg, SecurityArgs, TransportArg, node_of_role, run_node, transport_or_scenario};
+use super::common::{
+    ExitSummaryArg, ScenarioArg, SecurityArgs, TransportArg, node_of_role, run_node, transport_or_scenario,
+};
 use anyhow::{Context, Result};
 use node_server::Origin;
 use node_server::process::{ProcessConfig, run as run_server};
@@ -25,6 +27,8 @@ pub struct Args {
     pub transport: Option<TransportArg>,
     #[command(flatten)]
     pub security: SecurityArgs,
+    #[command(flatten)]
+    pub exit: ExitSummaryArg,
     /// Recording file; resumed if it exists.
     #[arg(long, value_name = "FILE")]
     pub record: PathBuf,
@@ -76,6 +80,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }),
     };
     let summary = run_node(|shutdown| async move { Ok(run_server(cfg, shutdown).await?) })?;
+    args.exit.write(&summary.run);
     tracing::info!(
         records = summary.records,
         received = summary.run.received,

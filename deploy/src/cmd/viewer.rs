@@ -2,7 +2,7 @@
 //! server over its transport, serving the live map, the 3D view, `/api/state`, `/metrics` and
 //! KML on `--listen` (see `view`).
 
-use super::common::{ScenarioArg, TransportArg, run_node, transport_or_scenario};
+use super::common::{ExitSummaryArg, ScenarioArg, TransportArg, run_node, transport_or_scenario};
 use anyhow::{Context, Result};
 use proto::NodeId;
 use runtime::HostClock;
@@ -32,6 +32,8 @@ pub struct Args {
     pub period_ms: u32,
     #[command(flatten)]
     pub security: super::common::SecurityArgs,
+    #[command(flatten)]
+    pub exit: ExitSummaryArg,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -50,7 +52,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     cfg.period_ms = args.period_ms;
     let initial = view::ViewState::with_scenario(&scenario);
     let listen = args.listen;
-    run_node(|shutdown| async move {
+    let summary = run_node(|shutdown| async move {
         let listener = tokio::net::TcpListener::bind(listen)
             .await
             .with_context(|| format!("the viewer cannot listen on {listen}"))?;
@@ -58,8 +60,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
         // A log line, not a bare print: under `--log-json` every line of the log is JSON
         // (`ocelli launch` prints the URL itself).
         tracing::info!(%url, node = %id, "viewer serving");
-        view::live::run(cfg, initial, transport, listener, shutdown).await?;
-        Ok(())
+        Ok(view::live::run(cfg, initial, transport, listener, shutdown).await?)
     })?;
+    args.exit.write(&summary);
     Ok(ExitCode::SUCCESS)
 }

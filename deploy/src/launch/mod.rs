@@ -16,6 +16,7 @@ pub mod chaos;
 pub mod latency;
 pub mod progress;
 pub mod run_dir;
+pub mod undelivered;
 pub mod usage;
 
 use crate::supervisor::{Event, MakeCommand, RestartPolicy, Supervisor};
@@ -70,6 +71,8 @@ pub struct Launched {
     pub usage: Vec<usage::RoleUsage>,
     /// Seconds from the start of the nodes to that reading.
     pub wall_s: f64,
+    /// What the nodes could not deliver, during the run and at its stop (their exit summaries).
+    pub undelivered: undelivered::Undelivered,
 }
 
 /// A free loopback port, with the socket that holds it: the caller keeps it until every port
@@ -113,13 +116,14 @@ struct Spawn {
 }
 
 impl Spawn {
-    /// The command that starts node `id` as `role`, logging to `log` (appended to, so a
-    /// restarted node's log follows its previous run's).
-    fn command(&self, role: &'static str, id: u32, log: PathBuf) -> MakeCommand {
+    /// The command that starts node `id` as `role`, logging to `log` and appending its exit
+    /// summary to `exit` (both appended to, so a restarted node's follow its previous run's).
+    fn command(&self, role: &'static str, id: u32, log: PathBuf, exit: PathBuf) -> MakeCommand {
         let how = self.clone();
         Box::new(move || {
             let mut cmd = how.base(role);
             cmd.arg("--id").arg(id.to_string());
+            cmd.arg("--exit-summary").arg(&exit);
             match role {
                 // The recording says where scenario time 0 is and that the world is simulated.
                 "server" => {
@@ -168,12 +172,13 @@ impl Spawn {
     }
 
     /// The viewer, a client of the server over the launch's transport, serving `addr`, logging
-    /// to `log`.
-    fn viewer_command(&self, addr: std::net::SocketAddr, log: PathBuf) -> MakeCommand {
+    /// to `log`, its exit summary to `exit`.
+    fn viewer_command(&self, addr: std::net::SocketAddr, log: PathBuf, exit: PathBuf) -> MakeCommand {
         let how = self.clone();
         Box::new(move || {
             let mut cmd = how.base("viewer");
             cmd.arg("--listen").arg(addr.to_string());
+            cmd.arg("--exit-summary").arg(&exit);
             let file = std::fs::OpenOptions::new().create(true).append(true).open(&log)?;
             cmd.stdout(Stdio::null()).stderr(file);
             Ok(cmd)
@@ -230,13 +235,13 @@ fn spawn_all(sup: &mut Supervisor, scenario: &Scenario, how: &Spawn, run: &RunDi
             .filter(|n| n.role == role && !how.opts.skip.contains(&n.id))
         {
             let node = format!("{name}-{}", n.id);
-            let make = how.command(name, n.id, run.log(&node));
+            let make = how.command(name, n.id, run.log(&node), run.exit_summary(&node));
             sup.spawn(node, make, instant_now())?;
         }
     }
     // The viewer's URL is printed: it is what a person opens.
     if let Some(addr) = how.opts.view {
-        let make = how.viewer_command(addr, run.log("viewer"));
+        let make = how.viewer_command(addr, run.log("viewer"), run.exit_summary("viewer"));
         sup.spawn("viewer", make, instant_now())?;
         eprintln!("viewer: http://{addr}");
     }
@@ -303,6 +308,15 @@ fn tell(events: &[Event], sup: &mut Supervisor, pids: &Path) {
     }
 }
 
+/// What [`supervise`] hands back once every child is stopped.
+struct Supervised {
+    sup: Supervisor,
+    usage: Vec<usage::RoleUsage>,
+    wall_s: f64,
+    /// When the first child was sent its stop signal (cluster time, the wall clock here).
+    stop_began: ClusterTime,
+}
+
 /// Supervise until a stop signal or the duration; then stop every child in order (a second
 /// signal kills them all at once).
 async fn supervise(
@@ -311,7 +325,7 @@ async fn supervise(
     mut progress: Option<(Progress, Vec<world::Target>, ClusterTime)>,
     pids: &Path,
     mut chaos: Option<chaos::Chaos>,
-) -> Result<(Supervisor, Vec<usage::RoleUsage>, f64)> {
+) -> Result<Supervised> {
     let mut signals = StopSignals::new()?;
     let mut sup = sup;
     let started = instant_now();
@@ -348,6 +362,7 @@ async fn supervise(
         .collect();
     let roles = usage::by_role(&samples, wall_s);
     let groups = sup.running_groups();
+    let stop_began = wall_now();
     let stop = tokio::task::spawn_blocking(move || {
         let killed = sup.stop_all();
         (sup, killed)
@@ -360,7 +375,7 @@ async fn supervise(
                 if !killed.is_empty() {
                     tracing::warn!(nodes = killed.join(", "), "nodes ignored SIGTERM and were killed");
                 }
-                return Ok((sup, roles, wall_s));
+                return Ok(Supervised { sup, usage: roles, wall_s, stop_began });
             }
             sig = signals.next() => {
                 tracing::warn!(signal = sig, "second stop signal: killing every node");
@@ -444,13 +459,20 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<Launched> {
         (Some(_), None) => anyhow::bail!("the chaos mode needs restarts: nodes it kills are started again"),
         (None, _) => None,
     };
-    let (mut sup, usage, wall_s) = rt.block_on(supervise(sup, opts, progress, &pids, chaos))?;
+    let Supervised {
+        mut sup,
+        usage,
+        wall_s,
+        stop_began,
+    } = rt.block_on(supervise(sup, opts, progress, &pids, chaos))?;
     let restarts = sup
         .children_mut()
         .iter()
         .filter(|c| c.restarts > 0)
         .map(|c| (c.name.clone(), c.restarts))
         .collect();
+    let nodes: Vec<String> = sup.children_mut().iter().map(|c| c.name.clone()).collect();
+    let undelivered = undelivered::read(&run, &nodes, stop_began);
     drop(sup);
     let removed = remove_domain_files(&scenario.network.domain);
     if removed > 0 {
@@ -464,6 +486,7 @@ pub fn launch(scenario: Scenario, opts: &LaunchOptions) -> Result<Launched> {
         restarts,
         usage,
         wall_s,
+        undelivered,
     })
 }
 

@@ -82,6 +82,11 @@ impl RunDir {
     pub fn log(&self, node: &str) -> PathBuf {
         self.dir.join(format!("{node}.log"))
     }
+
+    /// Where `node` appends its links' account each time it stops (`--exit-summary`).
+    pub fn exit_summary(&self, node: &str) -> PathBuf {
+        self.dir.join(format!("{node}.exit.jsonl"))
+    }
 }
 
 /// A new folder under `base` named for the UTC time (`2026-11-25T16-07-37Z`, then `…Z-2` when

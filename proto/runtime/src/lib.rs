@@ -12,4 +12,4 @@ pub mod process;
 pub mod transport;
 
 pub use clock::HostClock;
-pub use process::{Hooks, NoHooks, ProcessConfig, RunError, RunSummary, run};
+pub use process::{Hooks, NoHooks, ProcessConfig, RunError, RunSummary, UndeliveredAt, run};

@@ -28,6 +28,10 @@ use tracing::{debug, info, warn};
 /// Longest a send may wait for room before it is counted as undelivered, by default.
 pub const SEND_TIMEOUT: Duration = Duration::from_millis(20);
 
+/// How many undelivered messages a run keeps the time of ([`RunSummary::undelivered_at`]): the
+/// few a stop leaves, a crashed peer's flurry; beyond it only the counts grow.
+pub const UNDELIVERED_TIMES_KEPT: usize = 256;
+
 /// How to run one node process.
 #[derive(Clone, Debug)]
 pub struct ProcessConfig {
@@ -72,7 +76,19 @@ pub struct RunSummary {
     /// The same by recipient: a peer not up yet or gone (over iceoryx2 a frame for a node
     /// whose inbox has no reader is dropped at once) shows here.
     pub undelivered_to: BTreeMap<NodeId, u64>,
+    /// When each of the first [`UNDELIVERED_TIMES_KEPT`] undelivered messages was sent, so a
+    /// launch can tell the messages a cluster's stop leaves undelivered (to peers that stopped
+    /// first) from losses during the run.
+    pub undelivered_at: Vec<UndeliveredAt>,
     pub transport: StatsSnapshot,
+}
+
+/// One undelivered message: when it was sent (this node's cluster time), to whom, what.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct UndeliveredAt {
+    pub at_ns: i64,
+    pub to: NodeId,
+    pub kind: &'static str,
 }
 
 /// Why a process stopped with an error.
@@ -253,6 +269,13 @@ where
                 undelivered += 1;
                 *summary.undelivered.entry(kind).or_default() += 1;
                 *summary.undelivered_to.entry(to).or_default() += 1;
+                if summary.undelivered_at.len() < UNDELIVERED_TIMES_KEPT {
+                    summary.undelivered_at.push(UndeliveredAt {
+                        at_ns: now.0,
+                        to,
+                        kind,
+                    });
+                }
                 if let Some(more) = undelivered_log.admit(now.0, "undelivered") {
                     warn!(node = %me, %to, kind, more, "{why}; not delivered");
                 }
@@ -421,6 +444,20 @@ mod tests {
         assert!(n > 0, "{summary:?}");
         assert_eq!(summary.undelivered_to.get(&NodeId(3)), Some(&n), "{summary:?}");
         assert_eq!(summary.undelivered_to.len(), 1);
+        let kept = summary.undelivered_at.len();
+        assert_eq!(kept as u64, n.min(UNDELIVERED_TIMES_KEPT as u64), "{summary:?}");
+        assert!(
+            summary
+                .undelivered_at
+                .iter()
+                .all(|u| u.to == NodeId(3) && u.kind == "node_status")
+        );
+        assert!(
+            summary
+                .undelivered_at
+                .windows(2)
+                .all(|w| w[0].at_ns <= w[1].at_ns)
+        );
         assert_eq!(summary.sent, 0);
         receiver.shutdown().await;
     }

@@ -186,10 +186,32 @@ fn assert_tracked(report: &Value) {
     );
 }
 
+/// Every node of the run left its exit summary, and the launch's account of undelivered
+/// messages adds up: what a node did not deliver is either before the stop, after it, or
+/// beyond the times it keeps.
+fn assert_undelivered_accounted(report: &Value, run: &Launch) {
+    let u = &report["undelivered"];
+    let processes = run.all_pids().len() as f64;
+    assert_eq!(f(u, "summaries"), processes, "one exit summary per node: {u}");
+    assert_eq!(u["nodes_without_summary"], serde_json::json!([]), "{u}");
+    assert_eq!(f(u, "unreadable_lines"), 0.0, "{u}");
+    let sum = |key: &str| -> f64 {
+        u[key]
+            .as_object()
+            .unwrap_or_else(|| panic!("no {key}: {u}"))
+            .values()
+            .filter_map(Value::as_f64)
+            .sum()
+    };
+    assert_eq!(sum("during_run_by_kind"), f(u, "during_run"), "{u}");
+    assert_eq!(sum("at_stop_by_kind"), f(u, "at_stop"), "{u}");
+}
+
 fn cluster_tracks(transport: &str) {
     let run = Launch::start(&format!("track-{transport}"), transport, 20.0, None);
     let (report, run) = run.finish(Duration::from_secs(90));
     assert_tracked(&report);
+    assert_undelivered_accounted(&report, &run);
     run.assert_clean();
 }
 
