@@ -7,7 +7,8 @@
 //! backoff if it crashes, shows live progress read from the server's recording as it grows
 //! ([`progress`]), and stops in order on SIGINT, SIGTERM or SIGHUP or after the duration.
 //! Whatever happened to the children, it reaps them all, removes the domain's iceoryx2 files
-//! from `/dev/shm` and reports on the recording exactly as `ocelli report` does. Over TCP the
+//! from `/dev/shm` and reports on the recording exactly as `ocelli report` does, with what the
+//! nodes could not deliver from their exit summaries ([`undelivered`]). Over TCP the
 //! nodes speak mutual TLS with a CA and certificates made for the run (`run-dir/tls`), or plain
 //! TCP if the scenario (or `--insecure`) says `insecure`.
 
