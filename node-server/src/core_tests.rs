@@ -648,6 +648,52 @@ fn a_track_that_leaves_its_global_for_another_joins_that_one() {
     assert_eq!(s.globals().count(), 2, "no new id for a known target");
 }
 
+/// A pending track that leaves the global it was pending on, for another global, joins that
+/// one: no id is founded for a target that has one.
+#[test]
+fn a_pending_track_that_leaves_its_global_for_another_joins_that_one() {
+    let mut s = started();
+    // Two people standing 3 m apart on head 2's side of the border (x = 6), within the
+    // handover margin of head 3's region: head 3's tracks there are its own, not foreign.
+    let still = |head: NodeId, local: u32, t: ClusterTime, y: f64| {
+        let mut e = report(head, local, None, t, 5.9, y);
+        if let Message::TrackReport(r) = &mut e.body {
+            r.mean[3] = 0.0;
+        }
+        e
+    };
+    let both = |s: &mut ServerNode, t: ClusterTime| {
+        s.on_message(t, still(H2, 1, t, 2.0));
+        s.on_message(t, still(H2, 2, t, 5.0));
+    };
+    both(&mut s, ms(0));
+    let g = [
+        s.global_of(H2, TargetId(1)).unwrap(),
+        s.global_of(H2, TargetId(2)).unwrap(),
+    ];
+    // Head 3 starts a track on the first: pending on its global.
+    both(&mut s, ms(200));
+    s.on_message(ms(200), still(H3, 9, ms(200), 2.0));
+    assert_eq!(s.global_of(H3, TargetId(9)), None, "pending");
+    // Its cameras' filter jumps onto the second before the hysteresis is up.
+    for k in 2..5i64 {
+        let t = ms(k * 200);
+        both(&mut s, t);
+        s.on_message(t, still(H3, 9, t, 5.0));
+    }
+    assert_eq!(s.global_of(H3, TargetId(9)), Some(g[1]));
+    assert_eq!(s.globals().count(), 2, "no new id for a known target");
+    let d = decisions(&mut s);
+    assert!(
+        d.contains(&Decision::Merged {
+            head: H3,
+            local: TargetId(9),
+            global: g[1],
+        }),
+        "{d:?}"
+    );
+}
+
 #[test]
 fn two_globals_that_stay_together_become_one() {
     let mut s = started();

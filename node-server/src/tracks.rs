@@ -6,8 +6,9 @@
 //! - Otherwise, if it lies within the merge gate of a live global track that no local track of
 //!   the same head feeds, it is *pending*: after `hysteresis` consecutive agreeing reports it is
 //!   merged into that global (`Merged`, paper 004 §3.3.3: proximity), after `hysteresis`
-//!   consecutive disagreeing ones it gets its own global id. Pending tracks have no global id,
-//!   so an id never appears only to vanish again.
+//!   consecutive disagreeing ones it joins another global it now lies on (`Merged`), or else
+//!   gets its own global id. Pending tracks have no global id, so an id never appears only to
+//!   vanish again.
 //! - A track far from everything gets a new global id at once (`NewGlobal`), owned by its head.
 //! - A track within the merge gate of a global its own head already feeds is that head's
 //!   duplicate of the target (after a failover the survivor may briefly hold two, until its

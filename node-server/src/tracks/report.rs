@@ -145,8 +145,9 @@ impl Tracks {
     }
 
     /// A pending track: bound after `n` agreeing reports (at once when it follows a global
-    /// whose owner is gone), or founding its own global after `n` disagreeing ones, or after
-    /// the duplicate wait on a global its head feeds with another track.
+    /// whose owner is gone); after `n` disagreeing ones, bound to another global it now lies
+    /// on, else founding its own; founding its own after the duplicate wait on a global its
+    /// head feeds with another track.
     fn update_pending(&mut self, rep: &Report, g: TargetId, out: &mut Vec<Decision>) -> Option<Binding> {
         let (now, head, r, n) = (rep.now, rep.head, rep.r, rep.n);
         let local = r.target;
@@ -211,6 +212,15 @@ impl Tracks {
             && (!self.globals.contains_key(&g) || (!agrees && l.disagree >= n) || waited_out)
         {
             self.waiting.remove(&rep.key());
+            // Left g (or g is gone) and now lies on another global: that one is its target, as
+            // for a bound track leaving its global (`leave_global`). Founding here gave a
+            // target a second id until the two globals were absorbed (the hall, seed 1: head
+            // 4's track on a person head 5 tracked, twice, 0.4 s each). `candidate` passes
+            // over g: this track feeds it. One that waited out the duplicate wait is a second
+            // person beside g's and founds its own.
+            if !waited_out && let Some(c) = self.candidate(now, head, r) {
+                return self.join(rep, c, out);
+            }
             let g = self.new_global(now, head, r);
             *self.locals.get_mut(&rep.key()).expect("present") = LocalTrack::new(Binding::Bound(g), now, r);
             out.push(rep.new_global(g));
@@ -293,9 +303,7 @@ impl Tracks {
     fn leave_global(&mut self, rep: &Report, g: TargetId, out: &mut Vec<Decision>) -> Option<Binding> {
         let (now, head, r) = (rep.now, rep.head, rep.r);
         if let Some(c) = self.candidate(now, head, r) {
-            *self.locals.get_mut(&rep.key()).expect("present") = LocalTrack::new(Binding::Bound(c), now, r);
-            out.push(rep.merged(c));
-            Some(Binding::Bound(c))
+            self.join(rep, c, out)
         } else if rep.foreign {
             *self.locals.get_mut(&rep.key()).expect("present") = LocalTrack::new(Binding::Pending(g), now, r);
             None
@@ -310,6 +318,15 @@ impl Tracks {
             });
             Some(Binding::Bound(ng))
         }
+    }
+
+    /// Bind a track that left another global to `c`, which it lies on, at once: the reports
+    /// that disagreed with the one it left were its hysteresis.
+    fn join(&mut self, rep: &Report, c: TargetId, out: &mut Vec<Decision>) -> Option<Binding> {
+        *self.locals.get_mut(&rep.key()).expect("present") =
+            LocalTrack::new(Binding::Bound(c), rep.now, rep.r);
+        out.push(rep.merged(c));
+        Some(Binding::Bound(c))
     }
 
     /// A report bound to `g` refreshes it; the owner's report moves its posterior and may hand
