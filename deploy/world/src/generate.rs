@@ -113,6 +113,12 @@ const ROOM_MOTION: &str = "motion = { accel-psd = [0.25, 0.25, 0.01] }\n";
 pub fn generate_toml(spec: &HallSpec) -> String {
     let [w, d] = spec.size;
     let heads = spec.heads.max(1);
+    // What the camera tracker decides: its own section, and the planner weight and motion
+    // model measured with it.
+    let (particle, energy_weight, motion) = match spec.camera_tracker {
+        CameraTracker::Segmentation => ("", ROOM_ENERGY_WEIGHT, ROOM_MOTION),
+        CameraTracker::Particle => (PARTICLE_SECTION, PARTICLE_ENERGY_WEIGHT, PARTICLE_MOTION),
+    };
     let mut t = String::new();
     let _ = write!(
         t,
@@ -166,18 +172,6 @@ rssi = false
         tracker = match spec.camera_tracker {
             CameraTracker::Segmentation => "segmentation",
             CameraTracker::Particle => "particle",
-        },
-        particle = match spec.camera_tracker {
-            CameraTracker::Segmentation => "",
-            CameraTracker::Particle => PARTICLE_SECTION,
-        },
-        energy_weight = match spec.camera_tracker {
-            CameraTracker::Segmentation => ROOM_ENERGY_WEIGHT,
-            CameraTracker::Particle => PARTICLE_ENERGY_WEIGHT,
-        },
-        motion = match spec.camera_tracker {
-            CameraTracker::Segmentation => ROOM_MOTION,
-            CameraTracker::Particle => PARTICLE_MOTION,
         },
     );
     // Heads: the floor cut into `heads` strips along its longer side.
