@@ -12,11 +12,15 @@
 //! allocate nothing.
 
 use crate::ghost;
-use crate::region::{Grid, erode4, grow_boxes};
+use crate::region::{Grid, erode4, first_set, grow_boxes};
 use crate::tracker::histogram::{hsv_bins, table_colour};
 use proto::msg::PixelBox;
 use proto::sensor::Detection;
 use proto::sensor::{Frame, FrameError};
+
+mod settled;
+
+use settled::Settled;
 
 /// Parameters of the paper 004 pipeline.
 #[derive(Clone, Debug, PartialEq)]
@@ -56,6 +60,12 @@ pub struct AdaptiveBackgroundParams {
     /// Drop regions whose border says the model holds an object the frame does not, and let
     /// the model take the frame's colours there at once ([`crate::ghost`]).
     pub remove_ghosts: bool,
+    /// Frames a pixel's background colour must have held to be *settled* (0: none is). A
+    /// moving pixel that shows its settled colour while the model's colour there is younger
+    /// is background again at once: the model took in someone who stood (or walked straight
+    /// away from the camera, or was in view at a restart) and has left. Ours; the paper
+    /// leaves such ghosts to τ. See `adaptive_background::settled`.
+    pub settled_frames: u32,
 }
 
 impl Default for AdaptiveBackgroundParams {
@@ -77,6 +87,7 @@ impl Default for AdaptiveBackgroundParams {
             max_regions: 32,
             restart_gap_ms: 0,
             remove_ghosts: true,
+            settled_frames: 200,
         }
     }
 }
@@ -111,6 +122,11 @@ impl AdaptiveBackgroundParams {
             history: history as usize,
             tau: tau as u8,
             restart_gap_ms: ((history + tau) / fps * 1e3).round() as u64,
+            settled_frames: if self.settled_frames == 0 {
+                0
+            } else {
+                scale(self.settled_frames as f64) as u32
+            },
             ..self
         }
     }
@@ -146,6 +162,10 @@ pub struct AdaptiveBackground {
     /// Grid boxes whose moving pixels of the given colours the next frame's update does not
     /// take into the background ([`AdaptiveBackground::hold`]).
     held: Vec<((usize, usize, usize, usize), u128)>,
+    /// The colours the model held long enough to trust
+    /// ([`AdaptiveBackgroundParams::settled_frames`]).
+    settled: Settled,
+    revealed: u64,
 }
 
 /// A box (frame pixels) whose moving pixels the next frame's update keeps out of the
@@ -161,6 +181,7 @@ pub struct Hold {
 impl AdaptiveBackground {
     pub fn new(params: AdaptiveBackgroundParams) -> AdaptiveBackground {
         let c1_q8 = (params.c1.max(0.0) * 256.0).round() as u32;
+        let settled = Settled::new(params.settled_frames, u32::from(params.c2));
         AdaptiveBackground {
             params,
             c1_q8,
@@ -183,6 +204,8 @@ impl AdaptiveBackground {
             ghosts: 0,
             ghost_boxes: Vec::new(),
             held: Vec::new(),
+            settled,
+            revealed: 0,
         }
     }
 
@@ -251,6 +274,7 @@ impl AdaptiveBackground {
         self.abs_bg = vec![0; g.width * 3];
         self.abs_old = vec![0; g.width * 3];
         self.ghost_boxes = Vec::with_capacity(self.params.max_regions);
+        self.settled.allocate(n);
         self.grid = Some(g);
         self.fill_from(frame, &g);
         Ok(g)
@@ -321,6 +345,13 @@ impl AdaptiveBackground {
         let g = self.ensure(frame)?;
         let gap = self.params.restart_gap_ms as i64 * 1_000_000;
         if gap > 0 && self.last_captured.is_some_and(|t| frame.captured - t > gap) {
+            // The model from before the gap knows the floor under whoever is in view now.
+            let now = self.frames as u32;
+            for k in 0..g.len() {
+                let new = g.rgb(frame, k % g.width, k / g.width);
+                self.settled
+                    .replace(k, &self.background[k * 3..k * 3 + 3], &new, now);
+            }
             self.fill_from(frame, &g);
             self.confidence.fill(0);
             self.noise.fill(self.params.noise_init);
@@ -329,6 +360,9 @@ impl AdaptiveBackground {
         self.last_captured = Some(frame.captured);
         self.frames += 1;
         self.update(frame, &g);
+        if self.settled.enabled() {
+            self.take_revealed(frame, &g);
+        }
         erode4(&g, &self.mask, &mut self.eroded, self.params.erosion_min);
         let p = &self.params;
         grow_boxes(
@@ -344,6 +378,30 @@ impl AdaptiveBackground {
             self.remove_ghosts(frame, &g, out);
         }
         Ok(())
+    }
+
+    /// A moving pixel whose background colour is younger than `settled_frames` and whose frame
+    /// colour is its settled one (within the moving threshold) is background the model had
+    /// covered with someone who has left: the model takes it, and it stops moving.
+    fn take_revealed(&mut self, frame: &Frame, g: &Grid) {
+        let (c1, c2) = (self.c1_q8, u32::from(self.params.c2));
+        let now = self.frames as u32;
+        let mut from = 0;
+        while let Some(k) = first_set(&self.mask, from) {
+            from = k + 1;
+            let rgb = g.rgb(frame, k % g.width, k / g.width);
+            // The moving test's threshold: a pixel this close to its settled colour would not
+            // be moving against a model that held it.
+            let threshold = ((c1 * u32::from(self.noise[k])) >> 8) + c2;
+            if self.settled.reveals(k, &rgb, now, threshold) {
+                let old = &mut self.background[k * 3..k * 3 + 3];
+                self.settled.replace(k, old, &rgb, now);
+                old.copy_from_slice(&rgb);
+                self.confidence[k] = 0;
+                self.mask[k] = 0;
+                self.revealed += 1;
+            }
+        }
     }
 
     /// Drop the regions that are ghosts ([`crate::ghost`]) and let the model take the frame's
@@ -363,12 +421,16 @@ impl AdaptiveBackground {
         // grows over regions found before it, rarely): sparing the kept boxes left the part of
         // a ghost that overlaps its target's box in the model, a trail on the target's region
         // (crowd, seeds 1–3: IDF1 0.383 → 0.335).
-        for &(x0, y0, x1, y1) in &self.ghost_boxes {
+        let boxes = std::mem::take(&mut self.ghost_boxes);
+        for &(x0, y0, x1, y1) in &boxes {
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let k = y * g.width + x;
                     if self.mask[k] != 0 {
-                        self.background[k * 3..k * 3 + 3].copy_from_slice(&g.rgb(frame, x, y));
+                        let new = g.rgb(frame, x, y);
+                        let old = &mut self.background[k * 3..k * 3 + 3];
+                        self.settled.replace(k, old, &new, self.frames as u32);
+                        old.copy_from_slice(&new);
                         self.confidence[k] = 0;
                         // The moving mask agrees with the detections (the particle tracker's
                         // foreground reads it).
@@ -377,7 +439,8 @@ impl AdaptiveBackground {
                 }
             }
         }
-        self.ghosts += self.ghost_boxes.len() as u64;
+        self.ghosts += boxes.len() as u64;
+        self.ghost_boxes = boxes;
     }
 
     /// The per-pixel model update and moving test, row by row in three passes that the
@@ -471,9 +534,12 @@ impl AdaptiveBackground {
                     }
                 }
             }
+            let now = self.frames as u32;
             for (k, _) in take.iter().enumerate().filter(|(_, t)| **t != 0) {
                 let o = k * step3;
-                bg[k * 3..k * 3 + 3].copy_from_slice(&src[o..o + 3]);
+                let new = &src[o..o + 3];
+                self.settled.replace(a + k, &bg[k * 3..k * 3 + 3], new, now);
+                bg[k * 3..k * 3 + 3].copy_from_slice(new);
             }
         }
         self.ring_head = (self.ring_head + 1) % p.history.max(1);
@@ -486,6 +552,12 @@ impl AdaptiveBackground {
     /// Times the model restarted after a gap in the frames.
     pub fn restarts(&self) -> u64 {
         self.restarts
+    }
+
+    /// Moving pixels the model took back because the frame showed their settled colour
+    /// ([`AdaptiveBackgroundParams::settled_frames`]).
+    pub fn revealed(&self) -> u64 {
+        self.revealed
     }
 
     /// Regions dropped as ghosts ([`crate::ghost`]).
@@ -787,6 +859,118 @@ mod tests {
             woken(never),
             (1, 0),
             "without the restart the stale model shows a ghost"
+        );
+    }
+
+    /// A model of short memory (history 4, τ 8) with settled colours after `settled` frames,
+    /// without the ghost test (its verdicts are not what these tests are about).
+    fn settling(settled_frames: u32) -> AdaptiveBackgroundParams {
+        AdaptiveBackgroundParams {
+            tau: 8,
+            history: 4,
+            settled_frames,
+            ..keeping_ghosts()
+        }
+    }
+
+    /// `scene` with a blue square (not the red one's colours) at x = 50.
+    fn blue_at_50(t: usize) -> Frame {
+        let mut f = scene(t, None);
+        for y in 30..54 {
+            for x in 50..62 {
+                let i = (y * 120 + x) * 3;
+                f.data[i..i + 3].copy_from_slice(&[30, 40, 210]);
+            }
+        }
+        f
+    }
+
+    /// The red square parks at x = 50 (frames 30–49) until the model takes it in, then leaves.
+    /// Returns the frames of the next ten that still detect something, and the model.
+    fn parked_then_gone(params: AdaptiveBackgroundParams) -> (usize, AdaptiveBackground) {
+        let mut seg = AdaptiveBackground::new(params);
+        let mut out = Vec::new();
+        for t in 0..30 {
+            seg.process(&scene(t, None), &mut out).unwrap();
+        }
+        for t in 30..50 {
+            seg.process(&scene(t, Some(50)), &mut out).unwrap();
+        }
+        assert!(out.is_empty(), "the parked square is background: {out:?}");
+        let ghost = (50..60)
+            .filter(|&t| {
+                seg.process(&scene(t, None), &mut out).unwrap();
+                !out.is_empty()
+            })
+            .count();
+        (ghost, seg)
+    }
+
+    #[test]
+    fn a_parked_object_that_leaves_shows_the_settled_floor_at_once() {
+        let (ghost, seg) = parked_then_gone(settling(20));
+        assert_eq!(ghost, 0, "the floor it uncovers is the settled one");
+        assert!(seg.revealed() > 200, "{} pixels", seg.revealed());
+        let (ghost, seg) = parked_then_gone(settling(0));
+        assert!(
+            ghost >= 5,
+            "without settled colours the ghost lasts τ: {ghost} frames"
+        );
+        assert_eq!(seg.revealed(), 0);
+    }
+
+    #[test]
+    fn an_object_where_the_model_is_young_is_still_seen() {
+        let (_, mut seg) = parked_then_gone(settling(20));
+        let mut out = Vec::new();
+        // Another object, of other colours, parks where the red one stood, while the model's
+        // floor there is a few frames old: it is not the settled floor, so it moves.
+        for t in 60..65 {
+            seg.process(&blue_at_50(t), &mut out).unwrap();
+            assert_eq!(out.len(), 1, "frame {t}: {out:?}");
+        }
+    }
+
+    #[test]
+    fn nothing_settles_before_it_has_held_long_enough() {
+        // The floor has held about 40 frames when the model takes the square in (it parks at
+        // frame 30): with 60 needed, the floor is not settled.
+        let (ghost, seg) = parked_then_gone(settling(60));
+        assert!(ghost >= 5, "{ghost} frames");
+        assert_eq!(seg.revealed(), 0);
+    }
+
+    #[test]
+    fn a_restarted_model_knows_the_floor_under_the_object_in_view() {
+        let params = AdaptiveBackgroundParams {
+            restart_gap_ms: 1000,
+            ..settling(20)
+        };
+        let ghost = |params: AdaptiveBackgroundParams| {
+            let mut seg = AdaptiveBackground::new(params);
+            let mut out = Vec::new();
+            for t in 0..30 {
+                seg.process(&scene(t, None), &mut out).unwrap();
+            }
+            // Woken 5 s later with the square in view: the restarted model holds it.
+            seg.process(&scene(80, Some(50)), &mut out).unwrap();
+            assert_eq!(seg.restarts(), 1);
+            // It walks off.
+            (81..90)
+                .filter(|&t| {
+                    seg.process(&scene(t, Some(90)), &mut out).unwrap();
+                    out.iter().any(|d| (d.centre[0] - 55.5).abs() < 6.0)
+                })
+                .count()
+        };
+        assert_eq!(ghost(params.clone()), 0);
+        let without = AdaptiveBackgroundParams {
+            settled_frames: 0,
+            ..params
+        };
+        assert!(
+            ghost(without) >= 5,
+            "the restart's ghost lasts τ without settled colours"
         );
     }
 
