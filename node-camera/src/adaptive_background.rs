@@ -389,6 +389,9 @@ impl AdaptiveBackground {
         let mut from = 0;
         while let Some(k) = first_set(&self.mask, from) {
             from = k + 1;
+            if !self.settled.may_reveal(k, now) {
+                continue;
+            }
             let rgb = g.rgb(frame, k % g.width, k / g.width);
             // The moving test's threshold: a pixel this close to its settled colour would not
             // be moving against a model that held it.
