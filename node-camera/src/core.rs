@@ -81,6 +81,9 @@ pub struct Counters {
     pub still_unassociated: u64,
     /// Regions the background model dropped as ghosts ([`crate::ghost`]).
     pub ghosts: u64,
+    /// Moving pixels the background model took back because they showed the colour it had
+    /// settled on there (`adaptive_background::settled`).
+    pub revealed_pixels: u64,
     /// Tag readings refused as impossible.
     pub tag_readings: u64,
     /// Ground-plane people not sent because a number of theirs was not finite.
@@ -167,6 +170,7 @@ impl CameraNode {
         Counters {
             // The segmenter keeps the count; read, not copied every frame.
             ghosts: self.segmenter.ghosts(),
+            revealed_pixels: self.segmenter.revealed_pixels(),
             particle: self
                 .people
                 .as_ref()

@@ -84,6 +84,15 @@ impl Segmenter {
         }
     }
 
+    /// Moving pixels the background model took back as the colour it had settled on
+    /// (`adaptive_background::settled`; none for colour difference).
+    pub fn revealed_pixels(&self) -> u64 {
+        match self {
+            Segmenter::ColourDifference(_) => 0,
+            Segmenter::AdaptiveBackground(s) => s.revealed(),
+        }
+    }
+
     /// Segment a frame into `out` (cleared first).
     ///
     /// # Errors

@@ -206,6 +206,7 @@ pub fn run_cmd(args: Args) -> Result<ExitCode> {
             "rejected": summary.counters.rejected,
             "still_unassociated": summary.counters.still_unassociated,
             "ghosts": summary.counters.ghosts,
+            "revealed_pixels": summary.counters.revealed_pixels,
             "particle": particle_json(&summary.counters.particle),
             "frames_lost": summary.frames_lost,
             "send_failures": summary.run.send_failures,
