@@ -201,56 +201,60 @@ fn owner_name(me: NodeId) -> String {
     format!("inbox-owner-{}", me.0)
 }
 
-/// Refuse to own `me`'s inbox while another live process of the domain owns it (a second
-/// `ocelli head --id 2` beside the first). Dead owners were cleaned up just before.
-fn refuse_second_owner(config: &Config, domain: &str, me: NodeId) -> Result<(), TransportError> {
+/// One pass over the domain's iceoryx2 nodes: remove the resources of the dead ones (a dead
+/// owner of `me`'s inbox among them), and refuse to own `me`'s inbox while another live
+/// process of the domain owns it (a second `ocelli head --id 2` beside the first). Our own
+/// node, of the same name, is passed over by its process id.
+///
+/// One node and one pass: at a launch every process sweeps the domain while a hundred others
+/// start. With a first, unnamed node sweeping (and sweeping again when dropped), a list for the
+/// owner and a sweep by the named node, a hall camera's transport took a median 3.0 s to start
+/// over iceoryx2, against 0.7 s for its whole start over TCP.
+fn sweep_and_claim(config: &Config, domain: &str, me: NodeId) -> Result<(), TransportError> {
     let name = owner_name(me);
-    let mut holder = None;
+    let own = std::process::id() as i32;
+    let (mut holder, mut cleanups, mut failed) = (None, 0u32, 0u32);
     let listed = Node::<Svc>::list(config, |state| {
-        if let NodeState::Alive(view) = &state
-            && let Some(d) = iceoryx2::node::NodeView::details(view)
-            && d.name().as_str() == name
-        {
-            holder = Some(d.process_id().value());
-            return CallbackProgression::Stop;
+        match state {
+            NodeState::Dead(dead) => match dead.blocking_remove_stale_resources(Duration::from_millis(500)) {
+                Ok(_) => cleanups += 1,
+                Err(_) => failed += 1,
+            },
+            NodeState::Alive(view) => {
+                if let Some(d) = iceoryx2::node::NodeView::details(&view)
+                    && d.name().as_str() == name
+                    && d.process_id().value() != own
+                {
+                    holder = Some(d.process_id().value());
+                }
+            }
+            _ => {}
         }
         CallbackProgression::Continue
     });
     if let Err(e) = listed {
         tracing::debug!(error = ?e, "could not list the domain's iceoryx2 nodes");
     }
+    if cleanups > 0 || failed > 0 {
+        tracing::info!(cleanups, failed, "removed stale iceoryx2 resources of dead nodes");
+    }
     match holder {
-        Some(pid) if pid != std::process::id() as i32 => Err(TransportError::IdInUse {
+        Some(pid) => Err(TransportError::IdInUse {
             id: me,
             detail: format!("process {pid} owns its iceoryx2 inbox in domain {domain}"),
         }),
-        _ => Ok(()),
+        None => Ok(()),
     }
 }
 
-fn iox_node(config: &Config) -> Result<Node<Svc>, TransportError> {
-    iox_named_node(config, None)
-}
-
-fn iox_named_node(config: &Config, name: Option<&str>) -> Result<Node<Svc>, TransportError> {
-    let mut builder = NodeBuilder::new();
-    if let Some(name) = name {
-        builder = builder.name(&NodeName::new(name).map_err(|e| ipc_err("node name", e))?);
-    }
-    let node = builder
+/// The process's iceoryx2 node, named `name`.
+fn iox_named_node(config: &Config, name: &str) -> Result<Node<Svc>, TransportError> {
+    let builder = NodeBuilder::new().name(&NodeName::new(name).map_err(|e| ipc_err("node name", e))?);
+    builder
         .config(config)
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<Svc>()
-        .map_err(|e| ipc_err("node", e))?;
-    let cleaned = node.blocking_cleanup_dead_nodes(Duration::from_millis(500));
-    if cleaned.cleanups > 0 || cleaned.failed_cleanups > 0 {
-        tracing::info!(
-            cleanups = cleaned.cleanups,
-            failed = cleaned.failed_cleanups,
-            "removed stale iceoryx2 resources of dead nodes"
-        );
-    }
-    Ok(node)
+        .map_err(|e| ipc_err("node", e))
 }
 
 /// iceoryx2 keeps one small management segment per prefix (a node counter) and never removes
@@ -405,10 +409,8 @@ pub(crate) fn start(
 ) -> Result<(Sender, Receiver), TransportError> {
     check_domain(&cfg.domain)?;
     let config = iox_config(&cfg.domain)?;
-    // Dead owners are cleaned up by this first node, then a live one refuses us.
-    drop(iox_node(&config)?);
-    refuse_second_owner(&config, &cfg.domain, cfg.me)?;
-    let node = iox_named_node(&config, Some(&owner_name(cfg.me)))?;
+    let node = iox_named_node(&config, &owner_name(cfg.me))?;
+    sweep_and_claim(&config, &cfg.domain, cfg.me)?;
     let receiver = Receiver::open(&node, &cfg, stats, handle.token())?;
     let domain = cfg.domain.clone();
     handle.after_join.push(Box::new(move || release_domain(&domain)));
