@@ -13,11 +13,11 @@
 //! than everything else on the path). The shared-memory buffer is the inbox's only queue; a
 //! full one makes publishers discard droppable frames and retry the others. Sending uses
 //! iceoryx2's thread-safe service flavour, so `Endpoint::send` publishes straight from the
-//! caller's task too. iceoryx2's own signal handling is disabled (tokio owns SIGINT/SIGTERM). Each
-//! iceoryx2 node is created with dead-node cleanup, so resources left by a crashed node of the
-//! domain are removed at start, and a janitor thread sweeps the domain's dead nodes every few
-//! seconds after that ([`super::ipc_janitor`]); dropping the nodes on shutdown removes this
-//! node's files.
+//! caller's task too. iceoryx2's own signal handling is disabled (tokio owns SIGINT/SIGTERM). At
+//! start a process makes its one iceoryx2 node and passes over the domain once, removing what
+//! crashed nodes left and refusing an inbox another live process owns (`sweep_and_claim`); a
+//! janitor thread sweeps the domain's dead nodes every few seconds after that
+//! ([`super::ipc_janitor`]); dropping the node on shutdown removes this node's files.
 
 use super::common::accept;
 use super::stats::{TransportStats, bump};
