@@ -68,22 +68,29 @@ impl Settled {
         self.changed_at[k] = now;
     }
 
-    /// Whether pixel `k` has a settled colour and the model's colour there is younger (the
-    /// cheap half of [`Settled::reveals`], asked first: most moving pixels have none).
+    /// Whether pixel `k` has a settled colour and the model's colour there is younger: the
+    /// cheap half of the question whether a moving pixel is background again, asked first
+    /// (most moving pixels have none).
     pub(super) fn may_reveal(&self, k: usize, now: u32) -> bool {
         self.known[k] && now.wrapping_sub(self.changed_at[k]) < self.frames
     }
 
-    /// Whether pixel `k`, moving at frame `now` with colour `rgb`, shows its settled colour
-    /// (within `threshold`) while the model's colour there is younger than settled.
-    pub(super) fn reveals(&self, k: usize, rgb: &[u8], now: u32, threshold: u32) -> bool {
-        self.may_reveal(k, now) && l1(rgb, &self.colour[k * 3..k * 3 + 3]) <= threshold
+    /// Whether `rgb` is pixel `k`'s settled colour within `threshold`: the other half, for a
+    /// pixel [`Settled::may_reveal`] let through.
+    pub(super) fn shows_settled(&self, k: usize, rgb: &[u8], threshold: u32) -> bool {
+        l1(rgb, &self.colour[k * 3..k * 3 + 3]) <= threshold
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Both halves: whether pixel `k`, moving at frame `now` with colour `rgb`, shows its
+    /// settled colour (within `threshold`) while the model's colour there is younger.
+    fn reveals(s: &Settled, k: usize, rgb: &[u8], now: u32, threshold: u32) -> bool {
+        s.may_reveal(k, now) && s.shows_settled(k, rgb, threshold)
+    }
 
     const FLOOR: [u8; 3] = [120, 120, 110];
     const PERSON: [u8; 3] = [200, 40, 60];
@@ -94,18 +101,18 @@ mod tests {
         s.allocate(1);
         // Held 4 frames only: not settled.
         s.replace(0, &FLOOR, &PERSON, 4);
-        assert!(!s.reveals(0, &FLOOR, 5, 30));
+        assert!(!reveals(&s, 0, &FLOOR, 5, 30));
         // The person's colour held 3 frames, then the floor again: still nothing settled.
         s.replace(0, &PERSON, &FLOOR, 7);
         // The floor held 20 frames, then someone is taken in: the floor settles.
         s.replace(0, &FLOOR, &PERSON, 27);
-        assert!(s.reveals(0, &FLOOR, 28, 30));
+        assert!(reveals(&s, 0, &FLOOR, 28, 30));
         assert!(
-            !s.reveals(0, &PERSON, 28, 30),
+            !reveals(&s, 0, &PERSON, 28, 30),
             "another colour is not the settled one"
         );
         // Once the model's colour is as old as settled, it is the model's word again.
-        assert!(!s.reveals(0, &FLOOR, 37, 30));
+        assert!(!reveals(&s, 0, &FLOOR, 37, 30));
     }
 
     #[test]
@@ -118,7 +125,7 @@ mod tests {
         }
         // The floor has held since frame 0 through its refreshes: it settles at the change.
         s.replace(0, &FLOOR, &PERSON, 100);
-        assert!(s.reveals(0, &FLOOR, 101, 30));
+        assert!(reveals(&s, 0, &FLOOR, 101, 30));
     }
 
     #[test]
@@ -126,6 +133,6 @@ mod tests {
         let mut s = Settled::new(0, 24);
         s.allocate(1);
         s.replace(0, &FLOOR, &PERSON, 100);
-        assert!(!s.reveals(0, &FLOOR, 101, 30));
+        assert!(!reveals(&s, 0, &FLOOR, 101, 30));
     }
 }
