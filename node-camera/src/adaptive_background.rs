@@ -449,10 +449,12 @@ impl AdaptiveBackground {
     /// The per-pixel model update and moving test, row by row in three passes that the
     /// compiler vectorizes: L1 distances of each pixel to its background and to its colour
     /// `n` frames ago (and the ring slot takes the new colour); the thresholds, confidence and
-    /// noise counters over the row's pixel arrays, branch-free; then the (rare) pixels whose
-    /// background takes the current colour.
+    /// noise counters over the row's pixel arrays, branch-free; then the pixels whose
+    /// background takes the current colour (a still pixel every τ frames), each change of
+    /// colour noted for the settled colours.
     fn update(&mut self, frame: &Frame, g: &Grid) {
         let p = &self.params;
+        let now = self.frames as u32;
         let (c1, c2, c3) = (self.c1_q8, p.c2 as u32, p.c3 as u32);
         let (tau, nstep) = (p.tau, p.noise_step);
         let (nmin, nmax) = (p.noise_min, p.noise_max);
@@ -537,7 +539,6 @@ impl AdaptiveBackground {
                     }
                 }
             }
-            let now = self.frames as u32;
             for (k, _) in take.iter().enumerate().filter(|(_, t)| **t != 0) {
                 let o = k * step3;
                 let new = &src[o..o + 3];
