@@ -249,8 +249,8 @@ fn sweep_and_claim(config: &Config, domain: &str, me: NodeId) -> Result<(), Tran
 
 /// The process's iceoryx2 node, named `name`.
 fn iox_named_node(config: &Config, name: &str) -> Result<Node<Svc>, TransportError> {
-    let builder = NodeBuilder::new().name(&NodeName::new(name).map_err(|e| ipc_err("node name", e))?);
-    builder
+    NodeBuilder::new()
+        .name(&NodeName::new(name).map_err(|e| ipc_err("node name", e))?)
         .config(config)
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<Svc>()
