@@ -20,7 +20,7 @@
 //! ([`super::ipc_janitor`]); dropping the node on shutdown removes this node's files.
 
 use super::common::accept;
-use super::stats::{TransportStats, bump};
+use super::stats::{TransportStats, add, bump};
 use super::{Delivery, Event, Incoming, OutFrame, SendError, ShutdownHandle, TransportError};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
@@ -344,6 +344,8 @@ enum Published {
     Full,
     /// Nobody reads this inbox.
     NoReceiver,
+    /// Kept for a recipient that has not read its inbox yet ([`Outlet::early`]).
+    Held,
 }
 
 impl Sender {
@@ -355,7 +357,7 @@ impl Sender {
         let started = tokio::time::Instant::now();
         loop {
             match self.publish_once(&frame, stats)? {
-                Some(Published::Delivered) => return Ok(Delivery::Queued),
+                Some(Published::Delivered) | Some(Published::Held) => return Ok(Delivery::Queued),
                 Some(Published::Full) if !frame.droppable && started.elapsed() < MUST_DELIVER_PATIENCE => {
                     tokio::time::sleep(Duration::from_micros(200)).await;
                 }
@@ -389,15 +391,34 @@ impl Sender {
                 }
             }
         };
-        Ok(publish(outlet, frame, stats))
+        outlet.flush_early(stats);
+        if !outlet.early.is_empty() {
+            // Its reader is still not there: the new frame waits behind the others.
+            return Ok(Some(outlet.hold(frame, self.inner.cfg.limits.buffer)));
+        }
+        Ok(match publish(outlet, frame, stats) {
+            Some(Published::NoReceiver) if !outlet.reached => {
+                Some(outlet.hold(frame, self.inner.cfg.limits.buffer))
+            }
+            r => {
+                outlet.reached |= matches!(r, Some(Published::Delivered | Published::Full));
+                r
+            }
+        })
     }
 
-    fn stop(&self) {
-        self.inner
-            .outlets
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .clear();
+    fn stop(&self, stats: &TransportStats) {
+        let mut outlets = self.inner.outlets.lock().unwrap_or_else(|p| p.into_inner());
+        let early: usize = outlets.values().map(|o| o.early.len()).sum();
+        if early > 0 {
+            add(&stats.dropped_undelivered, early);
+            tracing::info!(
+                frames = early,
+                "frames for peers that never read their inbox were not delivered"
+            );
+        }
+        outlets.clear();
+        drop(outlets);
         self.inner.node.lock().unwrap_or_else(|p| p.into_inner()).take();
     }
 }
@@ -411,7 +432,7 @@ pub(crate) fn start(
     let config = iox_config(&cfg.domain)?;
     let node = iox_named_node(&config, &owner_name(cfg.me))?;
     sweep_and_claim(&config, &cfg.domain, cfg.me)?;
-    let receiver = Receiver::open(&node, &cfg, stats, handle.token())?;
+    let receiver = Receiver::open(&node, &cfg, stats.clone(), handle.token())?;
     let domain = cfg.domain.clone();
     handle.after_join.push(Box::new(move || release_domain(&domain)));
     start_janitor(config, handle)?;
@@ -429,7 +450,7 @@ pub(crate) fn start(
     handle.on_stop.push(Box::new(move || {
         // The inbox's ports first, then the node: dropping them removes this node's files.
         ports.lock().unwrap_or_else(|p| p.into_inner()).take();
-        on_stop.stop();
+        on_stop.stop(&stats);
     }));
     Ok((sender, receiver))
 }
@@ -639,6 +660,46 @@ struct Outlet {
     data: iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], ()>,
     publisher: Publisher<Svc, [u8], ()>,
     notifier: Notifier<Svc>,
+    /// Whether the recipient has ever read this inbox (a frame reached it, or found its buffer
+    /// full).
+    reached: bool,
+    /// Frames sent before the recipient first read its inbox, oldest first, published ahead of
+    /// the next frame once it does. A launch starts every process at once, and a head's first
+    /// words to a server whose inbox is not open yet were lost so, where TCP keeps a dialed
+    /// link's frames until it connects. A recipient that read its inbox once and stopped
+    /// (crashed, or stopped before us) gets no such wait: its frames are dropped and counted.
+    early: VecDeque<OutFrame>,
+}
+
+impl Outlet {
+    /// Keep `frame` until the recipient reads its inbox, at most `cap` frames; beyond them the
+    /// frame reached no receiver (the caller counts it).
+    fn hold(&mut self, frame: &OutFrame, cap: usize) -> Published {
+        if self.early.len() >= cap {
+            return Published::NoReceiver;
+        }
+        self.early.push_back(frame.clone());
+        Published::Held
+    }
+
+    /// Publish the held frames, oldest first, while the recipient reads its inbox. One that
+    /// meets a full buffer is dropped and counted: the recipient is up, and a frame that
+    /// waited for it is not worth blocking the sender.
+    fn flush_early(&mut self, stats: &TransportStats) {
+        while let Some(frame) = self.early.front() {
+            match publish(self, frame, stats) {
+                Some(Published::NoReceiver) | Some(Published::Held) => return,
+                Some(Published::Delivered) => self.reached = true,
+                Some(Published::Full) => {
+                    self.reached = true;
+                    bump(&stats.dropped_undelivered);
+                }
+                // Could not be published at all; counted where it failed.
+                None => {}
+            }
+            self.early.pop_front();
+        }
+    }
 }
 
 /// Open a publisher and notifier on `to`'s inbox. A full inbox makes the publisher discard
@@ -661,6 +722,8 @@ fn open_outlet(node: &Node<Svc>, cfg: &IpcConfig, to: NodeId) -> Result<Outlet, 
         data,
         publisher,
         notifier,
+        reached: false,
+        early: VecDeque::new(),
     })
 }
 
@@ -793,5 +856,61 @@ mod tests {
         hb.shutdown().await;
         ha.shutdown().await;
         assert_eq!(shm_files(&domain), Vec::<String>::new(), "files left in /dev/shm");
+    }
+
+    /// Frames sent before the recipient opened its inbox reach it, in order, once it does
+    /// (a launch starts every process at once); after it read its inbox and stopped, frames
+    /// to it are dropped and counted at once.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn frames_wait_for_a_recipient_that_has_not_started() {
+        use super::super::{Delivery, Event, TransportConfig, open};
+        use proto::msg::{Message, SyncBeacon};
+        use proto::node::Outgoing;
+        use proto::time::ClusterTime;
+        let domain = format!("unit-early-{}", std::process::id());
+        let cfg = |me| TransportConfig::Ipc(IpcConfig::new(domain.clone(), NodeId(me), Role::Tool, 2));
+        let beacon = |round| {
+            Message::SyncBeacon(SyncBeacon {
+                leader: NodeId(2),
+                round,
+                leader_time: ClusterTime(0),
+            })
+        };
+        let (b, _ib, sb, hb) = open(cfg(2)).await.unwrap();
+        for k in 0..3 {
+            let d = b
+                .send(Outgoing::new(NodeId(1), beacon(k)), ClusterTime(k as i64))
+                .await;
+            assert_eq!(
+                d.unwrap(),
+                Delivery::Queued,
+                "frame {k} to a node not started yet"
+            );
+        }
+        let (_a, mut ia, _sa, ha) = open(cfg(1)).await.unwrap();
+        b.send(Outgoing::new(NodeId(1), beacon(3)), ClusterTime(3))
+            .await
+            .unwrap();
+        let mut next = 0;
+        while next < 4 {
+            let ev = tokio::time::timeout(Duration::from_secs(10), ia.recv())
+                .await
+                .unwrap()
+                .unwrap();
+            match ev {
+                Event::Message(m) => {
+                    assert_eq!(m.env.body, beacon(next), "out of order");
+                    next += 1;
+                }
+                Event::PeerUp(_) => {}
+                Event::PeerDown(n) => panic!("PeerDown({n})"),
+            }
+        }
+        assert_eq!(sb.snapshot().dropped_undelivered, 0);
+        ha.shutdown().await;
+        let d = b.send(Outgoing::new(NodeId(1), beacon(4)), ClusterTime(4)).await;
+        assert_eq!(d.unwrap(), Delivery::Dropped, "a stopped recipient's frames wait");
+        assert_eq!(sb.snapshot().dropped_undelivered, 1);
+        hb.shutdown().await;
     }
 }

@@ -204,7 +204,7 @@ impl Seqs {
 }
 
 /// A frame on its way out: already encoded.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub(crate) struct OutFrame {
     pub to: NodeId,
     pub bytes: Bytes,
