@@ -17,6 +17,7 @@
 
 use crate::config::CameraConfig;
 use crate::ground_people::gate_distance2;
+use crate::ground_people::track_colours::TrackColours;
 use crate::ground_people::{GroundPeople, PeopleSender};
 use crate::measure::{self, Measured};
 use crate::previous::{Offer, previous_point};
@@ -111,6 +112,9 @@ pub struct CameraNode {
     /// is sent when.
     people: Option<GroundPeople>,
     people_out: PeopleSender,
+    /// The colours of the person this camera last gave each track, which the pairing of
+    /// priors with people weighs.
+    track_colours: TrackColours,
     mode: Mode,
     mode_since: ClusterTime,
     time_in_mode_ns: [u64; 3],
@@ -137,6 +141,7 @@ impl CameraNode {
             });
         CameraNode {
             people_out: PeopleSender::new(cfg.step_ms, f64::from(cfg.particle.hs_weight)),
+            track_colours: TrackColours::default(),
             mode: cfg.initial_mode,
             cfg,
             segmenter,
@@ -331,7 +336,14 @@ impl CameraNode {
                 let gate = self.cfg.gate_chi2;
                 match &self.people {
                     Some(people) => {
-                        let chosen = measure::joint_choices(&joint, people.latest(), gate, gate_distance2);
+                        let colours = &self.track_colours;
+                        let chosen = measure::joint_choices(&joint, people.latest(), gate, |p, g, age| {
+                            // Colours never widen the gate: a person in other colours near its
+                            // edge falls out of it (keeping such pairs in was measured worse).
+                            gate_distance2(p, g, age).map(|d2| colours.cost(p.target, g, d2))
+                        });
+                        let targets = asked.iter().map(|p| p.target);
+                        self.track_colours.note(now, targets.zip(chosen.iter().copied()));
                         // A person's colours go with the contribution as they would with a
                         // people frame (new, changed or 10 s old: `PeopleSender`): the head's
                         // track takes them for identity at the server.

@@ -40,6 +40,7 @@ use proto::{ClusterTime, TargetId};
 use std::collections::{BTreeMap, BTreeSet};
 
 pub mod standing;
+pub mod track_colours;
 
 /// Added to each axis of a ground position's variance, m²: the lower corners' rays meet the
 /// floor at the person's near edge, the centre is up to half a body's depth behind it, and the
