@@ -799,27 +799,52 @@ mod tests {
             .unwrap_or_default()
     }
 
+    use super::super::{Event, Inbox as EventInbox, TransportConfig, open};
+    use proto::msg::{Message, SyncBeacon};
+    use proto::node::Outgoing;
+    use proto::time::ClusterTime;
+
+    fn ipc(domain: &str, me: u32) -> TransportConfig {
+        TransportConfig::Ipc(IpcConfig::new(domain.to_string(), NodeId(me), Role::Tool, 2))
+    }
+
+    /// The test's message number `round` from node 2.
+    fn beacon(round: u64) -> Message {
+        Message::SyncBeacon(SyncBeacon {
+            leader: NodeId(2),
+            round,
+            leader_time: ClusterTime(0),
+        })
+    }
+
+    /// Receive beacons 0 to `n − 1` from node 2, in order, on `inbox`.
+    async fn receive_beacons(inbox: &mut EventInbox, n: u64) {
+        let mut next = 0;
+        while next < n {
+            let ev = tokio::time::timeout(Duration::from_secs(10), inbox.recv())
+                .await
+                .unwrap()
+                .unwrap();
+            match ev {
+                Event::Message(m) => {
+                    assert_eq!((m.from, m.env.body), (NodeId(2), beacon(next)), "out of order");
+                    next += 1;
+                }
+                Event::PeerUp(n) => assert_eq!(n, NodeId(2)),
+                Event::PeerDown(n) => panic!("PeerDown({n})"),
+            }
+        }
+    }
+
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn delivers_in_order_rejects_garbage_and_cleans_up() {
-        use super::super::{Event, TransportConfig, open};
-        use proto::msg::{Message, SyncBeacon};
-        use proto::node::Outgoing;
-        use proto::time::ClusterTime;
         let domain = format!("unit-{}", std::process::id());
-        let cfg = |me| TransportConfig::Ipc(IpcConfig::new(domain.clone(), NodeId(me), Role::Tool, 2));
-        let (_a, mut ia, sa, ha) = open(cfg(1)).await.unwrap();
-        let (b, _ib, sb, hb) = open(cfg(2)).await.unwrap();
+        let (_a, mut ia, sa, ha) = open(ipc(&domain, 1)).await.unwrap();
+        let (b, _ib, sb, hb) = open(ipc(&domain, 2)).await.unwrap();
         assert!(
             !shm_files(&domain).is_empty(),
             "iceoryx2 files do not carry the domain prefix"
         );
-        let beacon = |round| {
-            Message::SyncBeacon(SyncBeacon {
-                leader: NodeId(2),
-                round,
-                leader_time: ClusterTime(0),
-            })
-        };
         b.send_raw_frame(NodeId(1), vec![proto::PROTOCOL_VERSION as u8, 0xff, 0xff])
             .await
             .unwrap();
@@ -831,21 +856,7 @@ mod tests {
                 .await
                 .unwrap();
         }
-        let mut next = 0;
-        while next < 100 {
-            let ev = tokio::time::timeout(Duration::from_secs(10), ia.recv())
-                .await
-                .unwrap()
-                .unwrap();
-            match ev {
-                Event::Message(m) => {
-                    assert_eq!((m.from, m.env.body), (NodeId(2), beacon(next)));
-                    next += 1;
-                }
-                Event::PeerUp(n) => assert_eq!(n, NodeId(2)),
-                Event::PeerDown(n) => panic!("PeerDown({n})"),
-            }
-        }
+        receive_beacons(&mut ia, 100).await;
         let s = sa.snapshot();
         assert_eq!(
             (s.received, s.rejected_malformed, s.rejected_oversized),
@@ -863,20 +874,9 @@ mod tests {
     /// to it are dropped and counted at once.
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn frames_wait_for_a_recipient_that_has_not_started() {
-        use super::super::{Delivery, Event, TransportConfig, open};
-        use proto::msg::{Message, SyncBeacon};
-        use proto::node::Outgoing;
-        use proto::time::ClusterTime;
+        use super::super::Delivery;
         let domain = format!("unit-early-{}", std::process::id());
-        let cfg = |me| TransportConfig::Ipc(IpcConfig::new(domain.clone(), NodeId(me), Role::Tool, 2));
-        let beacon = |round| {
-            Message::SyncBeacon(SyncBeacon {
-                leader: NodeId(2),
-                round,
-                leader_time: ClusterTime(0),
-            })
-        };
-        let (b, _ib, sb, hb) = open(cfg(2)).await.unwrap();
+        let (b, _ib, sb, hb) = open(ipc(&domain, 2)).await.unwrap();
         for k in 0..3 {
             let d = b
                 .send(Outgoing::new(NodeId(1), beacon(k)), ClusterTime(k as i64))
@@ -887,25 +887,11 @@ mod tests {
                 "frame {k} to a node not started yet"
             );
         }
-        let (_a, mut ia, _sa, ha) = open(cfg(1)).await.unwrap();
+        let (_a, mut ia, _sa, ha) = open(ipc(&domain, 1)).await.unwrap();
         b.send(Outgoing::new(NodeId(1), beacon(3)), ClusterTime(3))
             .await
             .unwrap();
-        let mut next = 0;
-        while next < 4 {
-            let ev = tokio::time::timeout(Duration::from_secs(10), ia.recv())
-                .await
-                .unwrap()
-                .unwrap();
-            match ev {
-                Event::Message(m) => {
-                    assert_eq!(m.env.body, beacon(next), "out of order");
-                    next += 1;
-                }
-                Event::PeerUp(_) => {}
-                Event::PeerDown(n) => panic!("PeerDown({n})"),
-            }
-        }
+        receive_beacons(&mut ia, 4).await;
         assert_eq!(sb.snapshot().dropped_undelivered, 0);
         ha.shutdown().await;
         let d = b.send(Outgoing::new(NodeId(1), beacon(4)), ClusterTime(4)).await;
