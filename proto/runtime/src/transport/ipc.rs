@@ -11,7 +11,8 @@
 //! with tokio's reactor, so a notification wakes the task that reads the inbox once — there is
 //! no receiver thread and no queue in between (a thread hop costs tens of microseconds, more
 //! than everything else on the path). The shared-memory buffer is the inbox's only queue; a
-//! full one makes publishers discard droppable frames and retry the others. Sending uses
+//! full one makes publishers discard droppable frames and retry the others; frames for a node
+//! that has not yet read its inbox wait in the sender for it (`Outlet::early`). Sending uses
 //! iceoryx2's thread-safe service flavour, so `Endpoint::send` publishes straight from the
 //! caller's task too. iceoryx2's own signal handling is disabled (tokio owns SIGINT/SIGTERM). At
 //! start a process makes its one iceoryx2 node and passes over the domain once, removing what
@@ -351,8 +352,9 @@ enum Published {
 impl Sender {
     /// Publish `frame` on the recipient's inbox. A frame that must not be dropped and meets
     /// a full inbox is tried again (yielding to the runtime) for up to
-    /// [`MUST_DELIVER_PATIENCE`]; a droppable one is dropped at once. Undelivered frames are
-    /// counted in `dropped_undelivered`.
+    /// [`MUST_DELIVER_PATIENCE`]; a droppable one is dropped at once. A frame for a node that
+    /// has never read its inbox is held for it (`Outlet::early`) and counts as queued.
+    /// Undelivered frames are counted in `dropped_undelivered`.
     pub(crate) async fn send(&self, frame: OutFrame, stats: &TransportStats) -> Result<Delivery, SendError> {
         let started = tokio::time::Instant::now();
         loop {
