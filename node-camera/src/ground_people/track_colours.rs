@@ -23,9 +23,9 @@ use std::collections::BTreeMap;
 /// Added to a pair's squared gate distance per unit of unlikeness (1 − similarity). Two of a
 /// crowd's people in other colours are about 0.55 alike, so the other person costs about 2.7
 /// more than the same one: about what a person 1.6 σ farther off costs. Measured (`ocelli sim`,
-/// 60 s, pixel level; docs/multi-target.md): 6 raised IDF1 in the hall and generated halls and
-/// left the crowd, whose people share colours, as it was; 12 raised the hall's more and cost
-/// the crowd 140 misses a run.
+/// 60 s, pixel level; docs/multi-target.md): 6 raised IDF1 in the hall (over 16 seeds) and the
+/// generated halls, and left the crowd, whose people share colours, as it was; 12 raised the
+/// hall's more and cost the crowd 140 misses a run.
 pub const COLOUR_CHANGE_COST: f64 = 6.0;
 
 /// A track not asked about for this long is forgotten, ns: its colours may be another
