@@ -89,14 +89,6 @@ impl TrackColours {
         self.given.retain(|_, g| now.0 - g.asked.0 < FORGET_NS);
     }
 
-    /// Tracks whose colours are kept.
-    pub fn len(&self) -> usize {
-        self.given.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.given.is_empty()
-    }
 }
 
 #[cfg(test)]
@@ -167,8 +159,8 @@ mod tests {
         );
         // Track 2 is asked about (a part of the step's priors), track 1 is not.
         c.note(ClusterTime(FORGET_NS / 2), [(TargetId(2), None)]);
-        assert_eq!(c.len(), 2);
+        assert_eq!(c.given.len(), 2);
         c.note(ClusterTime(FORGET_NS + 1), [(TargetId(2), None)]);
-        assert_eq!(c.len(), 1, "track 1 forgotten, track 2 kept");
+        assert_eq!(c.given.len(), 1, "track 1 forgotten, track 2 kept");
     }
 }
