@@ -47,10 +47,10 @@ struct NodeState {
     member: bool,
     up: bool,
     /// Whether this node is known to run: it sent something, its link came up, or the server
-    /// said it is up. `launch` starts every process at once, and over shared memory a message
-    /// to an inbox nobody reads yet is lost (a hall's heads lost ~200 priors and their first
-    /// commands so), so a node not heard is sent nothing and no step waits for it; it runs in
-    /// its starting mode meanwhile.
+    /// said it is up. `launch` starts every process at once, so a node not heard is sent
+    /// nothing and no step waits for it; it runs in its starting mode meanwhile. (Over shared
+    /// memory, frames for an inbox nobody has read yet now wait in the transport, bounded, but
+    /// a step's priors to a node still starting would only be stale when it reads them.)
     heard: bool,
     mode: Mode,
 }
