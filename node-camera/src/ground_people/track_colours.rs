@@ -88,7 +88,6 @@ impl TrackColours {
         }
         self.given.retain(|_, g| now.0 - g.asked.0 < FORGET_NS);
     }
-
 }
 
 #[cfg(test)]
